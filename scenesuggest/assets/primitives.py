@@ -1,0 +1,97 @@
+"""Primitive parts for procedural models, in a normalised box: x, z in [−0.5, 0.5], y in [0, 1], front +Z.
+
+A part is a ``(mesh, rgb)`` pair; :func:`assemble` scales a list of parts to a model's size (metres) and
+merges parts of one colour into one mesh with one material.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+
+import numpy as np
+import trimesh
+from trimesh.visual.material import PBRMaterial
+
+from .. import frames
+
+Part = tuple[trimesh.Trimesh, tuple[float, float, float]]
+SECTIONS = 20
+
+
+def box(x0: float, y0: float, z0: float, x1: float, y1: float, z1: float, rgb) -> Part:
+    lo, hi = np.array([x0, y0, z0]), np.array([x1, y1, z1])
+    return trimesh.creation.box(extents=hi - lo, transform=frames.translation((lo + hi) / 2)), rgb
+
+
+def cylinder(x: float, z: float, y0: float, y1: float, r: float, rgb, rz: float | None = None,
+             sections: int = SECTIONS) -> Part:
+    """Upright (elliptic) cylinder centred on (x, z) from height y0 to y1."""
+    m = trimesh.creation.cylinder(radius=1.0, height=y1 - y0, sections=sections)
+    m.apply_transform(frames.translation([x, (y0 + y1) / 2, z]) @ frames.scaling([r, 1.0, rz or r])
+                      @ frames.linear(frames.rotation_between([0, 0, 1], [0, 1, 0])))
+    return m, rgb
+
+
+def rod(p0, p1, r: float, rgb, sections: int = 12) -> Part:
+    """A round bar between two points."""
+    return trimesh.creation.cylinder(radius=r, segment=[p0, p1], sections=sections), rgb
+
+
+def ball(x: float, y: float, z: float, r: float, rgb, ry: float | None = None, rz: float | None = None,
+         subdivisions: int = 2) -> Part:
+    m = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
+    m.apply_transform(frames.translation([x, y, z]) @ frames.scaling([r, ry or r, rz or r]))
+    return m, rgb
+
+
+def lathe(profile, rgb, x: float = 0.0, z: float = 0.0, sections: int = 24) -> Part:
+    """A solid of revolution about the vertical axis through (x, z); ``profile`` lists (radius, height)
+    from bottom to top (start and end on the axis to close it)."""
+    m = trimesh.creation.revolve(np.asarray(profile, dtype=float), sections=sections)
+    m.apply_transform(frames.translation([x, 0, z]) @ frames.linear(frames.rotation_between([0, 0, 1], [0, 1, 0])))
+    return m, rgb
+
+
+def ring(x: float, y: float, z: float, major: float, minor: float, rgb, axis=(0, 0, 1)) -> Part:
+    """A torus of radius ``major`` and tube ``minor`` whose hole looks along ``axis``."""
+    m = trimesh.creation.torus(major_radius=major, minor_radius=minor, major_sections=20, minor_sections=8)
+    m.apply_transform(frames.translation([x, y, z]) @ frames.linear(frames.rotation_between([0, 0, 1], axis)))
+    return m, rgb
+
+
+def turn(parts: list[Part], degrees: float) -> list[Part]:
+    """Rotate parts about the vertical axis (the normalised box maps onto itself for multiples of 90°)."""
+    r = frames.rotation_y(math.radians(degrees))
+    out = []
+    for mesh, rgb in parts:
+        mesh = mesh.copy()
+        mesh.apply_transform(r)
+        out.append((mesh, rgb))
+    return out
+
+
+def _material(rgb) -> PBRMaterial:
+    color = np.array([*(np.clip(np.asarray(rgb, dtype=float), 0, 1) * 255), 255], dtype=np.uint8)
+    return PBRMaterial(baseColorFactor=color, metallicFactor=0.0, roughnessFactor=0.8, doubleSided=True)
+
+
+def assemble(parts: list[Part], size) -> trimesh.Scene:
+    """Scale normalised parts to ``size`` (metres), fit the union exactly to the bbox and merge by colour."""
+    size = np.asarray(size, dtype=float)
+    meshes = [(m.copy(), tuple(rgb)) for m, rgb in parts]
+    lo = np.min([m.bounds[0] for m, _ in meshes], axis=0)
+    hi = np.max([m.bounds[1] for m, _ in meshes], axis=0)
+    scale = size / np.maximum(hi - lo, 1e-9)
+    fit = (frames.translation([0, 0, 0]) @ frames.scaling(scale)
+           @ frames.translation([-(lo[0] + hi[0]) / 2, -lo[1], -(lo[2] + hi[2]) / 2]))
+    by_colour: dict[tuple, list[trimesh.Trimesh]] = defaultdict(list)
+    for m, rgb in meshes:
+        m.apply_transform(fit)
+        by_colour[rgb].append(m)
+    scene = trimesh.Scene()
+    for i, (rgb, group) in enumerate(by_colour.items()):
+        merged = trimesh.util.concatenate(group)
+        merged.visual = trimesh.visual.TextureVisuals(material=_material(rgb))
+        scene.add_geometry(merged, geom_name=f"part{i:02d}")
+    return scene

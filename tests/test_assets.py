@@ -1,0 +1,116 @@
+"""Asset pipeline: OBJ → canonical GLB within budget, procedural models, thumbnails, atomic library builds."""
+
+import io
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+from scenesuggest.assets.build import build_library, file_stem
+from scenesuggest.assets.convert import GLB_BUDGET_BYTES, convert_model
+from scenesuggest.assets.procedural import BUILDERS, procedural_model
+from scenesuggest.assets.render import render_thumbnail
+from scenesuggest.corpora.corpus import Corpus
+from scenesuggest.errors import SceneSuggestError
+
+DESK = "569e2fce2f1ab3be617e9d9aa36a8137"  # 1.3k faces, no texture
+FRUIT_BOWL = "9bc687dcffc25b955d20b6ca8788556a"  # 36k faces, textured: must be decimated
+ROOM = "room01"
+
+
+def coverage(png: bytes) -> float:
+    alpha = np.asarray(Image.open(io.BytesIO(png)).convert("RGBA"))[..., 3]
+    return float((alpha > 0).mean())
+
+
+@pytest.mark.parametrize("model_id", [DESK, FRUIT_BOWL, ROOM])
+def test_glb_loads_back_in_the_canonical_frame(stanford, tmp_path, model_id):
+    info = stanford.models[model_id]
+    convert_model(info, info.mesh, tmp_path / "m.glb")
+    assert (tmp_path / "m.glb").stat().st_size <= GLB_BUDGET_BYTES
+    back = trimesh.load(tmp_path / "m.glb", force="scene")
+    lo, hi = back.bounds
+    assert hi - lo == pytest.approx(info.size, rel=1e-3, abs=1e-3)
+    assert lo[1] == pytest.approx(0, abs=1e-4)  # bottom at the origin
+    assert (lo + hi)[[0, 2]] / 2 == pytest.approx([0, 0], abs=1e-3)
+
+
+def test_desk_front_faces_plus_z(stanford, tmp_path):
+    """The desk's drawers and handles are on its front: far more detail near +Z than near −Z."""
+    info = stanford.models[DESK]
+    scene = convert_model(info, info.mesh, tmp_path / "d.glb")
+    z = np.concatenate([g.vertices for g in scene.dump()])[:, 2]
+    depth = info.size[2]
+    assert info.size[0] > depth  # wide and shallow: X runs across, Z is depth
+    assert (z > 0.2 * depth).sum() > 2 * (z < -0.2 * depth).sum()
+
+
+def test_thumbnails_show_the_object(stanford, tmp_path):
+    info = stanford.models[DESK]
+    png = render_thumbnail(convert_model(info, info.mesh, tmp_path / "d.glb"), 128)
+    image = Image.open(io.BytesIO(png))
+    assert image.size == (128, 128) and image.mode == "RGBA"
+    assert 0.2 < coverage(png) < 0.9
+    pixels = np.asarray(image)[..., :3][np.asarray(image)[..., 3] > 0]
+    assert pixels.std() > 10  # shaded, not a flat silhouette
+
+
+@pytest.mark.parametrize("object_type", sorted(BUILDERS))
+def test_procedural_model_fits_its_box(object_type):
+    size = (0.6, 0.9, 0.4) if object_type != "Room" else (1.0, 1.0, 1.0)
+    scene = procedural_model(object_type, size)
+    lo, hi = scene.bounds
+    assert hi - lo == pytest.approx(size, abs=1e-6)
+    assert lo[1] == pytest.approx(0, abs=1e-9)
+    assert all(isinstance(g.visual.material.baseColorFactor, np.ndarray) for g in scene.geometry.values())
+
+
+def test_procedural_models_are_composed_of_recognisable_parts(ai2thor):
+    def components(object_type):
+        scene = procedural_model(object_type, ai2thor.models[f"ai2thor:{object_type}"].size)
+        return sum(len(g.split(only_watertight=False)) for g in scene.geometry.values())
+
+    assert components("Chair") >= 8  # four legs, seat, two back posts, back rest
+    assert components("DeskLamp") >= 3  # base, stem, shade
+    assert components("DiningTable") >= 5  # top and four legs
+    assert components("Bed") >= 6
+
+
+def test_every_ai2thor_type_has_a_builder(ai2thor):
+    types = {m.category for m in ai2thor.models.values()}
+    assert types <= set(BUILDERS)
+
+
+def test_build_library_for_the_demo_corpus(ai2thor, tmp_path):
+    ids = ["ai2thor:Chair", "ai2thor:Mug", "ai2thor:Room"]
+    report = build_library(ai2thor, tmp_path / "lib", model_ids=ids, thumbnail_px=64)
+    assert report["built"] == 3 and report["max_glb_bytes"] < 200_000
+    index = json.loads((tmp_path / "lib" / "library.json").read_text())
+    entries = {m["id"]: m for m in index["models"]}
+    assert len(entries) == len(ai2thor.models)
+    assert entries["ai2thor:Mug"]["asset"] == f"models/{file_stem('ai2thor:Mug')}.glb"
+    assert entries["ai2thor:Sofa"]["asset"] is None  # not asked for
+    mug = trimesh.load(tmp_path / "lib" / entries["ai2thor:Mug"]["asset"], force="scene")
+    assert np.ptp(mug.bounds, axis=0) == pytest.approx(entries["ai2thor:Mug"]["size"], abs=1e-6)
+    assert coverage((tmp_path / "lib" / entries["ai2thor:Chair"]["thumbnail"]).read_bytes()) > 0.1
+    assert (tmp_path / "lib" / "taxonomy.json").is_file()
+
+
+def test_a_failed_build_leaves_nothing_behind(ai2thor, tmp_path):
+    bad = dict(ai2thor.models)
+    broken = tmp_path / "broken.obj"
+    broken.write_text("v 0 0 0\nf 1 2 3\n")
+    mug = bad["ai2thor:Mug"]
+    bad["broken"] = type(mug)(id="broken", category="Mug", category_path=["Mug"], mesh=str(broken),
+                              size_source="mesh", raw_bbox=((0, 0, 0), (1, 1, 1)))
+    corpus = Corpus("test", [], bad, ai2thor.taxonomy)
+    with pytest.raises(SceneSuggestError):
+        build_library(corpus, tmp_path / "lib", model_ids=["ai2thor:Mug", "broken"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.obj"]
+
+
+def test_unknown_model_ids_are_refused(ai2thor, tmp_path):
+    with pytest.raises(SceneSuggestError, match="unknown model ids: nope"):
+        build_library(ai2thor, tmp_path / "lib", model_ids=["nope"])
