@@ -128,7 +128,7 @@ def _model_infos(model_ids, raw_scenes, meta, names, tags, paths, mesh_dir) -> d
         path = paths[model_id]
         models[model_id] = ModelInfo(
             id=model_id, category=path[-1], category_path=list(path),
-            name=(names.get(model_id) or [m.name if m else ""])[0],
+            name=" ".join((names.get(model_id) or [m.name if m else ""])[0].split()),
             tags=tags.get(model_id, m.tags if m else []),
             description=", ".join(m.wnlemmas) if m else "",
             up=tuple(float(v) for v in up), front=tuple(float(v) for v in front), unit=float(unit),
