@@ -139,5 +139,99 @@ def assets_build_cmd(source: str, out: str, only: str | None, thumbnail_size: in
                           f"({report['skipped']} without a mesh, {report['seconds']:.1f} s)")
 
 
+@main.group()
+def priors() -> None:
+    """Contextual priors learned from a corpus."""
+
+
+@priors.command("train")
+@click.argument("source")
+@click.option("-o", "--out", "out", required=True, type=click.Path(dir_okay=False), help="Priors file (.npz).")
+@meshes_option
+@click.option("--json", "as_json", is_flag=True)
+def priors_train_cmd(source: str, out: str, meshes: str | None, as_json: bool) -> None:
+    """Learn the occurrence, surface, attachment, position and orientation priors of SOURCE."""
+    import time
+
+    from .priors import Priors
+
+    c = _load(source, meshes)
+    started = time.perf_counter()
+    learned = Priors.fit(c.scenes, c.taxonomy, progress=progress)
+    path = learned.save(out)
+    info = {"out": str(path), "bytes": path.stat().st_size, "train_s": time.perf_counter() - started,
+            **learned.describe()}
+    emit(info, as_json, f"trained on {info['scenes']} scenes ({info['supports']} supports, {info['pairs']} pairs) "
+                        f"in {info['train_s']:.1f} s → {path} ({info['bytes'] / 1e6:.1f} MB)")
+
+
+def _triple(ctx, param, value):
+    if value is None:
+        return None
+    parts = value.split(",")
+    try:
+        numbers = tuple(float(p) for p in parts)
+    except ValueError:
+        raise click.BadParameter(f"expected X,Y,Z numbers, got {value!r}") from None
+    if len(numbers) != 3:
+        raise click.BadParameter(f"expected three comma-separated numbers, got {len(numbers)}")
+    return numbers
+
+
+@main.command("suggest")
+@click.option("--priors", "priors_file", required=True, type=click.Path(dir_okay=False))
+@click.option("--scene", "scene_file", required=True, type=click.Path(dir_okay=False), help="Native scene JSON.")
+@click.option("--parent", "parent_id", required=True, help="Id of the clicked object.")
+@click.option("--point", required=True, callback=_triple, help="Clicked point X,Y,Z (metres, world frame).")
+@click.option("--normal", required=True, callback=_triple, help="Surface normal X,Y,Z at the point.")
+@click.option("--mode", type=click.Choice(["basic", "full"]), default="full", show_default=True)
+@click.option("--top", default=10, show_default=True, type=click.IntRange(min=1))
+@click.option("--scene-type", default=None, help="Override the scene's type.")
+@click.option("--infer-scene-type", is_flag=True, help="Infer the scene type from the objects present.")
+@click.option("--collision-aware", is_flag=True, help="Turn or penalise categories that do not fit.")
+@click.option("--refine-anchor", is_flag=True, help="Move each placement to a nearby more typical spot.")
+@click.option("--json", "as_json", is_flag=True)
+def suggest_cmd(priors_file, scene_file, parent_id, point, normal, mode, top, scene_type, infer_scene_type,
+                collision_aware, refine_anchor, as_json) -> None:
+    """Rank categories for a click on a surface, each with a placement (column-major 4×4)."""
+    from . import scene_json
+    from .priors import Priors
+    from .suggest import ContextQuery, Engine, EngineOptions
+
+    options = EngineOptions(collision_aware=collision_aware, anchor_refinement=refine_anchor,
+                            infer_scene_type=infer_scene_type)
+    engine = Engine(Priors.load(priors_file), options)
+    query = ContextQuery(scene_json.load(scene_file), parent_id, point, normal, scene_type)
+    found = engine.suggest(query, mode, top)
+    prep = engine.prepare(query)
+    data = {"mode": mode, "surface_type": prep.surface_type, "scene_type": prep.scene_type,
+            "suggestions": [x.to_dict() for x in found]}
+    lines = [f"{prep.surface_type} of {prep.parent_category} in a {prep.scene_type} ({mode} mode)"]
+    for x in found:
+        t = x.placement[:3, 3]
+        lines.append(f"{x.rank:>3}. {x.category:<22} {x.score:7.3f}  occ {x.terms['occurrence']:.2f} "
+                     f"sup {x.terms['surface']:.2f} pos {x.terms['position']:.2f}  {x.attachment_face:<6} "
+                     f"{x.heading_deg:5.0f}°  at ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f})  {x.models[0]}"
+                     + (f"  [{'; '.join(x.notes)}]" if x.notes else ""))
+    emit(data, as_json, "\n".join(lines))
+
+
+@main.command("evaluate")
+@click.argument("source")
+@click.option("--folds", default=5, show_default=True, type=click.IntRange(min=2))
+@click.option("--seed", default=0, show_default=True)
+@meshes_option
+@click.option("--json", "as_json", is_flag=True)
+def evaluate_cmd(source: str, folds: int, seed: int, meshes: str | None, as_json: bool) -> None:
+    """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines."""
+    from .evaluate import evaluate, format_evaluation
+
+    c = _load(source, meshes)
+    if len(c.scenes) < folds:
+        raise SceneSuggestError(f"{len(c.scenes)} scenes cannot make {folds} folds", field="folds")
+    result = evaluate(c, folds=folds, seed=seed, progress=progress)
+    emit(result, as_json, format_evaluation(result))
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -1,0 +1,167 @@
+"""Poses on support surfaces: attaching a face to a plane, headings within the plane, plane coordinates.
+
+A placement attaches face ``F`` of an object's canonical bbox to a surface with world normal ``n`` and
+then turns it by an angle α about ``n``::
+
+    R = R_n(α) · R_attach(F, n),   T = translate(point) · R · translate(−centre of F)
+
+Headings are angles (radians) about ``n`` measured from the plane's zero direction: world +Z on
+horizontal planes (floors, table tops, ceilings), world +Y (up) on vertical ones (walls). An object's
+heading is that of its in-plane reference vector ``v_F`` (its front +Z when it stands on its bottom or
+hangs by its top, its up +Y when attached by a side), so on a floor the heading is the yaw of the front.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import frames
+from .surfaces import HORIZONTAL_COS
+
+#: In-plane reference vector of each attachment face (canonical frame), orthogonal to its normal.
+FACE_REFERENCE = {
+    "bottom": (0.0, 0.0, 1.0), "top": (0.0, 0.0, 1.0),
+    "front": (0.0, 1.0, 0.0), "back": (0.0, 1.0, 0.0), "left": (0.0, 1.0, 0.0), "right": (0.0, 1.0, 0.0),
+}
+UP = np.array([0.0, 1.0, 0.0])
+
+
+def is_horizontal(normal) -> bool:
+    n = np.asarray(normal, dtype=float)
+    return abs(n[1]) / (np.linalg.norm(n) or 1.0) > HORIZONTAL_COS
+
+
+#: Centre of each face of a canonical bbox as a fraction of its size (bottom centred at the origin).
+FACE_CENTRE = {
+    "bottom": (0.0, 0.0, 0.0), "top": (0.0, 1.0, 0.0), "front": (0.0, 0.5, 0.5), "back": (0.0, 0.5, -0.5),
+    "left": (0.5, 0.5, 0.0), "right": (-0.5, 0.5, 0.0),
+}
+
+
+def face_centre(face: str, size) -> np.ndarray:
+    """Centre of a bbox face in the canonical frame (bottom centred at the origin)."""
+    return np.asarray(FACE_CENTRE[face]) * np.asarray(size, dtype=float)
+
+
+def axis_rotation(axis, angle: float) -> np.ndarray:
+    """3×3 right-handed rotation by ``angle`` (radians) about unit ``axis``."""
+    x, y, z = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    c, s, t = math.cos(angle), math.sin(angle), 1 - math.cos(angle)
+    return np.array([[t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+                     [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+                     [t * x * z - s * y, t * y * z + s * x, t * z * z + c]])
+
+
+def attach_rotation(face: str, normal) -> np.ndarray:
+    """3×3 rotation taking face ``face``'s outward normal onto −``normal`` (α = 0).
+
+    Between two horizontal directions this is a turn about +Y, so that wall objects stay upright;
+    otherwise the shortest arc.
+    """
+    a = np.asarray(frames.FACE_NORMALS[face], dtype=float)
+    b = -np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    if abs(a[1]) < 1e-9 and abs(b[1]) < 1e-6:
+        angle = math.atan2(a[2] * b[0] - a[0] * b[2], a[0] * b[0] + a[2] * b[2])
+        return frames.rotation_y(angle)[:3, :3]
+    if np.dot(a, b) < -1 + 1e-9 and abs(a[1]) > 0.5:  # bottom onto a ceiling, top onto a floor: turn over X
+        return axis_rotation([1.0, 0.0, 0.0], math.pi)
+    return frames.rotation_between(a, b)
+
+
+def plane_zero(normal) -> np.ndarray:
+    """The zero-heading direction of a plane: +Z on horizontal planes, +Y on vertical ones (unit, in-plane)."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    ref = np.array([0.0, 0.0, 1.0]) if is_horizontal(n) else UP
+    v = ref - np.dot(ref, n) * n
+    return v / np.linalg.norm(v)
+
+
+def heading(direction, normal) -> float:
+    """Signed angle (radians, about ``normal``) from the plane's zero direction to ``direction`` projected
+    onto the plane; NaN when ``direction`` is perpendicular to the plane."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    d = np.asarray(direction, dtype=float)
+    d = d - np.dot(d, n) * n
+    if np.linalg.norm(d) < 1e-9:
+        return float("nan")
+    z = plane_zero(n)
+    return math.atan2(float(np.dot(np.cross(z, d), n)), float(np.dot(z, d)))
+
+
+def rotation_of(transform: np.ndarray) -> np.ndarray:
+    """The rotation part of a transform (columns normalised, scale removed)."""
+    r = np.asarray(transform, dtype=float)[:3, :3]
+    return r / np.linalg.norm(r, axis=0, keepdims=True)
+
+
+def object_heading(transform: np.ndarray, face: str, normal) -> float:
+    """Heading of an object attached by ``face`` to a plane with ``normal`` (see the module docstring)."""
+    return heading(rotation_of(transform) @ np.asarray(FACE_REFERENCE[face]), normal)
+
+
+def zero_heading(face: str, normal) -> float:
+    """Heading of a face attached at α = 0; α = heading − zero_heading."""
+    return heading(attach_rotation(face, normal) @ np.asarray(FACE_REFERENCE[face]), normal)
+
+
+def placement(point, normal, face: str, size, alpha: float) -> np.ndarray:
+    """4×4 canonical → world transform: ``face`` on the plane at ``point``, turned by ``alpha`` about it."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    r = axis_rotation(n, alpha) @ attach_rotation(face, n)
+    return frames.translation(point) @ frames.linear(r) @ frames.translation(-face_centre(face, size))
+
+
+def axis_rotations(axis, angles) -> np.ndarray:
+    """(n, 3, 3) rotations by each of ``angles`` about one unit ``axis`` (Rodrigues' formula)."""
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    angles = np.asarray(angles, dtype=float)[:, None, None]
+    return np.eye(3) + np.sin(angles) * k + (1 - np.cos(angles)) * (k @ k)
+
+
+def placements(points, normal, faces: list[str], sizes, alphas) -> np.ndarray:
+    """(n, 4, 4) :func:`placement` for many objects on one plane, vectorised."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    attach = {f: attach_rotation(f, n) for f in set(faces)}
+    r = axis_rotations(n, alphas) @ np.stack([attach[f] for f in faces])
+    centres = np.array([FACE_CENTRE[f] for f in faces]) * np.asarray(sizes, dtype=float)
+    out = np.tile(np.eye(4), (len(faces), 1, 1))
+    out[:, :3, :3] = r
+    out[:, :3, 3] = np.asarray(points, dtype=float) - np.einsum("nij,nj->ni", r, centres)
+    return out
+
+
+def plane_offset(point, normal, ref_transform: np.ndarray, radial: bool) -> np.ndarray:
+    """2-D offset of ``point`` from a reference object's origin, in the reference's frame, on the plane.
+
+    Horizontal planes: (x, z) in the reference's frame (or (radius, 0) for references without a front).
+    Vertical planes: (distance along the wall, height) relative to the reference.
+    """
+    r = rotation_of(ref_transform)
+    delta = r.T @ (np.asarray(point, dtype=float) - ref_transform[:3, 3])
+    n_local = r.T @ (np.asarray(normal, dtype=float) / np.linalg.norm(normal))
+    if abs(n_local[1]) > HORIZONTAL_COS:
+        xz = np.array([delta[0], delta[2]])
+        return np.array([np.hypot(*xz), 0.0]) if radial else xz
+    along = np.cross([0.0, 1.0, 0.0], n_local)
+    along /= np.linalg.norm(along)
+    return np.array([float(np.dot(delta, along)), float(delta[1])])
+
+
+def reference_heading(point, normal, ref_transform: np.ndarray, radial: bool) -> float:
+    """The heading relative orientation is measured from: a reference's front on horizontal planes (or the
+    direction from ``point`` towards it when it has no front); the plane's up (0) on vertical planes."""
+    if not is_horizontal(normal):
+        return 0.0
+    if radial:
+        h = heading(ref_transform[:3, 3] - np.asarray(point, dtype=float), normal)
+        return 0.0 if math.isnan(h) else h
+    h = heading(rotation_of(ref_transform)[:, 2], normal)
+    return 0.0 if math.isnan(h) else h
+
+
+def wrap(angle):
+    """Angles (radians) into [0, 2π)."""
+    return np.mod(angle, 2 * math.pi)

@@ -1,0 +1,382 @@
+"""Contextual queries: a click on a surface → ranked categories, each placed (and, in ``full`` mode, oriented).
+
+Score of a category C for a click on parent p (category P) in a scene of type s, on a surface of type t::
+
+    w = λ1 · P(|C on p| > k) · P_sup(t | C)  +  λ2 · Σ_{r ∈ siblings ∪ parent} P_relpos(δ_r | C, C_r, s, R_r, t)
+
+with k the children of C already on p, δ_r the click's offset from reference r, and each P_relpos a KDE
+divided by its peak and by the number of references, so that the sum, like the first term, lies in
+[0, 1] (see :mod:`.priors`). λ1 = 1, λ2 = 0.25 by default. A category whose statistics are backed off
+to an ancestor's subtree takes its share of the occurrence and position terms (its instances / the
+subtree's), so rare siblings under one ancestor do not each inherit the ancestor's full evidence.
+
+Placement: ``basic`` attaches the face that geometry suggests and keeps the canonical heading (α = 0);
+``full`` attaches F = argmax_f P_att(f | C, t) and turns the object to the heading h (10° steps, linearly
+interpolated histograms) that maximises Σ_r P_relpos(δ_r) · P_relori(h − h_r), i.e. each reference's
+orientation prior weighted by how typical the click's position is relative to it.
+
+Beyond the paper, each off unless :class:`EngineOptions` turns it on: collision- and size-aware placement,
+anchor refinement, and scene-type inference from the objects present.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from . import frames, poses, surfaces
+from .errors import SceneSuggestError
+from .observations import is_radial
+from .priors import ANY, BINS, FACES, K_MAX, Priors
+from .scene import SURFACE_TYPES, Scene
+from .scene_types import infer_scene_type
+
+MODES = ("basic", "full")
+#: A click may lie this far (metres) outside its parent's box (or 5% of the box diagonal, if more): boxes
+#: of models placed from metadata are estimates (on the Stanford corpus every contact is within 11 cm).
+POINT_TOLERANCE_M = 0.15
+HEADINGS = np.arange(BINS) * (2 * math.pi / BINS)
+
+
+@dataclass(frozen=True)
+class EngineOptions:
+    """Weights and switches. The paper's conditions use the defaults; a study file may turn extras on."""
+
+    lambda1: float = 1.0
+    lambda2: float = 0.25
+    backoff: bool = True
+    use_position: bool = True
+    collision_aware: bool = False
+    collision_penalty: float = 0.5
+    anchor_refinement: bool = False
+    refine_radius_m: float = 0.25
+    infer_scene_type: bool = False
+
+    def __post_init__(self):
+        for name in ("lambda1", "lambda2", "collision_penalty", "refine_radius_m"):
+            v = getattr(self, name)
+            if not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+                raise SceneSuggestError(f"must be a finite number ≥ 0, got {v!r}", field=name)
+
+
+@dataclass(frozen=True)
+class ContextQuery:
+    """A click on ``parent_id``'s surface at world ``point`` with surface ``normal`` (metres, +Y up)."""
+
+    scene: Scene
+    parent_id: str
+    point: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    scene_type: str | None = None
+
+
+@dataclass(frozen=True)
+class Suggestion:
+    rank: int
+    category: str
+    score: float
+    terms: dict[str, float]
+    placement: np.ndarray  # 4×4, canonical → world
+    attachment_face: str
+    heading_deg: float
+    models: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict:
+        return {"rank": self.rank, "category": self.category, "score": self.score, "terms": self.terms,
+                "placement": frames.to_column_major(self.placement), "attachment_face": self.attachment_face,
+                "heading_deg": self.heading_deg, "models": list(self.models), "notes": list(self.notes)}
+
+
+@dataclass
+class Prepared:
+    """A validated query and what the engine derives from it."""
+
+    query: ContextQuery
+    point: np.ndarray
+    normal: np.ndarray
+    surface_type: str
+    scene_type: str
+    parent_category: str
+    references: list[tuple[object, str]] = field(default_factory=list)
+
+
+@dataclass
+class Scores:
+    """Per-candidate terms of one query (arrays over :attr:`Engine.candidates`)."""
+
+    prepared: Prepared
+    occurrence: np.ndarray
+    surface: np.ndarray
+    position: np.ndarray
+    orientation: np.ndarray  # (n, 36): Σ_r P_relpos · P_relori at each heading
+    total: np.ndarray
+
+
+def _vector(value, name: str) -> np.ndarray:
+    try:
+        v = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise SceneSuggestError("expected three numbers", field=name) from None
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise SceneSuggestError("expected three finite numbers", field=name)
+    return v
+
+
+class Engine:
+    """Answers context queries from a :class:`Priors`. Pure: answers depend only on priors and query."""
+
+    def __init__(self, priors: Priors, options: EngineOptions | None = None):
+        self.priors = priors
+        self.options = options or EngineOptions()
+        p = priors
+        self.candidates = p.candidate_categories
+        self.names = [p.categories[c] for c in self.candidates]
+        self.index = {name: i for i, name in enumerate(self.names)}
+        self.name_order = np.argsort(np.argsort(self.names))  # ties are broken by name
+        n = len(self.candidates)
+        self.stat_entity = np.array([self._stat_entity(name) for name in self.names], dtype=np.int64)
+        members = {i: [] for i in range(n)}
+        cand_pos = {int(c): i for i, c in enumerate(self.candidates)}
+        for m, c in enumerate(p.model_category):
+            members[cand_pos[int(c)]].append(m)
+        self.members = [tuple(p.model_ids[m] for m in sorted(ms, key=lambda m: -p.model_count[m])) for
+                        _, ms in sorted(members.items())]
+        self.size = np.array([p.model_size[max(ms, key=lambda m: p.model_count[m])] for _, ms in
+                              sorted(members.items())], dtype=float)
+        self.surface_prob = np.array([self._surface_prob(name) for name in self.names])  # (n, 6)
+        self.face_prob = np.array([self._face_prob(name) for name in self.names])  # (n, 6, 6)
+        self.geometric_faces = {d: np.array([FACES.index(self.geometric_face(size, f"{d}_interior"))
+                                             for size in self.size]) for d in ("up", "down", "vertical")}
+        total = p.occ_parent_n[: len(p.categories), -1].sum()
+        own = p.sup_counts[self.candidates].sum(axis=1)  # exact entities share the category indices
+        pooled = p.sup_counts[self.stat_entity].sum(axis=1)
+        # a category backed off to an ancestor's subtree gets its share of that subtree's occurrences
+        self.share = np.where(pooled > 0, own / np.maximum(pooled, 1.0), 1.0)
+        self.base_rate = own / max(total, 1.0)
+        any_s = len(p.scene_types) - 1
+        #: (n, scene types): whether each candidate was seen at least once in each scene type
+        self.seen_in = p.occ_parent_n[self.stat_entity][:, :any_s] > 0
+        self._cache: dict[tuple, tuple] = {}
+
+    def _borrowed_mask(self, scene_index: int, scene_type: str) -> np.ndarray | float:
+        """1 for every candidate when statistics come from the query's own scene type; when they come from
+        all scene types (``*``), only candidates seen in the query's scene type keep them."""
+        s = self.priors.scene_index.get(scene_type)
+        if scene_index != len(self.priors.scene_types) - 1 or s is None or s == scene_index:
+            return 1.0
+        return self.seen_in[:, s].astype(float)
+
+    # --- per-category statistics after back-off -------------------------------------------------------------
+    def _stat_entity(self, category: str) -> int:
+        return self.priors.stat_entity(category, self.options.backoff)
+
+    def _surface_prob(self, category: str) -> np.ndarray:
+        counts = self.priors.sup_counts[self._stat_entity(category)].astype(float)
+        if counts.sum() == 0:  # geometric fallback: upward surfaces support
+            counts = np.array([4.0 if t.startswith("up") else 0.25 for t in SURFACE_TYPES])
+        return counts / counts.sum()
+
+    def _face_prob(self, category: str) -> np.ndarray:
+        """P_att(f | C, t) for every surface type (rows of zeros where never observed)."""
+        counts = self.priors.att_counts[self._stat_entity(category)].astype(float)
+        totals = counts.sum(axis=1, keepdims=True)
+        return np.divide(counts, totals, out=np.zeros_like(counts), where=totals > 0)
+
+    # --- queries -------------------------------------------------------------------------------------------
+    def prepare(self, query: ContextQuery) -> Prepared:
+        """Validate a query (errors name the field) and derive surface type, scene type and references."""
+        scene = query.scene
+        parent = scene.objects.get(query.parent_id) if isinstance(query.parent_id, str) else None
+        if parent is None:
+            raise SceneSuggestError(f"no object {query.parent_id!r} in the scene", field="parent")
+        point, normal = _vector(query.point, "point"), _vector(query.normal, "normal")
+        length = np.linalg.norm(normal)
+        if length < 1e-9:
+            raise SceneSuggestError("the normal must not be zero", field="normal")
+        normal = normal / length
+        lo, hi = parent.world_bbox()
+        distance = float(np.linalg.norm(np.maximum(0, np.maximum(lo - point, point - hi))))
+        if distance > max(POINT_TOLERANCE_M, 0.05 * float(np.linalg.norm(hi - lo))):
+            raise SceneSuggestError(f"the point is {distance:.2f} m away from {parent.category} "
+                                    f"{parent.id!r}", field="point")
+        if query.scene_type is not None:
+            scene_type = query.scene_type
+        elif self.options.infer_scene_type:
+            scene_type = infer_scene_type((o.category for o in scene), self.priors.taxonomy)
+        else:
+            scene_type = scene.scene_type
+        refs = [(parent, "parent")] + [(q, "sibling") for q in scene.children(parent.id)]
+        return Prepared(query, point, normal, surfaces.surface_type(parent.transform, parent.size, point, normal),
+                        scene_type, parent.category, refs)
+
+    def score(self, query: ContextQuery) -> Scores:
+        prep = self.prepare(query)
+        occ = self._occurrence(prep)
+        sup = self.surface_prob[:, SURFACE_TYPES.index(prep.surface_type)]
+        position, orientation = self._context_terms(prep, prep.point)
+        o = self.options
+        total = o.lambda1 * occ * sup + (o.lambda2 * position if o.use_position else 0.0)
+        return Scores(prep, occ, sup, position, orientation, total)
+
+    def _occurrence(self, prep: Prepared) -> np.ndarray:
+        p = self.priors
+        key = p.occurrence_key(prep.parent_category, prep.scene_type, self.options.backoff)
+        if key is None:  # an unseen parent: how often each category rests on anything at all
+            return self.base_rate * self._borrowed_mask(len(p.scene_types) - 1, prep.scene_type)
+        dense = np.zeros((len(p.entities), K_MAX + 1))
+        children, rows = p.occurrence_rows(key)
+        dense[children] = rows
+        k = np.zeros(len(p.entities), dtype=int)
+        for child in prep.query.scene.children(prep.query.parent_id):
+            k[self.priors.entity_chain(child.category)] += 1
+        mask = self._borrowed_mask(key % len(p.scene_types), prep.scene_type)
+        return dense[self.stat_entity, np.minimum(k[self.stat_entity], K_MAX)] * self.share * mask
+
+    def _resolved(self, ref_category: str, scene_type: str, relation: str, surface_type: str) -> tuple:
+        """For one reference key: the KDE samples of every candidate (memoised; a pure function)."""
+        key = (ref_category, scene_type, relation, surface_type)
+        hit = self._cache.get(key)
+        if hit is not None:
+            return hit
+        p = self.priors
+        seg = np.full(len(self.candidates), -1, dtype=np.int64)
+        g = p.group_for(ref_category, scene_type, relation, surface_type, self.options.backoff)
+        if g is not None:
+            children, segs = p.segments(g)
+            if len(children):
+                pos = np.minimum(np.searchsorted(children, self.stat_entity), len(children) - 1)
+                found = children[pos] == self.stat_entity
+                found &= self._borrowed_mask(int(p.group_keys[g][1]), scene_type) > 0
+                seg[found] = segs[pos[found]]
+        has = np.flatnonzero(seg >= 0)
+        starts, counts = p.seg_start[seg[has]], p.seg_count[seg[has]]
+        owner = np.repeat(has, counts)
+        segs_rep = np.repeat(seg[has], counts)
+        sample = np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
+        value = (p.pair_xy[sample].astype(float), 1.0 / p.seg_bandwidth[segs_rep].astype(float),
+                 p.seg_weight[segs_rep].astype(float), owner, seg)
+        self._cache[key] = value
+        return value
+
+    def _densities(self, prep: Prepared, ref, relation: str, points: np.ndarray) -> np.ndarray:
+        """(P, n) P_relpos of every candidate at each of ``points`` relative to one reference, scaled by the
+        category's back-off share and by 1 / (number of references)."""
+        xy, inv_bw, weight, owner, _ = self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)
+        n = len(self.candidates)
+        out = np.zeros((len(points), n))
+        if not len(owner):
+            return out
+        radial = is_radial(ref.size)
+        scale = self.share
+        for k, point in enumerate(points):
+            delta = poses.plane_offset(point, prep.normal, ref.transform, radial)
+            q = (((delta - xy) * inv_bw) ** 2).sum(axis=1)
+            out[k] = np.bincount(owner, weights=weight * np.exp(-0.5 * q), minlength=n) * scale
+        return out
+
+    def position_at(self, prep: Prepared, points: np.ndarray) -> np.ndarray:
+        """(P, n) position term Σ_r P_relpos of every candidate at each of ``points``."""
+        return sum((self._densities(prep, ref, relation, points) for ref, relation in prep.references),
+                   np.zeros((len(points), len(self.candidates))))
+
+    def _context_terms(self, prep: Prepared, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(Σ_r P_relpos, (n, 36) Σ_r P_relpos · P_relori) over the references of a query at ``point``."""
+        n = len(self.candidates)
+        position = np.zeros(n)
+        orientation = np.zeros((n, BINS))
+        for ref, relation in prep.references:
+            dens = self._densities(prep, ref, relation, point[None])[0]
+            position += dens
+            seg = self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4]
+            has = seg >= 0
+            if not has.any():
+                continue
+            shift = poses.reference_heading(point, prep.normal, ref.transform, is_radial(ref.size)) / (
+                2 * math.pi / BINS)
+            s0 = math.floor(shift)
+            frac = shift - s0
+            idx = np.arange(BINS) - s0
+            hist = self.priors.seg_hist[seg[has]]
+            turned = (1 - frac) * hist[:, idx % BINS] + frac * hist[:, (idx - 1) % BINS]
+            orientation[has] += dens[has, None] * turned
+        return position, orientation
+
+    # --- placement -----------------------------------------------------------------------------------------
+    def geometric_face(self, size, surface_type: str) -> str:
+        """Attachment by geometry: hang by the top from ceilings, stand on the bottom on floors and tops,
+        and on walls attach along the thinnest horizontal axis (flat things by their back, thin by a side)."""
+        direction = surface_type.split("_")[0]
+        if direction == "down":
+            return "top"
+        if direction == "up":
+            return "bottom"
+        sx, sy, sz = size
+        return "back" if sz <= sx or sz <= 0.5 * sy else "right"
+
+    def choose_poses(self, scores: Scores, mode: str) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """(face, α, heading) of every candidate in ``mode`` (see the module docstring)."""
+        prep = scores.prepared
+        t = SURFACE_TYPES.index(prep.surface_type)
+        geometric = self.geometric_faces[prep.surface_type.split("_")[0]]
+        if mode == "full":
+            face_index = np.where(self.face_prob[:, t].sum(axis=1) > 0, np.argmax(self.face_prob[:, t], axis=1),
+                                  geometric)
+        else:
+            face_index = geometric
+        zero_of = np.array([poses.zero_heading(f, prep.normal) for f in FACES])
+        zero = np.nan_to_num(zero_of[face_index])
+        if mode == "full":
+            oriented = scores.orientation.max(axis=1) > 0
+            heading = np.where(oriented, HEADINGS[np.argmax(scores.orientation, axis=1)], zero)
+        else:
+            heading = zero
+        return [FACES[i] for i in face_index], heading - zero, heading
+
+    def suggest(self, query: ContextQuery, mode: str = "full", top: int | None = None) -> list[Suggestion]:
+        """Ranked suggestions (best first, ties by name), each with a placement; ``top`` limits the list."""
+        if mode not in MODES:
+            raise SceneSuggestError(f"mode must be one of {', '.join(MODES)} (the 'none' condition never asks "
+                                    "the engine)", field="mode")
+        if top is not None and (not isinstance(top, int) or top < 1):
+            raise SceneSuggestError("top must be a positive integer", field="top")
+        scores = self.score(query)
+        prep = scores.prepared
+        faces, alphas, headings = self.choose_poses(scores, mode)
+        points = np.tile(prep.point, (len(self.candidates), 1))
+        notes: list[list[str]] = [[] for _ in self.candidates]
+        total = scores.total.copy()
+        if self.options.anchor_refinement:
+            from .placement_checks import refine_anchors
+
+            points, moved = refine_anchors(self, scores, self.options.refine_radius_m)
+            for i in np.flatnonzero(moved > 0):
+                notes[i].append(f"moved {moved[i]:.2f} m to a more typical spot")
+        if self.options.collision_aware:
+            from .placement_checks import check_fit
+
+            total = check_fit(self, scores, faces, alphas, headings, points, total, notes, mode)
+        order = np.lexsort((self.name_order, -total))[: top or len(total)]
+        placed = poses.placements(points[order], prep.normal, [faces[i] for i in order], self.size[order],
+                                  alphas[order])
+        orientation = scores.orientation.max(axis=1)
+        degrees = np.degrees(poses.wrap(headings))
+        out = []
+        for rank, (i, placement) in enumerate(zip(order, placed, strict=True), start=1):
+            out.append(Suggestion(
+                rank=rank, category=self.names[i], score=float(total[i]),
+                terms={"occurrence": float(scores.occurrence[i]), "surface": float(scores.surface[i]),
+                       "position": float(scores.position[i]),
+                       "orientation": float(orientation[i])},
+                placement=placement, attachment_face=faces[i],
+                heading_deg=float(degrees[i]),
+                models=self.members[i], notes=tuple(notes[i])))
+        return out
+
+    def with_options(self, **changes) -> Engine:
+        return Engine(self.priors, replace(self.options, **changes))
+
+
+__all__ = ["ANY", "ContextQuery", "Engine", "EngineOptions", "MODES", "Suggestion"]
