@@ -117,8 +117,10 @@ class _Reader:
         if doc.get("version") != VERSION:
             raise self.fail(f"unsupported version {doc.get('version')!r} (this reader knows {VERSION})",
                             doc, "version")
-        scene = Scene(self.string(doc, "id"), self.string(doc, "scene_type"),
-                      source=self.string(doc, "source", optional=True) or "")
+        source = doc.get("source", "")
+        if not isinstance(source, str):
+            raise self.fail("expected a string", doc, "source")
+        scene = Scene(self.string(doc, "id"), self.string(doc, "scene_type"), source=source)
         objs = doc.get("objects")
         if not isinstance(objs, list):
             raise self.fail("expected a list of objects", doc, "objects")

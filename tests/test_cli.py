@@ -47,3 +47,47 @@ def test_malformed_scene_file_names_file_and_line(tmp_path):
     proc = run("corpus", "stats", f"stanford:{tmp_path / 'db'}", check=False)
     assert proc.returncode == 2
     assert "scene00000.txt:6: field 'scale': bad number '1.0.0'" in proc.stderr
+
+
+def test_priors_train_and_suggest(tmp_path):
+    import synthetic
+
+    from scenesuggest.corpora.native import write_native
+
+    corpus_dir = write_native(synthetic.corpus(), tmp_path / "corpus")
+    info = json.loads(run("priors", "train", f"json:{corpus_dir}", "-o", str(tmp_path / "p.npz"), "--json").stdout)
+    assert info["scenes"] == 20 and info["bytes"] == (tmp_path / "p.npz").stat().st_size
+    scene = corpus_dir / "scenes" / "study00.json"
+    doc = json.loads(scene.read_text())
+    desk = next(o for o in doc["objects"] if o["category"] == "Desk")
+    x, _, z = desk["transform"][12:15]
+    args = ["suggest", "--priors", str(tmp_path / "p.npz"), "--scene", str(scene), "--parent", desk["id"],
+            "--point", f"{x},0.75,{z - 0.2}", "--normal", "0,1,0"]
+    out = json.loads(run(*args, "--json", "--top", "3").stdout)
+    assert out["surface_type"] == "up_exterior" and out["scene_type"] == "Study"
+    assert len(out["suggestions"]) == 3
+    first = out["suggestions"][0]
+    assert {"category", "score", "terms", "placement", "attachment_face", "models"} <= set(first)
+    assert len(first["placement"]) == 16
+    human = run(*args, "--mode", "basic", "--collision-aware").stdout
+    assert "up_exterior of Desk in a Study (basic mode)" in human
+
+
+def test_suggest_errors_are_clear(tmp_path):
+    import synthetic
+
+    from scenesuggest.corpora.native import write_native
+
+    corpus_dir = write_native(synthetic.corpus(n_study=3, n_bedroom=2), tmp_path / "corpus")
+    run("priors", "train", f"json:{corpus_dir}", "-o", str(tmp_path / "p.npz"))
+    base = ["suggest", "--priors", str(tmp_path / "p.npz"), "--scene", str(corpus_dir / "scenes" / "study00.json")]
+    bad = run(*base, "--parent", "ghost", "--point", "0,0,0", "--normal", "0,1,0", check=False)
+    assert bad.returncode == 2 and "field 'parent'" in bad.stderr and "Traceback" not in bad.stderr
+    bad = run(*base, "--parent", "room", "--point", "0,0", "--normal", "0,1,0", check=False)
+    assert bad.returncode == 2 and "--point" in bad.stderr
+    bad = run(*base, "--parent", "room", "--point", "0,0,0", "--normal", "0,0,0", check=False)
+    assert bad.returncode == 2 and "field 'normal'" in bad.stderr
+    (tmp_path / "old.npz").write_bytes(b"garbage")
+    bad = run("suggest", "--priors", str(tmp_path / "old.npz"), "--scene", str(corpus_dir / "scenes" / "study00.json"),
+              "--parent", "room", "--point", "0,0,0", "--normal", "0,1,0", check=False)
+    assert bad.returncode == 2 and "cannot read priors" in bad.stderr

@@ -39,6 +39,12 @@ def test_real_corpus_scene_round_trips(stanford):
     assert all(np.array_equal(a.transform, b.transform) for a, b in zip(again, scene, strict=True))
 
 
+def test_an_empty_source_round_trips():
+    s = small_scene()
+    s.source = ""
+    assert scene_json.loads(scene_json.dumps(s)).source == ""
+
+
 def test_format_is_versioned_and_column_major():
     doc = json.loads(scene_json.dumps(small_scene()))
     assert doc["format"] == "scenesuggest-scene" and doc["version"] == 1
