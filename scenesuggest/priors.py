@@ -85,10 +85,6 @@ class Priors:
                 chain.append(e)
         return chain
 
-    def candidates(self) -> np.ndarray:
-        """Category indices that can be suggested (observed on some support, with a model)."""
-        return self.candidate_categories
-
     # --- construction --------------------------------------------------------------------------------------
     @classmethod
     def fit(cls, scenes: Iterable[Scene], taxonomy: Taxonomy | None = None,

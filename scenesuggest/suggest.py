@@ -47,7 +47,6 @@ class EngineOptions:
     lambda1: float = 1.0
     lambda2: float = 0.25
     backoff: bool = True
-    use_position: bool = True
     collision_aware: bool = False
     collision_penalty: float = 0.5
     anchor_refinement: bool = False
@@ -218,7 +217,7 @@ class Engine:
         sup = self.surface_prob[:, SURFACE_TYPES.index(prep.surface_type)]
         position, orientation = self._context_terms(prep, prep.point)
         o = self.options
-        total = o.lambda1 * occ * sup + (o.lambda2 * position if o.use_position else 0.0)
+        total = o.lambda1 * occ * sup + o.lambda2 * position
         return Scores(prep, occ, sup, position, orientation, total)
 
     def _occurrence(self, prep: Prepared) -> np.ndarray:

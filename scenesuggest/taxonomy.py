@@ -54,14 +54,6 @@ class Taxonomy:
                     break
         return cls(parents)
 
-    def merged(self, other: Taxonomy) -> Taxonomy:
-        """This taxonomy plus the edges of ``other`` for categories it does not know."""
-        merged = dict(self.parents)
-        for child, parent in other.parents.items():
-            if child not in merged and child not in _ancestors(merged, parent) | {parent}:
-                merged[child] = parent
-        return Taxonomy(merged)
-
     def parent(self, category: str) -> str | None:
         return self.parents.get(category)
 

@@ -29,6 +29,3 @@ class Corpus:
     def objects(self):
         for scene in self.scenes:
             yield from scene
-
-    def category_path(self, category: str) -> list[str]:
-        return self.taxonomy.path(category)
