@@ -7,9 +7,25 @@ BIN := $(VENV)/bin
 PIP_STAMP := $(VENV)/.installed
 NPM_STAMP := node_modules/.installed
 
-.PHONY: setup test lint pytest bench clean
+DEMO_LIBRARY := var/library/ai2thor/library.json
+DEMO_PRIORS := var/priors/ai2thor.npz
+
+.PHONY: setup demo test lint pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
+
+# The built-in demo study's model library (procedural meshes) and priors: built once, kept in var/.
+$(DEMO_LIBRARY): | $(PIP_STAMP)
+	$(BIN)/scenesuggest assets build ai2thor --out var/library/ai2thor
+
+$(DEMO_PRIORS): | $(PIP_STAMP)
+	mkdir -p var/priors
+	$(BIN)/scenesuggest priors train ai2thor -o $@
+
+demo: setup $(DEMO_LIBRARY) $(DEMO_PRIORS)
+
+serve: demo
+	$(BIN)/scenesuggest study serve --host 127.0.0.1 --port 5000
 
 $(PIP_STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -27,10 +43,12 @@ lint: $(PIP_STAMP)
 pytest: setup
 	$(BIN)/pytest
 
-test: setup lint pytest
+test: demo lint pytest
 
-bench: setup
+bench: demo
 	$(BIN)/python benchmarks/bench_corpus.py
+	$(BIN)/python benchmarks/bench_suggest.py
+	$(BIN)/python benchmarks/bench_ingest.py
 
 clean:
 	rm -rf $(VENV) node_modules .pytest_cache .ruff_cache var test-artifacts

@@ -44,3 +44,100 @@ def ai2thor():
     from scenesuggest.corpora import load_corpus
 
     return load_corpus("ai2thor")
+
+
+# --- study server fixtures ------------------------------------------------------------------------------------
+DEMO_STUDY = ROOT / "experiments" / "demo" / "study.toml"
+
+
+@pytest.fixture(scope="session")
+def demo_resources():
+    """The demo study's priors and model library, as `make demo` builds them (built here when missing)."""
+    import subprocess
+    import sys
+
+    library = ROOT / "var" / "library" / "ai2thor"
+    priors = ROOT / "var" / "priors" / "ai2thor.npz"
+    cli = [sys.executable, "-m", "scenesuggest.cli"]
+    if not (library / "library.json").is_file():
+        subprocess.run([*cli, "assets", "build", "ai2thor", "--out", str(library)], check=True, capture_output=True)
+    if not priors.is_file():
+        priors.parent.mkdir(parents=True, exist_ok=True)
+        subprocess.run([*cli, "priors", "train", "ai2thor", "-o", str(priors)], check=True, capture_output=True)
+    return DEMO_STUDY
+
+
+def make_app(tmp_path, database_url: str | None = None, studies=None, **config):
+    from study_server import create_app, upgrade_database
+
+    app = create_app({
+        "INSTANCE_PATH": str(tmp_path / "instance"),
+        "SQLALCHEMY_DATABASE_URI": database_url or f"sqlite:///{tmp_path / 'study.sqlite3'}",
+        "STUDY_FILES": studies or [DEMO_STUDY], "SECRET_KEY": "test-secret", "TESTING": True, **config})
+    upgrade_database(app)
+    return app
+
+
+@pytest.fixture
+def app(tmp_path, demo_resources):
+    return make_app(tmp_path)
+
+
+@pytest.fixture
+def client(app):
+    return app.test_client()
+
+
+@pytest.fixture(scope="session")
+def postgres_url():
+    """A throwaway PostgreSQL server on loopback (TESTING.md); skipped when PostgreSQL is not installed."""
+    import glob
+    import shutil
+    import socket
+    import subprocess
+    import time
+
+    bins = sorted(glob.glob("/usr/lib/postgresql/*/bin"))
+    if not bins or not shutil.which("runuser"):
+        if IN_CI:
+            pytest.fail("PostgreSQL is required under CI=true (apt-get install postgresql)")
+        pytest.skip("PostgreSQL is not installed (apt-get install postgresql)")
+    bindir = bins[-1]
+    import tempfile
+    from pathlib import Path as _Path
+
+    data = _Path(tempfile.mkdtemp(prefix="scenesuggest-pg-"))  # pytest's tmp dirs are closed to other users
+    shutil.chown(data, "postgres")
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    port = sock.getsockname()[1]
+    sock.close()
+    run = ["runuser", "-u", "postgres", "--"]
+    subprocess.run([*run, f"{bindir}/initdb", "-D", str(data / "db"), "-A", "trust", "-U", "postgres"], check=True,
+                   capture_output=True)
+    subprocess.run([*run, f"{bindir}/pg_ctl", "-D", str(data / "db"), "-l", str(data / "log"), "-w", "-o",
+                    f"-c listen_addresses=127.0.0.1 -p {port} -k {data} -c fsync=off -c max_connections=200",
+                    "start"], check=True, capture_output=True)
+    try:
+        for _ in range(50):
+            if subprocess.run([*run, f"{bindir}/pg_isready", "-h", "127.0.0.1", "-p", str(port)],
+                              capture_output=True).returncode == 0:
+                break
+            time.sleep(0.1)
+        yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/postgres", port, bindir, run
+    finally:
+        subprocess.run([*run, f"{bindir}/pg_ctl", "-D", str(data / "db"), "-m", "fast", "stop"], capture_output=True)
+        shutil.rmtree(data, ignore_errors=True)
+
+
+@pytest.fixture
+def postgres_db(postgres_url):
+    """A fresh database on the throwaway server for one test."""
+    import secrets
+    import subprocess
+
+    url, port, bindir, run = postgres_url
+    name = "t" + secrets.token_hex(6)
+    subprocess.run([*run, f"{bindir}/createdb", "-h", "127.0.0.1", "-p", str(port), "-U", "postgres", name],
+                   check=True, capture_output=True)
+    return url.rsplit("/", 1)[0] + "/" + name

@@ -1,0 +1,210 @@
+"""The interaction-event vocabulary: every event type the editor logs and the fields of its payload.
+
+One definition serves three readers: the study server validates each incoming event against it, the
+browser client receives it as JSON Schema (:func:`json_schema`), and the analysis reads events by these
+names. An event is ``{"seq": int ≥ 0, "t": ms since the epoch (client clock), "type": name,
+"trial": trial index or null, "payload": {...}}``; ``seq`` numbers a participant's events from 0 without
+gaps, which is what makes ingestion idempotent and loss detectable.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+#: Largest accepted string, list and batch sizes (a participant's events are small).
+MAX_TEXT = 2000
+MAX_LIST = 500
+MAX_BATCH = 500
+SOURCES = ("context", "search", "fixed")
+
+
+@dataclass(frozen=True)
+class Field:
+    kind: str  # str | int | num | bool | vec3 | strs | enum
+    required: bool = True
+    nullable: bool = False
+    choices: tuple[str, ...] = ()
+    minimum: float | None = None
+    description: str = ""
+
+
+def _f(kind, description="", **kw) -> Field:
+    return Field(kind, description=description, **kw)
+
+
+OBJECT = _f("str", "id of the object in the editor's scene")
+VOCABULARY: dict[str, dict[str, Field]] = {
+    "trial_start": {"scene": _f("str", "target scene id"), "condition": _f("enum", choices=("none", "basic", "full"))},
+    "trial_done": {"objects": _f("int", "objects in the scene when done", minimum=0)},
+    "instructions": {"page": _f("int", "instruction page shown", minimum=0)},
+    "list_shown": {"source": _f("enum", "where the list came from", choices=SOURCES),
+                   "items": _f("strs", "categories or model ids, best first (rank = position + 1)"),
+                   "list_id": _f("str", "server id of the list, when the server made it", required=False,
+                                 nullable=True)},
+    "search": {"text": _f("str", "the search box's text")},
+    "context_query": {"parent": OBJECT, "point": _f("vec3", "clicked point, metres, world frame"),
+                      "normal": _f("vec3", "surface normal at the point"),
+                      "list_id": _f("str", "server id of the suggestion list", required=False, nullable=True)},
+    "insert": {"object": OBJECT, "model": _f("str", "model id"), "category": _f("str"),
+               "rank": _f("int", "1-based rank in the list it was chosen from", nullable=True, minimum=1),
+               "source": _f("enum", choices=SOURCES),
+               "list_id": _f("str", required=False, nullable=True)},
+    "replace": {"object": OBJECT, "replaces": _f("str", "id of the object it replaced"), "model": _f("str"),
+                "category": _f("str"), "rank": _f("int", nullable=True, minimum=1),
+                "source": _f("enum", choices=SOURCES),
+                "list_id": _f("str", required=False, nullable=True)},
+    "select": {"object": _f("str", "selected object, or null when deselected", nullable=True)},
+    "move_start": {"object": OBJECT},
+    "move_end": {"object": OBJECT, "distance": _f("num", "metres travelled", minimum=0),
+                 "parent": _f("str", "support parent after the move", nullable=True, required=False)},
+    "rotate_start": {"object": OBJECT},
+    "rotate_end": {"object": OBJECT, "angle": _f("num", "degrees turned (signed)")},
+    "delete": {"object": OBJECT},
+    "undo": {"action": _f("str", "the undone action's event type")},
+    "redo": {"action": _f("str", "the redone action's event type")},
+    "camera": {"action": _f("enum", choices=("orbit", "zoom", "pan", "reset")),
+               "distance": _f("num", "camera distance after the action, metres", required=False, minimum=0)},
+    "focus": {"state": _f("enum", choices=("focus", "blur"))},
+    "visibility": {"state": _f("enum", choices=("visible", "hidden"))},
+    "resize": {"width": _f("int", minimum=0), "height": _f("int", minimum=0)},
+    "pointer": {"kind": _f("enum", choices=("mouse", "touch", "pen"))},
+    "wheel": {"dx": _f("num"), "dy": _f("num"), "mode": _f("int", minimum=0)},
+    "resume": {"reason": _f("str", "why the page (re)started: reload, back, second tab, reconnect")},
+    "client_error": {"message": _f("str")},
+}
+
+
+class EventError(ValueError):
+    """A malformed event; ``field`` is a path such as ``events[3].payload.rank``."""
+
+    def __init__(self, message: str, field: str):
+        super().__init__(message)
+        self.message = message
+        self.field = field
+
+
+def _number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _check_field(name: str, spec: Field, value, path: str) -> None:
+    where = f"{path}.{name}"
+    if value is None:
+        if spec.nullable:
+            return
+        raise EventError("must not be null", where)
+    k = spec.kind
+    if k in ("str", "enum"):
+        if not isinstance(value, str) or len(value) > MAX_TEXT:
+            raise EventError(f"expected a string of at most {MAX_TEXT} characters", where)
+        if k == "enum" and value not in spec.choices:
+            raise EventError(f"must be one of {', '.join(spec.choices)}", where)
+    elif k == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise EventError("expected an integer", where)
+    elif k == "num":
+        if not _number(value):
+            raise EventError("expected a finite number", where)
+    elif k == "bool":
+        if not isinstance(value, bool):
+            raise EventError("expected true or false", where)
+    elif k == "vec3":
+        if not isinstance(value, list) or len(value) != 3 or not all(_number(v) for v in value):
+            raise EventError("expected three finite numbers", where)
+    elif k == "strs" and (not isinstance(value, list) or len(value) > MAX_LIST or not all(
+            isinstance(v, str) and len(v) <= MAX_TEXT for v in value)):
+        raise EventError(f"expected a list of at most {MAX_LIST} strings", where)
+    if spec.minimum is not None and k in ("int", "num") and value < spec.minimum:
+        raise EventError(f"must be at least {spec.minimum:g}", where)
+
+
+def validate_event(event, path: str = "event") -> dict:
+    """Check one event against the vocabulary; returns it normalised (``trial`` defaults to null)."""
+    if not isinstance(event, dict):
+        raise EventError("expected an object", path)
+    unknown = set(event) - {"seq", "t", "type", "trial", "payload"}
+    if unknown:
+        raise EventError("unknown field", f"{path}.{sorted(unknown)[0]}")
+    seq = event.get("seq")
+    if isinstance(seq, bool) or not isinstance(seq, int) or seq < 0 or seq > 2**31:
+        raise EventError("expected an integer ≥ 0", f"{path}.seq")
+    if not _number(event.get("t")):
+        raise EventError("expected a finite number (ms since the epoch)", f"{path}.t")
+    kind = event.get("type")
+    if kind not in VOCABULARY:
+        raise EventError(f"unknown event type {kind!r}" if isinstance(kind, str) else "expected a string",
+                         f"{path}.type")
+    trial = event.get("trial")
+    if trial is not None and (isinstance(trial, bool) or not isinstance(trial, int) or not -1 <= trial < 1000):
+        raise EventError("expected a trial index or null", f"{path}.trial")
+    payload = event.get("payload", {})
+    if not isinstance(payload, dict):
+        raise EventError("expected an object", f"{path}.payload")
+    fields = VOCABULARY[kind]
+    for name in payload:
+        if name not in fields:
+            raise EventError("unknown field", f"{path}.payload.{name}")
+    for name, spec in fields.items():
+        if name in payload:
+            _check_field(name, spec, payload[name], f"{path}.payload")
+        elif spec.required:
+            raise EventError("missing", f"{path}.payload.{name}")
+    return {"seq": seq, "t": float(event["t"]), "type": kind, "trial": trial, "payload": payload}
+
+
+def validate_batch(events) -> list[dict]:
+    """Validate a whole batch before anything is stored (all or nothing)."""
+    if not isinstance(events, list):
+        raise EventError("expected a list of events", "events")
+    if len(events) > MAX_BATCH:
+        raise EventError(f"at most {MAX_BATCH} events per batch", "events")
+    out = [validate_event(e, f"events[{i}]") for i, e in enumerate(events)]
+    seqs = [e["seq"] for e in out]
+    if len(set(seqs)) != len(seqs):
+        raise EventError("the same seq appears twice in one batch", "events")
+    return out
+
+
+def _field_schema(spec: Field) -> dict:
+    kinds = {"str": {"type": "string", "maxLength": MAX_TEXT}, "int": {"type": "integer"},
+             "num": {"type": "number"}, "bool": {"type": "boolean"},
+             "vec3": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+             "strs": {"type": "array", "items": {"type": "string", "maxLength": MAX_TEXT}, "maxItems": MAX_LIST},
+             "enum": {"type": "string", "enum": list(spec.choices)}}
+    schema = dict(kinds[spec.kind])
+    if spec.minimum is not None:
+        schema["minimum"] = spec.minimum
+    if spec.description:
+        schema["description"] = spec.description
+    if spec.nullable:
+        schema = {"anyOf": [schema, {"type": "null"}]}
+    return schema
+
+
+def payload_schema(kind: str) -> dict:
+    fields = VOCABULARY[kind]
+    return {"type": "object", "additionalProperties": False,
+            "properties": {n: _field_schema(f) for n, f in fields.items()},
+            "required": [n for n, f in fields.items() if f.required]}
+
+
+def json_schema() -> dict:
+    """JSON Schema (2020-12) of one event, with a branch per type."""
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "scenesuggest-event",
+        "title": "SceneSuggest Studio interaction event",
+        "type": "object",
+        "additionalProperties": False,
+        "required": ["seq", "t", "type"],
+        "properties": {
+            "seq": {"type": "integer", "minimum": 0, "description": "per-participant sequence number, from 0"},
+            "t": {"type": "number", "description": "client time, ms since the epoch"},
+            "type": {"type": "string", "enum": sorted(VOCABULARY)},
+            "trial": {"anyOf": [{"type": "integer", "minimum": -1}, {"type": "null"}]},
+            "payload": {"type": "object"},
+        },
+        "allOf": [{"if": {"properties": {"type": {"const": k}}},
+                   "then": {"properties": {"payload": payload_schema(k)}}} for k in sorted(VOCABULARY)],
+    }

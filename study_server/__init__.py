@@ -1,0 +1,64 @@
+"""The study server: ``create_app()`` builds everything; nothing happens at import.
+
+Blueprints: ``participant`` (pages under /study/<id>/), ``api`` (JSON under /api/), ``admin`` (/admin/).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from flask import Flask
+from sqlalchemy import event
+
+from . import config as settings
+from .extensions import db, migrate
+
+MIGRATIONS = settings.ROOT / "migrations"
+
+
+def _sqlite_pragmas(dbapi_connection, _record) -> None:
+    cursor = dbapi_connection.cursor()
+    cursor.execute("PRAGMA journal_mode=WAL")
+    cursor.execute("PRAGMA synchronous=NORMAL")
+    cursor.execute("PRAGMA busy_timeout=10000")
+    cursor.execute("PRAGMA foreign_keys=ON")
+    cursor.close()
+
+
+def create_app(config: dict | None = None) -> Flask:
+    """Build the app. ``config`` overrides the environment (tests pass a database URL and study files)."""
+    instance = Path((config or {}).get("INSTANCE_PATH") or settings.instance_path())
+    app = Flask(__name__, instance_path=str(instance), static_folder=str(settings.ROOT / "static"),
+                static_url_path="/static")
+    app.config.update(settings.from_environment(instance))
+    app.config.update(config or {})
+    app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})
+    if app.config["SQLALCHEMY_DATABASE_URI"].startswith("sqlite"):
+        app.config["SQLALCHEMY_ENGINE_OPTIONS"].setdefault("connect_args", {"timeout": 10})
+    db.init_app(app)
+    migrate.init_app(app, db, directory=str(MIGRATIONS))
+    with app.app_context():
+        if db.engine.dialect.name == "sqlite":
+            event.listen(db.engine, "connect", _sqlite_pragmas)
+
+    from .runtime import load_studies
+
+    app.extensions["studies"] = load_studies(app.config["STUDY_FILES"], check=app.config.get("CHECK_RESOURCES", True))
+
+    from .blueprints import admin, api, participant
+    from .security import csrf_token, security_headers
+
+    app.register_blueprint(participant.bp)
+    app.register_blueprint(api.bp)
+    app.register_blueprint(admin.bp)
+    app.after_request(security_headers)
+    app.jinja_env.globals["csrf_token"] = csrf_token
+    return app
+
+
+def upgrade_database(app: Flask) -> None:
+    """Create or migrate the schema to the newest revision (run before starting workers)."""
+    from flask_migrate import upgrade
+
+    with app.app_context():
+        upgrade(directory=str(MIGRATIONS))

@@ -1,0 +1,307 @@
+"""The JSON API under /api/: session state, events, suggestions, search, models, scenes, heartbeat, trial done.
+
+Participants authenticate with ``Authorization: Bearer <session token>``; an admin's preview uses a signed
+preview token and writes nothing. Errors are ``{"error": message, "field": name}`` with a 4xx status.
+"""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+
+from flask import Blueprint, current_app, jsonify, request, url_for
+from itsdangerous import BadSignature, URLSafeTimedSerializer
+from sqlalchemy import select
+from werkzeug.exceptions import HTTPException
+
+from scenesuggest import frames, scene_json
+from scenesuggest.errors import SceneSuggestError
+from scenesuggest.events import EventError, json_schema
+from scenesuggest.suggest import ContextQuery
+
+from .. import flow, ingest
+from ..extensions import db
+from ..models import Participant, ShownList, Trial, utcnow
+from ..openapi import openapi_document
+from ..runtime import runtime
+
+bp = Blueprint("api", __name__, url_prefix="/api")
+SUGGESTIONS_SHOWN = 40
+PREVIEW_SALT = "scenesuggest-preview"
+
+
+class ApiError(Exception):
+    def __init__(self, status: int, message: str, field: str | None = None):
+        super().__init__(message)
+        self.status, self.message, self.field = status, message, field
+
+
+@bp.errorhandler(ApiError)
+def _api_error(e: ApiError):
+    return jsonify({"error": e.message, "field": e.field}), e.status
+
+
+@bp.errorhandler(HTTPException)
+def _http_error(e: HTTPException):
+    return jsonify({"error": e.description or e.name, "field": None}), e.code
+
+
+@bp.errorhandler(Exception)
+def _unexpected(e: Exception):  # never expected: logged, answered without a stack trace
+    current_app.logger.exception("API failure")
+    db.session.rollback()
+    return jsonify({"error": "internal error; the request was not applied", "field": None}), 500
+
+
+@dataclass
+class Preview:
+    """An admin's look at one condition × scene: everything works, nothing is stored."""
+
+    study_id: str
+    condition: str
+    scene: str
+
+
+def preview_token(study_id: str, condition: str, scene: str) -> str:
+    s = URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=PREVIEW_SALT)
+    return "preview." + s.dumps([study_id, condition, scene])
+
+
+def caller() -> Participant | Preview:
+    header = request.headers.get("Authorization", "")
+    if not header.startswith("Bearer ") or not header[7:].strip():
+        raise ApiError(401, "missing session token (Authorization: Bearer …)", "Authorization")
+    token = header[7:].strip()
+    if token.startswith("preview."):
+        s = URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=PREVIEW_SALT)
+        try:
+            study_id, condition, scene = s.loads(token[8:], max_age=12 * 3600)
+        except (BadSignature, ValueError, TypeError):
+            raise ApiError(401, "invalid preview token", "Authorization") from None
+        return Preview(study_id, condition, scene)
+    p = db.session.scalar(select(Participant).where(Participant.token == token)) if len(token) <= 64 else None
+    if p is None:
+        raise ApiError(401, "unknown session token", "Authorization")
+    return p
+
+
+def body() -> dict:
+    data = request.get_json(silent=True)
+    if not isinstance(data, dict):
+        raise ApiError(400, "expected a JSON object body", "body")
+    return data
+
+
+def model_json(study_id: str, m) -> dict:
+    return {"id": m.id, "name": m.name, "category": m.category, "category_path": m.category_path,
+            "size": list(m.size), "asset": url_for("participant.asset", study_id=study_id, filename=m.asset),
+            "thumbnail": url_for("participant.asset", study_id=study_id, filename=m.thumbnail)}
+
+
+def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
+    if preview is not None:
+        return {"index": 0, "kind": "preview", "condition": preview.condition, "scene": preview.scene}
+    if t is None:
+        return None
+    return {"index": t.index, "kind": t.kind, "condition": t.condition, "scene": t.scene_id, "block": t.block,
+            "started": t.started_at is not None}
+
+
+def _current(who) -> tuple[str, str, int]:
+    """(condition, scene, trial index) of the caller's current trial."""
+    if isinstance(who, Preview):
+        return who.condition, who.scene, 0
+    t = flow.current_trial(who)
+    if t is None:
+        raise ApiError(409, f"no trial in progress (the session is at step {who.step!r})", "trial")
+    return t.condition, t.scene_id, t.index
+
+
+def _check_trial(who, data: dict) -> tuple[str, str, int]:
+    condition, scene, index = _current(who)
+    if data.get("trial") != index:
+        raise ApiError(409, f"trial {data.get('trial')!r} is not the current trial ({index})", "trial")
+    return condition, scene, index
+
+
+@bp.get("/openapi.json")
+def openapi():
+    return jsonify(openapi_document())
+
+
+@bp.get("/events/schema.json")
+def event_schema():
+    return jsonify(json_schema())
+
+
+@bp.get("/session")
+def session_state():
+    who = caller()
+    if isinstance(who, Preview):
+        rt = runtime(who.study_id)
+        return jsonify({"study": who.study_id, "preview": True, "status": "preview", "step": "trial",
+                        "trial": trial_json(None, who), "trials": 1, "acked_seq": -1,
+                        "limits": {"trial_minutes": rt.study.trial_minutes}})
+    rt = runtime(who.study_id)
+    plan = flow.trials(who)
+    return jsonify({"study": who.study_id, "preview": False, "status": who.status, "step": who.step,
+                    "position": who.position, "trial": trial_json(flow.current_trial(who)),
+                    "trials": len([t for t in plan if t.kind == "trial"]), "acked_seq": who.acked_seq,
+                    "limits": {"trial_minutes": rt.study.trial_minutes, "session_minutes": rt.study.session_minutes}})
+
+
+@bp.post("/heartbeat")
+def heartbeat():
+    who = caller()
+    if isinstance(who, Participant):
+        who.last_seen_at = utcnow()
+        db.session.commit()
+        return jsonify({"ok": True, "acked_seq": who.acked_seq})
+    return jsonify({"ok": True, "acked_seq": -1})
+
+
+@bp.post("/events")
+def events():
+    who = caller()
+    data = body()
+    if isinstance(who, Preview):
+        from scenesuggest.events import validate_batch
+
+        try:
+            batch = validate_batch(data.get("events"))
+        except EventError as e:
+            raise ApiError(422, e.message, e.field) from None
+        return jsonify({"acked_seq": max((e["seq"] for e in batch), default=-1), "stored": False})
+    try:
+        acked = ingest.store(who, data.get("page_id"), data.get("events"))
+    except EventError as e:
+        db.session.rollback()
+        raise ApiError(422, e.message, e.field) from None
+    return jsonify({"acked_seq": acked, "stored": True})
+
+
+def _live_scene(doc, scene_type: str):
+    if not isinstance(doc, dict) or not isinstance(doc.get("objects"), list):
+        raise ApiError(400, "expected {\"objects\": [...]} in the native scene format", "scene")
+    full = {"format": scene_json.FORMAT, "version": scene_json.VERSION, "id": "live", "scene_type": scene_type,
+            "source": "editor", "objects": doc["objects"]}
+    try:
+        return scene_json.from_dict(full, file="scene")
+    except SceneSuggestError as e:
+        raise ApiError(400, e.message, f"scene.objects.{e.field}" if e.field else "scene") from None
+
+
+@bp.post("/suggest")
+def suggest():
+    who = caller()
+    data = body()
+    condition, scene_id, index = _check_trial(who, data)
+    if condition == "none":
+        raise ApiError(403, "this trial's interface has no suggestions", "trial")
+    rt = runtime(who.study_id)
+    target_type = rt.scene(scene_id).get("scene_type", "Room")
+    scene = _live_scene(data.get("scene"), target_type)
+    engine = rt.engine(condition)
+    mode = "full" if condition == "full" else "basic"
+    try:
+        query = ContextQuery(scene, data.get("parent"), data.get("point"), data.get("normal"))
+        found = engine.suggest(query, mode)
+        surface = engine.prepare(query).surface_type
+    except SceneSuggestError as e:
+        raise ApiError(400, e.message, e.field) from None
+    items = []
+    for s in found:
+        models = [rt.library[m] for m in s.models if m in rt.library] or rt.by_category.get(s.category, [])
+        if not models:
+            continue  # a category without a model in this study's library cannot be placed
+        items.append({"rank": len(items) + 1, "category": s.category, "score": s.score,
+                      "placement": frames.to_column_major(s.placement), "attachment_face": s.attachment_face,
+                      "heading_deg": s.heading_deg, "notes": list(s.notes),
+                      "models": [model_json(who.study_id, m) for m in models[:12]]})
+        if len(items) >= SUGGESTIONS_SHOWN:
+            break
+    list_id = uuid.uuid4().hex
+    if isinstance(who, Participant):
+        db.session.add(ShownList(id=list_id, participant_id=who.id, trial=index, source="context",
+                                 query={"parent": data.get("parent"), "point": data.get("point"),
+                                        "normal": data.get("normal"), "surface_type": surface},
+                                 items=[{"rank": i["rank"], "category": i["category"], "score": i["score"],
+                                         "models": [m["id"] for m in i["models"]]} for i in items]))
+        who.last_seen_at = utcnow()
+        db.session.commit()
+    return jsonify({"list_id": list_id, "condition": condition, "mode": mode, "surface_type": surface,
+                    "suggestions": items})
+
+
+@bp.get("/search")
+def search():
+    who = caller()
+    text = request.args.get("q", "")
+    if len(text) > 200:
+        raise ApiError(400, "at most 200 characters", "q")
+    try:
+        limit = int(request.args.get("limit", 60))
+    except ValueError:
+        raise ApiError(400, "expected an integer", "limit") from None
+    if not 1 <= limit <= 200:
+        raise ApiError(400, "must be between 1 and 200", "limit")
+    rt = runtime(who.study_id)
+    hits = rt.search_index.search(text, limit)
+    list_id = uuid.uuid4().hex
+    if isinstance(who, Participant):
+        trial = flow.current_trial(who)
+        db.session.add(ShownList(id=list_id, participant_id=who.id, trial=trial.index if trial else None,
+                                 source="search", query={"text": text},
+                                 items=[{"rank": i + 1, "model": h.model_id, "category": h.category}
+                                        for i, h in enumerate(hits)]))
+        db.session.commit()
+    return jsonify({"list_id": list_id, "query": text,
+                    "hits": [dict(model_json(who.study_id, rt.library[h.model_id]), rank=i + 1)
+                             for i, h in enumerate(hits)]})
+
+
+@bp.get("/models")
+def models():
+    who = caller()
+    rt = runtime(who.study_id)
+    return jsonify({"models": [model_json(who.study_id, m) for m in rt.fixed_list]})
+
+
+@bp.get("/scenes/<scene_id>")
+def scene(scene_id: str):
+    who = caller()
+    rt = runtime(who.study_id)
+    allowed = {who.scene} if isinstance(who, Preview) else {t.scene_id for t in flow.trials(who)}
+    if scene_id not in allowed or scene_id not in rt.study.scenes:
+        raise ApiError(404, "no such scene in this session", "scene_id")
+    which = request.args.get("which", "target")
+    if which not in ("target", "start"):
+        raise ApiError(400, "must be 'target' or 'start'", "which")
+    return jsonify(rt.scene(scene_id, which))
+
+
+@bp.post("/trial/done")
+def trial_done():
+    """Finish the current trial with its final scene; a retry for an already finished trial is a no-op."""
+    who = caller()
+    data = body()
+    if isinstance(who, Preview):
+        _check_trial(who, data)
+        return jsonify({"step": "trial", "preview": True})
+    index = data.get("trial")
+    if isinstance(index, bool) or not isinstance(index, int):
+        raise ApiError(400, "expected the trial index", "trial")
+    t = db.session.scalar(select(Trial).where(Trial.participant_id == who.id, Trial.index == index))
+    if t is None:
+        raise ApiError(409, f"trial {index} is not in this session", "trial")
+    rt = runtime(who.study_id)
+    final = data.get("scene")
+    if final is not None:
+        final = scene_json.scene_to_dict(_live_scene(final, rt.scene(t.scene_id).get("scene_type", "Room")))
+    try:
+        flow.finish_trial(who, rt.study, index, final)
+    except ValueError as e:
+        raise ApiError(409, str(e), "trial") from None
+    db.session.commit()
+    return jsonify({"step": who.step, "position": who.position, "trial": trial_json(flow.current_trial(who)),
+                    "next": url_for("participant.current", study_id=who.study_id)})

@@ -1,0 +1,79 @@
+"""Configuration from the environment and the instance folder (never read at import time).
+
+| variable | meaning | default |
+|---|---|---|
+| ``SCENESUGGEST_STUDIES`` | study files, separated by ``:`` | ``experiments/demo/study.toml`` |
+| ``DATABASE_URL`` | SQLAlchemy URL (``postgresql+psycopg://…`` to scale) | SQLite file in the instance folder |
+| ``SCENESUGGEST_INSTANCE`` | instance folder (database, secret key, admin password) | ``var/instance`` |
+| ``SCENESUGGEST_SECRET_KEY`` | signs cookies | generated once into the instance folder |
+| ``SCENESUGGEST_ADMIN_PASSWORD_HASH`` | werkzeug hash of the admin password | ``instance/admin.json`` |
+| ``SCENESUGGEST_FRAME_ANCESTORS`` | CSP frame-ancestors, for platforms that embed the study | ``'self'`` |
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_STUDY = ROOT / "experiments" / "demo" / "study.toml"
+ADMIN_FILE = "admin.json"
+PASSWORD_FILE = "admin-password.txt"
+
+
+def instance_path() -> Path:
+    return Path(os.environ.get("SCENESUGGEST_INSTANCE", ROOT / "var" / "instance")).resolve()
+
+
+def from_environment(instance: Path) -> dict:
+    """The app's settings as a Flask config dict."""
+    instance.mkdir(parents=True, exist_ok=True)
+    studies = os.environ.get("SCENESUGGEST_STUDIES")
+    return {
+        "STUDY_FILES": [Path(p) for p in studies.split(":") if p] if studies else [DEFAULT_STUDY],
+        "SQLALCHEMY_DATABASE_URI": os.environ.get("DATABASE_URL") or f"sqlite:///{instance / 'studies.sqlite3'}",
+        "SECRET_KEY": os.environ.get("SCENESUGGEST_SECRET_KEY") or _secret_key(instance),
+        "ADMIN_PASSWORD_HASH": os.environ.get("SCENESUGGEST_ADMIN_PASSWORD_HASH") or _admin_hash(instance),
+        "FRAME_ANCESTORS": os.environ.get("SCENESUGGEST_FRAME_ANCESTORS", "'self'"),
+        "MAX_CONTENT_LENGTH": 1024 * 1024,
+        "SESSION_COOKIE_HTTPONLY": True,
+        "SESSION_COOKIE_SAMESITE": "Lax",
+    }
+
+
+def _secret_key(instance: Path) -> str:
+    path = instance / "secret_key"
+    if not path.exists():
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            with os.fdopen(fd, "w") as f:
+                f.write(secrets.token_hex(32))
+        except FileExistsError:  # another worker wrote it first
+            pass
+    return path.read_text().strip()
+
+
+def _admin_hash(instance: Path) -> str | None:
+    path = instance / ADMIN_FILE
+    if path.exists():
+        return json.loads(path.read_text()).get("password_hash")
+    return None
+
+
+def ensure_admin_password(instance: Path) -> Path | None:
+    """Create an admin password on first run (hash in admin.json, the password itself in a 0600 file whose
+    path is printed by ``make serve``); returns the password file when one was created or still exists."""
+    from werkzeug.security import generate_password_hash
+
+    instance.mkdir(parents=True, exist_ok=True)
+    if os.environ.get("SCENESUGGEST_ADMIN_PASSWORD_HASH"):
+        return None
+    if not (instance / ADMIN_FILE).exists():
+        password = secrets.token_urlsafe(12)
+        fd = os.open(instance / PASSWORD_FILE, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(fd, "w") as f:
+            f.write(password + "\n")
+        (instance / ADMIN_FILE).write_text(json.dumps({"password_hash": generate_password_hash(password)}))
+    return instance / PASSWORD_FILE if (instance / PASSWORD_FILE).exists() else None

@@ -1,0 +1,189 @@
+"""Export a study as tidy CSV tables plus ``manifest.json`` and a data dictionary.
+
+Tables (one row per …): ``participants`` (participant), ``trials`` (trial), ``events`` (logged event),
+``suggestions`` (item of a list the server showed: context suggestions and search results, with ranks),
+``picks`` (model placed: insert/replace events with their rank and source), ``survey`` (answer),
+``session_log`` (server-side observation: arrival, resume, device check, failures).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import subprocess
+import zipfile
+from datetime import UTC, datetime
+from pathlib import Path
+
+from sqlalchemy import select, text
+
+import scenesuggest
+
+from .extensions import db
+from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial
+from .study_file import Study
+
+DICTIONARY: dict[str, dict[str, str]] = {
+    "participants": {
+        "participant": "participant number (database id)", "study": "study id",
+        "study_hash": "sha256 of the study file",
+        "platform": "prolific | mturk | link", "platform_id": "the platform's worker id",
+        "row": "schedule row (Williams row × period) assigned on arrival", "status":
+        "in_progress | completed | no_consent | screened_out | returned | excluded | technical",
+        "step": "last step reached", "consent_version": "consent text version agreed to",
+        "excluded_reason": "why an experimenter excluded the participant", "created_at": "arrival (UTC)",
+        "last_seen_at": "last request (UTC)", "finished_at": "completion or early end (UTC)",
+        "acked_seq": "highest contiguous event seq stored",
+        "viewport_width": "browser window width at the device check (px)",
+        "viewport_height": "height (px)", "user_agent": "browser user agent"},
+    "trials": {
+        "participant": "participant number", "position": "order in the session (0 = first)",
+        "trial": "trial index (−1 = practice)", "kind": "practice | trial", "condition": "none | basic | full",
+        "scene": "target scene id", "period": "period of the schedule row", "block": "block within the session",
+        "started_at": "trial page first shown (UTC)", "done_at": "done acknowledged (UTC)",
+        "final_objects": "objects in the final scene"},
+    "events": {
+        "participant": "participant number", "seq": "per-participant event number from 0", "page_id":
+        "page load that sent it", "type": "event type (see the event vocabulary in manifest.json)",
+        "trial": "trial index or empty", "client_t_ms": "client clock, ms since the epoch",
+        "server_t": "server receive time (UTC)", "payload": "event payload as JSON"},
+    "suggestions": {
+        "participant": "participant number", "list_id": "id of the list", "trial": "trial index",
+        "source": "context | search", "rank": "1-based rank in the list", "category": "category",
+        "model": "model id (search lists) or first model of the category (context lists)",
+        "score": "engine score (context lists)", "created_at": "when the server made the list (UTC)",
+        "query": "the query as JSON"},
+    "picks": {
+        "participant": "participant number", "seq": "event seq", "trial": "trial index",
+        "client_t_ms": "client clock (ms)", "action": "insert | replace", "object": "editor object id",
+        "model": "model id", "category": "category", "rank": "rank in the list it was picked from (empty if none)",
+        "reciprocal_rank": "1 / rank (empty if none)", "source": "context | search | fixed",
+        "list_id": "list it was picked from, when known"},
+    "survey": {"participant": "participant number", "survey": "demographics | exit", "question": "question id",
+               "answer": "the answer (Likert 1..scale, choice text, number or free text)"},
+    "session_log": {"participant": "participant number (empty for failures before arrival)", "kind":
+                    "arrive | view | resume | device_check | consent | instructions | trial_start | trial_done | "
+                    "finish | error | …", "at": "server time (UTC)", "detail": "details as JSON"},
+}
+
+
+def _iso(t) -> str:
+    return t.isoformat() if t else ""
+
+
+def _rows(study: Study) -> dict[str, list[dict]]:
+    s = db.session
+    people = list(s.scalars(select(Participant).where(Participant.study_id == study.id).order_by(Participant.id)))
+    ids = [p.id for p in people]
+    out: dict[str, list[dict]] = {name: [] for name in DICTIONARY}
+    for p in people:
+        v = p.viewport or {}
+        out["participants"].append({
+            "participant": p.id, "study": p.study_id, "study_hash": p.study_hash, "platform": p.platform,
+            "platform_id": p.platform_id, "row": p.row, "status": p.status, "step": p.step,
+            "consent_version": p.consent_version or "", "excluded_reason": p.excluded_reason or "",
+            "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at), "finished_at": _iso(p.finished_at),
+            "acked_seq": p.acked_seq, "viewport_width": v.get("width", ""), "viewport_height": v.get("height", ""),
+            "user_agent": p.user_agent})
+    if not ids:
+        return out
+    for t in s.scalars(select(Trial).where(Trial.participant_id.in_(ids)).order_by(Trial.participant_id,
+                                                                                   Trial.position)):
+        out["trials"].append({
+            "participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
+            "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
+            "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
+            "final_objects": len(t.final_scene["objects"]) if t.final_scene else ""})
+    for e in s.scalars(select(Event).where(Event.participant_id.in_(ids)).order_by(Event.participant_id, Event.seq)):
+        out["events"].append({"participant": e.participant_id, "seq": e.seq, "page_id": e.page_id, "type": e.type,
+                              "trial": "" if e.trial is None else e.trial, "client_t_ms": repr(e.client_t),
+                              "server_t": _iso(e.server_t), "payload": json.dumps(e.payload, sort_keys=True)})
+        if e.type in ("insert", "replace"):
+            rank = e.payload.get("rank")
+            out["picks"].append({
+                "participant": e.participant_id, "seq": e.seq, "trial": "" if e.trial is None else e.trial,
+                "client_t_ms": repr(e.client_t), "action": e.type, "object": e.payload.get("object", ""),
+                "model": e.payload.get("model", ""), "category": e.payload.get("category", ""),
+                "rank": "" if rank is None else rank, "reciprocal_rank": "" if not rank else 1.0 / rank,
+                "source": e.payload.get("source", ""), "list_id": e.payload.get("list_id") or ""})
+    for li in s.scalars(select(ShownList).where(ShownList.participant_id.in_(ids)).order_by(ShownList.created_at,
+                                                                                           ShownList.id)):
+        for item in li.items:
+            out["suggestions"].append({
+                "participant": li.participant_id, "list_id": li.id, "trial": "" if li.trial is None else li.trial,
+                "source": li.source, "rank": item.get("rank"), "category": item.get("category", ""),
+                "model": item.get("model") or (item.get("models") or [""])[0], "score": item.get("score", ""),
+                "created_at": _iso(li.created_at), "query": json.dumps(li.query, sort_keys=True)})
+    for r in s.scalars(select(SurveyResponse).where(SurveyResponse.participant_id.in_(ids))
+                       .order_by(SurveyResponse.participant_id, SurveyResponse.survey)):
+        for q, a in r.answers.items():
+            out["survey"].append({"participant": r.participant_id, "survey": r.survey, "question": q,
+                                  "answer": "" if a is None else a})
+    for row in s.scalars(select(SessionLog).where(SessionLog.participant_id.in_(ids)).order_by(SessionLog.id)):
+        out["session_log"].append({"participant": row.participant_id, "kind": row.kind, "at": _iso(row.at),
+                                   "detail": json.dumps(row.detail, sort_keys=True)})
+    return out
+
+
+def _csv(rows: list[dict], columns: list[str]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def _code_version() -> str:
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, timeout=5,
+                                cwd=Path(__file__).parent).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        commit = ""
+    return f"{scenesuggest.__version__}" + (f"+{commit}" if commit else "")
+
+
+def export_files(study: Study) -> dict[str, str]:
+    """File name → content of a complete export."""
+    from scenesuggest.events import json_schema
+
+    rows = _rows(study)
+    files = {f"{name}.csv": _csv(rows[name], list(columns)) for name, columns in DICTIONARY.items()}
+    try:
+        schema_version = db.session.execute(text("SELECT version_num FROM alembic_version")).scalar()
+    except Exception:
+        db.session.rollback()
+        schema_version = None
+    dictionary = ["# Data dictionary", ""]
+    for name, columns in DICTIONARY.items():
+        dictionary += [f"## {name}.csv", "", "| column | meaning |", "|---|---|"]
+        dictionary += [f"| {c} | {m} |" for c, m in columns.items()] + [""]
+    files["data_dictionary.md"] = "\n".join(dictionary)
+    files["event_schema.json"] = json.dumps(json_schema(), indent=1)
+    manifest = {
+        "study": study.id, "title": study.title, "study_hash": study.hash, "study_file": study.path.name,
+        "code_version": _code_version(), "schema_version": schema_version,
+        "exported_at": datetime.now(UTC).isoformat(), "row_counts": {n: len(r) for n, r in rows.items()},
+        "files": {n: hashlib.sha256(c.encode()).hexdigest() for n, c in sorted(files.items())},
+        "design": {"kind": study.design, "blocking": study.blocking, "rows": study.n_rows,
+                   "conditions": [c.id for c in study.conditions], "periods": [list(p) for p in study.periods]},
+    }
+    files["manifest.json"] = json.dumps(manifest, indent=1)
+    return files
+
+
+def export_to(study: Study, out: Path) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    files = export_files(study)
+    for name, content in files.items():
+        (out / name).write_text(content, encoding="utf-8")
+    return json.loads(files["manifest.json"])
+
+
+def export_zip(study: Study) -> bytes:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, content in export_files(study).items():
+            z.writestr(f"{study.id}/{name}", content)
+    return buf.getvalue()

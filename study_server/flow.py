@@ -1,0 +1,183 @@
+"""The participant's progress, owned by the server: which step they are on and what moves them on.
+
+Steps: ``device`` → ``consent`` → ``demographics`` → ``instructions`` → ``trial`` (the practice trial first,
+when the study has one) → ``exit`` → ``done``. Ending early: declining consent (status ``no_consent``),
+failing the device check (``screened_out``). Every function takes the participant, changes it in the
+current transaction and leaves committing to the caller.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from datetime import timedelta
+
+from sqlalchemy import select
+
+from .extensions import db
+from .models import Participant, SurveyResponse, Trial, log, utcnow
+from .study_file import Question, Study
+
+MOBILE = re.compile(r"Mobi|Android|iPhone|iPad|iPod|Windows Phone", re.I)
+MAX_ANSWER = 5000
+
+
+def trials(p: Participant) -> list[Trial]:
+    return list(db.session.scalars(select(Trial).where(Trial.participant_id == p.id).order_by(Trial.position)))
+
+
+def current_trial(p: Participant) -> Trial | None:
+    if p.step != "trial":
+        return None
+    return db.session.scalar(select(Trial).where(Trial.participant_id == p.id, Trial.position == p.position))
+
+
+def _finish(p: Participant, study: Study, status: str, code_key: str) -> None:
+    p.status = status
+    p.step = "done"
+    p.code = study.codes[code_key]
+    p.finished_at = utcnow()
+    log("finish", p, status=status)
+
+
+def check_device(p: Participant, study: Study, info: dict) -> bool:
+    """Record the browser's report; screen out phones/tablets and small windows when the study asks to."""
+    try:
+        width, height = int(info.get("width", 0)), int(info.get("height", 0))
+    except (TypeError, ValueError):
+        width = height = 0
+    touch_only = str(info.get("touch_only", "")).lower() in ("1", "true", "yes")
+    p.viewport = {"width": width, "height": height, "touch_only": touch_only,
+                  "pixel_ratio": str(info.get("pixel_ratio", ""))[:16]}
+    reasons = []
+    if study.desktop_only and (MOBILE.search(p.user_agent or "") or touch_only):
+        reasons.append("not a desktop browser")
+    if width < study.min_width or height < study.min_height:
+        reasons.append(f"window {width}×{height} smaller than {study.min_width}×{study.min_height}")
+    log("device_check", p, ok=not reasons, reasons=reasons, **p.viewport)
+    if reasons:
+        _finish(p, study, "screened_out", "screened_out")
+        return False
+    p.step = "consent"
+    return True
+
+
+def give_consent(p: Participant, study: Study, agree: bool) -> None:
+    if not agree:
+        log("consent", p, agree=False, version=study.consent_version)
+        _finish(p, study, "no_consent", "no_consent")
+        return
+    p.consent_version = study.consent_version
+    log("consent", p, agree=True, version=study.consent_version)
+    p.step = "demographics" if study.demographics else "instructions"
+
+
+def validate_answers(questions: tuple[Question, ...], form) -> tuple[dict, dict[str, str]]:
+    """(answers, errors by question id) for a submitted survey form."""
+    answers, errors = {}, {}
+    for q in questions:
+        raw = form.get(q.id, "")
+        raw = raw.strip() if isinstance(raw, str) else ""
+        if not raw:
+            if q.required:
+                errors[q.id] = "Please answer this question."
+            answers[q.id] = None
+            continue
+        if q.kind == "likert":
+            if not raw.isdigit() or not 1 <= int(raw) <= q.scale:
+                errors[q.id] = f"Please choose a value from 1 to {q.scale}."
+            else:
+                answers[q.id] = int(raw)
+        elif q.kind == "choice":
+            if raw not in q.options:
+                errors[q.id] = "Please choose one of the options."
+            else:
+                answers[q.id] = raw
+        elif q.kind == "number":
+            try:
+                value = float(raw)
+                if not math.isfinite(value):
+                    raise ValueError
+            except ValueError:
+                errors[q.id] = "Please enter a number."
+                continue
+            if (q.minimum is not None and value < q.minimum) or (q.maximum is not None and value > q.maximum):
+                errors[q.id] = f"Please enter a number between {q.minimum:g} and {q.maximum:g}."
+            else:
+                answers[q.id] = int(value) if value.is_integer() else value
+        else:
+            answers[q.id] = raw[:MAX_ANSWER]
+    return answers, errors
+
+
+def save_survey(p: Participant, name: str, answers: dict) -> None:
+    existing = db.session.scalar(select(SurveyResponse).where(SurveyResponse.participant_id == p.id,
+                                                              SurveyResponse.survey == name))
+    if existing is None:
+        db.session.add(SurveyResponse(participant_id=p.id, survey=name, answers=answers))
+    else:  # a resubmission (back button): keep the latest answers
+        existing.answers = answers
+
+
+def submit_demographics(p: Participant, study: Study, answers: dict) -> None:
+    save_survey(p, "demographics", answers)
+    p.step = "instructions"
+    p.instruction_page = 0
+
+
+def turn_instructions(p: Participant, study: Study, direction: str) -> None:
+    if direction == "back":
+        p.instruction_page = max(0, p.instruction_page - 1)
+    elif p.instruction_page + 1 < len(study.instructions):
+        p.instruction_page += 1
+    else:
+        p.step = "trial"
+        p.position = 0
+    log("instructions", p, page=p.instruction_page, step=p.step)
+
+
+def start_trial(p: Participant) -> Trial | None:
+    t = current_trial(p)
+    if t is not None and t.started_at is None:
+        t.started_at = utcnow()
+        log("trial_start", p, position=t.position, index=t.index)
+    return t
+
+
+def finish_trial(p: Participant, study: Study, index: int, scene: dict | None) -> Trial:
+    """Mark the current trial done (idempotent for an already finished one) and move on."""
+    t = current_trial(p)
+    if t is None or t.index != index:
+        done = db.session.scalar(select(Trial).where(Trial.participant_id == p.id, Trial.index == index))
+        if done is not None and done.done_at is not None:
+            return done  # a retried request: nothing to do
+        raise ValueError(f"trial {index} is not the current trial")
+    now = utcnow()
+    t.started_at = t.started_at or now
+    t.done_at = now
+    t.final_scene = scene
+    timed_out = (now - t.started_at) > timedelta(minutes=study.trial_minutes)
+    log("trial_done", p, position=t.position, index=t.index, timed_out=timed_out)
+    p.position += 1
+    if p.position >= len(trials(p)):
+        p.step = "exit"
+    return t
+
+
+def check_session_time(p: Participant, study: Study) -> None:
+    """Past the session time limit, a participant still in the trials goes on to the exit survey."""
+    if p.step == "trial" and utcnow() - p.created_at > timedelta(minutes=study.session_minutes):
+        log("session_time_limit", p, position=p.position)
+        p.step = "exit"
+
+
+def submit_exit(p: Participant, study: Study, answers: dict) -> None:
+    save_survey(p, "exit", answers)
+    _finish(p, study, "completed", "complete")
+
+
+def completion_url(study: Study, p: Participant) -> str | None:
+    """Where the completion page sends the participant (MTurk posts a form to turkSubmitTo instead)."""
+    if study.completion_url and p.code:
+        return study.completion_url.replace("{code}", p.code)
+    return None

@@ -1,0 +1,143 @@
+"""The schema (typed SQLAlchemy 2 models). It only ever changes through a migration in ``migrations/``.
+
+Times are naive UTC datetimes (``utcnow``); client times are milliseconds since the epoch as sent.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+
+from sqlalchemy import JSON, BigInteger, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy.orm import Mapped, mapped_column
+
+from .extensions import db
+
+#: Event ids outgrow 32 bits in long studies; SQLite needs INTEGER for its row-id alias.
+BigId = BigInteger().with_variant(Integer(), "sqlite")
+
+
+def utcnow() -> datetime:
+    return datetime.now(UTC).replace(tzinfo=None)
+
+
+class StudyRecord(db.Model):
+    """A study known to this database; its row is also the lock that serialises assignment."""
+
+    __tablename__ = "studies"
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    title: Mapped[str] = mapped_column(String(200))
+    hash: Mapped[str] = mapped_column(String(64))
+    assignments: Mapped[int] = mapped_column(Integer, default=0)
+    registered_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class Participant(db.Model):
+    __tablename__ = "participants"
+    __table_args__ = (UniqueConstraint("study_id", "platform", "platform_id", name="uq_participant_platform_id"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[str] = mapped_column(ForeignKey("studies.id"), index=True)
+    study_hash: Mapped[str] = mapped_column(String(64))
+    platform: Mapped[str] = mapped_column(String(16))
+    platform_id: Mapped[str] = mapped_column(String(128))
+    platform_meta: Mapped[dict] = mapped_column(JSON, default=dict)
+    token: Mapped[str] = mapped_column(String(64), unique=True, index=True)
+    row: Mapped[int] = mapped_column(Integer, index=True)
+    seed: Mapped[int] = mapped_column(Integer)
+    status: Mapped[str] = mapped_column(String(16), default="in_progress", index=True)
+    step: Mapped[str] = mapped_column(String(24), default="device")
+    instruction_page: Mapped[int] = mapped_column(Integer, default=0)
+    position: Mapped[int] = mapped_column(Integer, default=0)  # current trial, as a position in the plan
+    acked_seq: Mapped[int] = mapped_column(Integer, default=-1)  # highest contiguous event seq stored
+    consent_version: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    excluded_reason: Mapped[str | None] = mapped_column(Text, nullable=True)
+    user_agent: Mapped[str] = mapped_column(String(512), default="")
+    viewport: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)
+    finished_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+
+
+class Trial(db.Model):
+    __tablename__ = "trials"
+    __table_args__ = (UniqueConstraint("participant_id", "position", name="uq_trial_position"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), index=True)
+    position: Mapped[int] = mapped_column(Integer)
+    index: Mapped[int] = mapped_column(Integer)  # −1 practice, then 0, 1, …
+    kind: Mapped[str] = mapped_column(String(16))
+    condition: Mapped[str] = mapped_column(String(16))
+    scene_id: Mapped[str] = mapped_column(String(64))
+    period: Mapped[int] = mapped_column(Integer)
+    block: Mapped[int] = mapped_column(Integer)
+    started_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    done_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    final_scene: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+
+
+class Event(db.Model):
+    __tablename__ = "events"
+    __table_args__ = (UniqueConstraint("participant_id", "seq", name="uq_event_seq"),)
+    id: Mapped[int] = mapped_column(BigId, primary_key=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), index=True)
+    seq: Mapped[int] = mapped_column(Integer)
+    page_id: Mapped[str] = mapped_column(String(64))
+    type: Mapped[str] = mapped_column(String(32))
+    trial: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    client_t: Mapped[float] = mapped_column(Float)
+    server_t: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    payload: Mapped[dict] = mapped_column(JSON, default=dict)
+
+
+class ShownList(db.Model):
+    """Every list the server gave a participant (context suggestions, search results), with its ranks."""
+
+    __tablename__ = "lists"
+    id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), index=True)
+    trial: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    source: Mapped[str] = mapped_column(String(16))
+    query: Mapped[dict] = mapped_column(JSON)
+    items: Mapped[list] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class SurveyResponse(db.Model):
+    __tablename__ = "surveys"
+    __table_args__ = (UniqueConstraint("participant_id", "survey", name="uq_survey"),)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), index=True)
+    survey: Mapped[str] = mapped_column(String(32))
+    answers: Mapped[dict] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class SessionLog(db.Model):
+    """What the server saw of a participant's session: arrivals, resumes, steps, friendly failures."""
+
+    __tablename__ = "session_log"
+    id: Mapped[int] = mapped_column(BigId, primary_key=True)
+    participant_id: Mapped[int | None] = mapped_column(ForeignKey("participants.id"), index=True, nullable=True)
+    study_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    detail: Mapped[dict] = mapped_column(JSON, default=dict)
+    at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+
+
+class LoginAttempt(db.Model):
+    __tablename__ = "login_attempts"
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    ip: Mapped[str] = mapped_column(String(64), index=True)
+    ok: Mapped[bool] = mapped_column(db.Boolean)
+    at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)
+
+
+def log(kind: str, participant: Participant | None = None, study_id: str | None = None, **detail) -> None:
+    """Add a session-log row to the current transaction."""
+    db.session.add(SessionLog(participant_id=participant.id if participant else None,
+                              study_id=study_id or (participant.study_id if participant else None), kind=kind,
+                              detail=detail))
+
+
+__all__ = ["Event", "LoginAttempt", "Participant", "SessionLog", "ShownList", "StudyRecord", "SurveyResponse",
+           "Trial", "log", "utcnow"]

@@ -1,0 +1,89 @@
+"""The OpenAPI 3.1 document of the JSON API (served at /api/openapi.json, used by the API tests and fuzzers)."""
+
+from __future__ import annotations
+
+from scenesuggest.events import MAX_BATCH, json_schema
+
+ERROR = {"type": "object", "required": ["error"],
+         "properties": {"error": {"type": "string"}, "field": {"type": ["string", "null"]}}}
+VEC3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
+SCENE = {"type": "object", "required": ["objects"], "description": "The editor's scene: objects in the native "
+         "scene format (id, model_id, category, size, transform, parent, …)",
+         "properties": {"objects": {"type": "array", "items": {"type": "object"}}}}
+MODEL = {"type": "object", "properties": {"id": {"type": "string"}, "name": {"type": "string"},
+                                          "category": {"type": "string"}, "asset": {"type": "string"},
+                                          "thumbnail": {"type": "string"}, "size": VEC3}}
+
+
+def _errors(*codes: int) -> dict:
+    return {str(c): {"description": "error", "content": {"application/json": {"schema": ERROR}}} for c in codes}
+
+
+def _ok(schema: dict, description: str = "ok") -> dict:
+    return {"200": {"description": description, "content": {"application/json": {"schema": schema}}}}
+
+
+def _body(schema: dict) -> dict:
+    return {"required": True, "content": {"application/json": {"schema": schema}}}
+
+
+def openapi_document() -> dict:
+    auth = [{"session": []}]
+    return {
+        "openapi": "3.1.0",
+        "info": {"title": "SceneSuggest Studio participant API", "version": "1"},
+        "components": {"securitySchemes": {"session": {"type": "http", "scheme": "bearer",
+                                                       "description": "the participant's session token"}},
+                       "schemas": {"Event": json_schema(), "Error": ERROR}},
+        "paths": {
+            "/api/session": {"get": {"summary": "Session state", "security": auth,
+                                     "responses": {**_ok({"type": "object"}), **_errors(401)}}},
+            "/api/heartbeat": {"post": {"summary": "Keep the session fresh", "security": auth,
+                                        "responses": {**_ok({"type": "object"}), **_errors(401)}}},
+            "/api/events": {"post": {
+                "summary": "Store a batch of events (idempotent by seq); answers the highest contiguous seq stored",
+                "security": auth,
+                "requestBody": _body({"type": "object", "required": ["page_id", "events"], "properties": {
+                    "page_id": {"type": "string", "minLength": 1, "maxLength": 64},
+                    "events": {"type": "array", "maxItems": MAX_BATCH, "items": {"$ref": "#/components/schemas/Event"}},
+                }}),
+                "responses": {**_ok({"type": "object", "required": ["acked_seq"],
+                                     "properties": {"acked_seq": {"type": "integer"}}}),
+                              **_errors(400, 401, 413, 422)}}},
+            "/api/suggest": {"post": {
+                "summary": "Contextual suggestions for a click in the current trial (not in the 'none' condition)",
+                "security": auth,
+                "requestBody": _body({"type": "object", "required": ["trial", "parent", "point", "normal", "scene"],
+                                      "properties": {"trial": {"type": "integer"}, "parent": {"type": "string"},
+                                                     "point": VEC3, "normal": VEC3, "scene": SCENE}}),
+                "responses": {**_ok({"type": "object", "properties": {
+                    "list_id": {"type": "string"}, "surface_type": {"type": "string"},
+                    "suggestions": {"type": "array", "items": {"type": "object"}}}}),
+                    **_errors(400, 401, 403, 409)}}},
+            "/api/search": {"get": {
+                "summary": "Keyword search over the study's models", "security": auth,
+                "parameters": [{"name": "q", "in": "query", "required": False,
+                                "schema": {"type": "string", "maxLength": 200}},
+                               {"name": "limit", "in": "query", "required": False,
+                                "schema": {"type": "integer", "minimum": 1, "maximum": 200}}],
+                "responses": {**_ok({"type": "object", "properties": {"hits": {"type": "array", "items": MODEL}}}),
+                              **_errors(400, 401)}}},
+            "/api/models": {"get": {"summary": "Every model of the study, in the fixed order", "security": auth,
+                                    "responses": {**_ok({"type": "object", "properties": {
+                                        "models": {"type": "array", "items": MODEL}}}), **_errors(401)}}},
+            "/api/scenes/{scene_id}": {"get": {
+                "summary": "A target or start scene of this session (native scene JSON)", "security": auth,
+                "parameters": [{"name": "scene_id", "in": "path", "required": True, "schema": {"type": "string"}},
+                               {"name": "which", "in": "query", "required": False,
+                                "schema": {"type": "string", "enum": ["target", "start"]}}],
+                "responses": {**_ok({"type": "object"}), **_errors(400, 401, 404)}}},
+            "/api/trial/done": {"post": {
+                "summary": "Finish the current trial with its final scene", "security": auth,
+                "requestBody": _body({"type": "object", "required": ["trial"],
+                                      "properties": {"trial": {"type": "integer"}, "scene": SCENE}}),
+                "responses": {**_ok({"type": "object"}), **_errors(400, 401, 409)}}},
+            "/api/events/schema.json": {"get": {"summary": "JSON Schema of one event",
+                                                "responses": _ok({"type": "object"})}},
+            "/api/openapi.json": {"get": {"summary": "This document", "responses": _ok({"type": "object"})}},
+        },
+    }

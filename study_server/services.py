@@ -1,0 +1,86 @@
+"""What a running study needs besides the database: its engine per condition, model library, search, scenes.
+
+Loaded once per process, lazily (the first request that needs a piece loads it, under a lock), so that
+creating the app stays cheap and each gunicorn worker holds one copy.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from functools import cached_property
+from pathlib import Path
+
+from scenesuggest import scene_json
+from scenesuggest.library import INDEX_FILE, ModelInfo, load_index
+from scenesuggest.priors import Priors
+from scenesuggest.search import SearchIndex
+from scenesuggest.suggest import Engine
+
+from .study_file import Study, StudyFileError
+
+
+class StudyRuntime:
+    def __init__(self, study: Study):
+        self.study = study
+        self._lock = threading.RLock()
+        self._engines: dict[str, Engine] = {}
+
+    def check_resources(self) -> None:
+        """Fail at start-up, naming the key, when the priors file or the model library is missing."""
+        if not self.study.priors.is_file():
+            raise StudyFileError(f"no priors file at {self.study.priors} (make one with 'scenesuggest priors "
+                                 f"train {self.study.corpus} -o {self.study.priors}')", file=str(self.study.path),
+                                 field="resources.priors")
+        if not (self.study.library / INDEX_FILE).is_file():
+            raise StudyFileError(f"no model library at {self.study.library} (build one with 'scenesuggest assets "
+                                 f"build {self.study.corpus} --out {self.study.library}')",
+                                 file=str(self.study.path), field="resources.library")
+
+    @cached_property
+    def priors(self) -> Priors:
+        with self._lock:
+            return Priors.load(self.study.priors)
+
+    def engine(self, condition_id: str) -> Engine:
+        with self._lock:
+            if condition_id not in self._engines:
+                self._engines[condition_id] = Engine(self.priors, self.study.condition(condition_id).engine)
+            return self._engines[condition_id]
+
+    @cached_property
+    def library(self) -> dict[str, ModelInfo]:
+        """Models of the study's library that have an asset (the ones a participant can place)."""
+        return {m.id: m for m in load_index(self.study.library).values() if m.asset}
+
+    @cached_property
+    def by_category(self) -> dict[str, list[ModelInfo]]:
+        out: dict[str, list[ModelInfo]] = {}
+        for m in self.fixed_list:
+            out.setdefault(m.category, []).append(m)
+        return out
+
+    @cached_property
+    def fixed_list(self) -> list[ModelInfo]:
+        """The ``none`` condition's panel: every model, in a fixed order (category path, then name)."""
+        return sorted(self.library.values(), key=lambda m: ([c.lower() for c in m.category_path], m.name, m.id))
+
+    @cached_property
+    def search_index(self) -> SearchIndex:
+        return SearchIndex.build(self.fixed_list)
+
+    def scene(self, scene_id: str, which: str = "target") -> dict:
+        """A target (or start) scene as native JSON; the start defaults to the target's room alone."""
+        s = self.study.scenes[scene_id]
+        if which == "start" and s.start is not None:
+            return json.loads(Path(s.start).read_text())
+        doc = json.loads(Path(s.target).read_text())
+        if which == "start":
+            doc["objects"] = [o for o in doc["objects"] if o.get("parent") is None]
+        return doc
+
+    def validate_scenes(self) -> None:
+        for s in self.study.scenes.values():
+            scene_json.load(s.target)
+            if s.start:
+                scene_json.load(s.start)

@@ -1,0 +1,325 @@
+"""Study files: TOML in ``experiments/``, validated with errors that name the key (``conditions[1].engine``).
+
+Paths inside a study file are relative to the file. See ``experiments/demo/study.toml`` for every key.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from scenesuggest.errors import SceneSuggestError
+from scenesuggest.suggest import EngineOptions
+
+from . import schedule
+
+CONDITIONS = ("none", "basic", "full")
+DESIGNS = ("williams", "random", "fixed")
+BLOCKINGS = ("condition", "scene")
+PLATFORMS = ("prolific", "mturk", "link")
+CODES = ("complete", "no_consent", "screened_out", "technical")
+QUESTION_KINDS = ("likert", "choice", "number", "text")
+ENGINE_OPTIONS = ("lambda1", "lambda2", "backoff", "collision_aware", "collision_penalty", "anchor_refinement",
+                  "refine_radius_m", "infer_scene_type")
+
+
+class StudyFileError(SceneSuggestError):
+    pass
+
+
+@dataclass(frozen=True)
+class Condition:
+    id: str
+    label: str
+    instructions: str
+    engine: EngineOptions
+
+
+@dataclass(frozen=True)
+class TargetScene:
+    id: str
+    title: str
+    target: Path
+    start: Path | None
+
+
+@dataclass(frozen=True)
+class Question:
+    id: str
+    kind: str
+    label: str
+    required: bool = True
+    options: tuple[str, ...] = ()
+    scale: int = 5
+    low: str = ""
+    high: str = ""
+    minimum: float | None = None
+    maximum: float | None = None
+
+
+@dataclass(frozen=True)
+class Study:
+    path: Path
+    hash: str
+    id: str
+    title: str
+    description: str
+    corpus: str
+    priors: Path
+    library: Path
+    design: str
+    blocking: str
+    participants: int
+    conditions: tuple[Condition, ...]
+    scenes: dict[str, TargetScene]
+    periods: tuple[tuple[str, ...], ...]
+    practice: tuple[str, str] | None
+    platform: str
+    codes: dict[str, str]
+    completion_url: str | None
+    consent_version: str
+    consent_text: str
+    instructions: tuple[tuple[str, str], ...]
+    demographics: tuple[Question, ...]
+    exit_survey: tuple[Question, ...]
+    trial_minutes: float
+    session_minutes: float
+    stale_after_minutes: float
+    desktop_only: bool
+    min_width: int
+    min_height: int
+    raw: dict = field(repr=False, default_factory=dict)
+
+    def condition(self, condition_id: str) -> Condition:
+        return next(c for c in self.conditions if c.id == condition_id)
+
+    @property
+    def n_rows(self) -> int:
+        return schedule.n_rows(self.design, len(self.conditions), len(self.periods))
+
+    def plan(self, row: int, seed: int = 0) -> list[schedule.PlannedTrial]:
+        return schedule.plan(self.design, self.blocking, [c.id for c in self.conditions],
+                             [list(p) for p in self.periods], row, seed, self.practice)
+
+
+class _Reader:
+    def __init__(self, file: Path):
+        self.file = str(file)
+
+    def fail(self, key: str, message: str) -> StudyFileError:
+        return StudyFileError(message, file=self.file, field=key)
+
+    def table(self, doc: dict, key: str, path: str, required: bool = True) -> dict:
+        v = doc.get(key)
+        if v is None and not required:
+            return {}
+        if not isinstance(v, dict):
+            raise self.fail(path, "missing table" if v is None else "expected a table")
+        return v
+
+    def tables(self, doc: dict, key: str, path: str, required: bool = True) -> list[dict]:
+        v = doc.get(key)
+        if v is None and not required:
+            return []
+        if not isinstance(v, list) or not v or not all(isinstance(t, dict) for t in v):
+            raise self.fail(path, "expected one or more [[" + key + "]] tables")
+        return v
+
+    def string(self, doc: dict, key: str, path: str, default: str | None = None) -> str:
+        v = doc.get(key, default)
+        if not isinstance(v, str) or not v.strip():
+            raise self.fail(path, "missing" if key not in doc else "expected a non-empty string")
+        return v
+
+    def number(self, doc: dict, key: str, path: str, default=None, minimum: float = 0.0) -> float:
+        v = doc.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, int | float) or v < minimum:
+            raise self.fail(path, f"expected a number ≥ {minimum:g}" if key in doc else "missing")
+        return float(v)
+
+    def boolean(self, doc: dict, key: str, path: str, default: bool) -> bool:
+        v = doc.get(key, default)
+        if not isinstance(v, bool):
+            raise self.fail(path, "expected true or false")
+        return v
+
+    def choice(self, doc: dict, key: str, path: str, allowed, default: str | None = None) -> str:
+        v = doc.get(key, default)
+        if v not in allowed:
+            raise self.fail(path, f"{v!r} is not one of {', '.join(allowed)}")
+        return v
+
+    def unknown(self, doc: dict, allowed, path: str) -> None:
+        for key in doc:
+            if key not in allowed:
+                raise self.fail(f"{path}.{key}" if path else key, "unknown key")
+
+
+def _questions(r: _Reader, items: list[dict], path: str) -> tuple[Question, ...]:
+    out, seen = [], set()
+    for i, q in enumerate(items):
+        p = f"{path}[{i}]"
+        r.unknown(q, ("id", "kind", "label", "required", "options", "scale", "low", "high", "min", "max"), p)
+        qid = r.string(q, "id", f"{p}.id")
+        if qid in seen:
+            raise r.fail(f"{p}.id", f"duplicate question id {qid!r}")
+        seen.add(qid)
+        kind = r.choice(q, "kind", f"{p}.kind", QUESTION_KINDS)
+        options = q.get("options", [])
+        if kind == "choice" and (not isinstance(options, list) or len(options) < 2
+                                 or not all(isinstance(o, str) and o for o in options)):
+            raise r.fail(f"{p}.options", "a choice question needs at least two options")
+        scale = int(r.number(q, "scale", f"{p}.scale", 5, minimum=2)) if kind == "likert" else 5
+        out.append(Question(qid, kind, r.string(q, "label", f"{p}.label"), r.boolean(q, "required", f"{p}.required",
+                                                                                   True),
+                            tuple(options) if kind == "choice" else (), scale, str(q.get("low", "")),
+                            str(q.get("high", "")),
+                            r.number(q, "min", f"{p}.min", minimum=-1e12) if "min" in q else None,
+                            r.number(q, "max", f"{p}.max", minimum=-1e12) if "max" in q else None))
+    return tuple(out)
+
+
+def _engine(r: _Reader, doc: dict, path: str) -> EngineOptions:
+    r.unknown(doc, ENGINE_OPTIONS, path)
+    try:
+        return EngineOptions(**doc)
+    except SceneSuggestError as e:
+        raise r.fail(f"{path}.{e.field}", e.message) from None
+    except TypeError as e:
+        raise r.fail(path, str(e)) from None
+
+
+def load_study(path: str | Path) -> Study:
+    """Read and validate a study file; every problem names its key."""
+    path = Path(path).resolve()
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise StudyFileError(f"cannot read: {e}", file=str(path)) from None
+    try:
+        doc = tomllib.loads(data.decode("utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        where = re.search(r"\(at line (\d+), column (\d+)\)", str(e))
+        message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(e))
+        raise StudyFileError(f"not valid TOML: {message}" + (f" (column {where.group(2)})" if where else ""),
+                             file=str(path), line=int(where.group(1)) if where else None) from None
+    r = _Reader(path)
+    base = path.parent
+    r.unknown(doc, ("id", "title", "description", "resources", "design", "conditions", "scenes", "periods",
+                    "practice", "platform", "consent", "instructions", "demographics", "exit_survey", "limits",
+                    "device"), "")
+    study_id = r.string(doc, "id", "id")
+    if not study_id.replace("-", "").replace("_", "").isalnum():
+        raise r.fail("id", "use letters, digits, '-' and '_' only")
+
+    res = r.table(doc, "resources", "resources")
+    r.unknown(res, ("corpus", "priors", "library"), "resources")
+    design = r.table(doc, "design", "design")
+    r.unknown(design, ("kind", "blocking", "participants"), "design")
+
+    conditions = []
+    for i, c in enumerate(r.tables(doc, "conditions", "conditions")):
+        p = f"conditions[{i}]"
+        r.unknown(c, ("id", "label", "instructions", "engine"), p)
+        cid = r.choice(c, "id", f"{p}.id", CONDITIONS)
+        if any(x.id == cid for x in conditions):
+            raise r.fail(f"{p}.id", f"condition {cid!r} given twice")
+        conditions.append(Condition(cid, str(c.get("label", cid)), str(c.get("instructions", "")),
+                                    _engine(r, r.table(c, "engine", f"{p}.engine", required=False), f"{p}.engine")))
+
+    scenes = {}
+    for i, s in enumerate(r.tables(doc, "scenes", "scenes")):
+        p = f"scenes[{i}]"
+        r.unknown(s, ("id", "title", "target", "start"), p)
+        sid = r.string(s, "id", f"{p}.id")
+        target = base / r.string(s, "target", f"{p}.target")
+        if not target.is_file():
+            raise r.fail(f"{p}.target", f"no such file: {target}")
+        start = base / s["start"] if "start" in s else None
+        if start is not None and not start.is_file():
+            raise r.fail(f"{p}.start", f"no such file: {start}")
+        scenes[sid] = TargetScene(sid, str(s.get("title", sid)), target, start)
+
+    periods = []
+    for i, per in enumerate(r.tables(doc, "periods", "periods")):
+        p = f"periods[{i}]"
+        r.unknown(per, ("scenes",), p)
+        ids = per.get("scenes")
+        if not isinstance(ids, list) or not ids:
+            raise r.fail(f"{p}.scenes", "expected a list of scene ids")
+        for j, sid in enumerate(ids):
+            if sid not in scenes:
+                raise r.fail(f"{p}.scenes[{j}]", f"no scene {sid!r} in [[scenes]]")
+        if len(set(ids)) != len(ids):
+            raise r.fail(f"{p}.scenes", "a scene appears twice")
+        periods.append(tuple(ids))
+
+    practice_doc = r.table(doc, "practice", "practice", required=False)
+    practice = None
+    if practice_doc:
+        r.unknown(practice_doc, ("scene", "condition"), "practice")
+        sid = r.string(practice_doc, "scene", "practice.scene")
+        if sid not in scenes:
+            raise r.fail("practice.scene", f"no scene {sid!r} in [[scenes]]")
+        practice = (sid, r.choice(practice_doc, "condition", "practice.condition", [c.id for c in conditions]))
+
+    platform = r.table(doc, "platform", "platform")
+    r.unknown(platform, ("kind", "codes", "completion_url"), "platform")
+    codes_doc = r.table(platform, "codes", "platform.codes")
+    r.unknown(codes_doc, CODES, "platform.codes")
+    codes = {k: r.string(codes_doc, k, f"platform.codes.{k}") for k in CODES}
+    completion_url = platform.get("completion_url")
+    if completion_url is not None and (not isinstance(completion_url, str) or "{code}" not in completion_url):
+        raise r.fail("platform.completion_url", "expected a URL containing {code}")
+
+    consent = r.table(doc, "consent", "consent")
+    r.unknown(consent, ("version", "text"), "consent")
+    instructions = []
+    for i, page in enumerate(r.tables(doc, "instructions", "instructions")):
+        r.unknown(page, ("title", "body"), f"instructions[{i}]")
+        instructions.append((r.string(page, "title", f"instructions[{i}].title"),
+                             r.string(page, "body", f"instructions[{i}].body")))
+    limits = r.table(doc, "limits", "limits", required=False)
+    r.unknown(limits, ("trial_minutes", "session_minutes", "stale_after_minutes"), "limits")
+    device = r.table(doc, "device", "device", required=False)
+    r.unknown(device, ("desktop_only", "min_width", "min_height"), "device")
+
+    study = Study(
+        path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, title=r.string(doc, "title", "title"),
+        description=str(doc.get("description", "")),
+        corpus=r.string(res, "corpus", "resources.corpus"),
+        priors=base / r.string(res, "priors", "resources.priors"),
+        library=base / r.string(res, "library", "resources.library"),
+        design=r.choice(design, "kind", "design.kind", DESIGNS),
+        blocking=r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition"),
+        participants=int(r.number(design, "participants", "design.participants", minimum=1)),
+        conditions=tuple(conditions), scenes=scenes, periods=tuple(periods), practice=practice,
+        platform=r.choice(platform, "kind", "platform.kind", PLATFORMS), codes=codes, completion_url=completion_url,
+        consent_version=r.string(consent, "version", "consent.version"),
+        consent_text=r.string(consent, "text", "consent.text"), instructions=tuple(instructions),
+        demographics=_questions(r, doc.get("demographics", []) or [], "demographics"),
+        exit_survey=_questions(r, r.tables(doc, "exit_survey", "exit_survey"), "exit_survey"),
+        trial_minutes=r.number(limits, "trial_minutes", "limits.trial_minutes", 15, minimum=0.1),
+        session_minutes=r.number(limits, "session_minutes", "limits.session_minutes", 90, minimum=0.1),
+        stale_after_minutes=r.number(limits, "stale_after_minutes", "limits.stale_after_minutes", 5, minimum=0.1),
+        desktop_only=r.boolean(device, "desktop_only", "device.desktop_only", True),
+        min_width=int(r.number(device, "min_width", "device.min_width", 1024)),
+        min_height=int(r.number(device, "min_height", "device.min_height", 600)),
+        raw=doc,
+    )
+    if study.design == "williams" and len(conditions) < 2:
+        raise r.fail("design.kind", "a Williams design needs at least two conditions")
+    return study
+
+
+def validate_scenes(study: Study) -> None:
+    """Load every target and start scene (native JSON) so that a bad scene fails at start-up."""
+    from scenesuggest import scene_json
+
+    for s in study.scenes.values():
+        scene_json.load(s.target)
+        if s.start:
+            scene_json.load(s.start)

@@ -1,0 +1,111 @@
+"""Admin pages: login (rate-limited, CSRF), progress, timelines, exclusion, previews, export."""
+
+import io
+import re
+import zipfile
+
+import pytest
+from conftest import make_app
+from flowhelp import EXIT, auth, csrf, finish_all_trials, to_trials
+from werkzeug.security import generate_password_hash
+
+from study_server.extensions import db
+from study_server.models import Participant
+
+PASSWORD = "correct horse battery staple"
+
+
+@pytest.fixture
+def admin_app(tmp_path, demo_resources):
+    return make_app(tmp_path, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
+
+
+def login(c, password=PASSWORD):
+    page = c.get("/admin/login")
+    return c.post("/admin/login", data={"csrf_token": csrf(page), "password": password})
+
+
+def test_admin_pages_need_a_login(admin_app):
+    c = admin_app.test_client()
+    for path in ("/admin/", "/admin/demo/participants", "/admin/demo/participants/1", "/admin/demo/preview",
+                 "/admin/demo/export.zip", "/admin/demo/preview/full/bedside"):
+        r = c.get(path)
+        assert r.status_code == 302 and "/admin/login" in r.headers["Location"], path
+    assert c.post("/admin/demo/participants/1/exclude", data={"reason": "x"}).status_code == 302
+
+
+def test_login_is_checked_rate_limited_and_needs_csrf(admin_app):
+    c = admin_app.test_client()
+    assert c.post("/admin/login", data={"password": PASSWORD}).status_code == 400  # no CSRF token
+    assert login(c, "wrong").status_code == 401
+    for _ in range(4):
+        login(c, "wrong")
+    assert login(c).status_code == 429  # five failures: even the right password waits
+    other = admin_app.test_client()
+    other.environ_base["REMOTE_ADDR"] = "10.0.0.9"  # another address is not blocked
+    r = login(other)
+    assert r.status_code == 302 and other.get("/admin/").status_code == 200
+
+
+def test_login_starts_a_fresh_session(admin_app):
+    c = admin_app.test_client()
+    c.get("/admin/login")
+    with c.session_transaction() as s:
+        s["planted"] = "by an attacker"
+    login(c)
+    with c.session_transaction() as s:
+        assert "planted" not in s and s["admin"] is True
+
+
+def test_progress_timeline_exclusion_and_xss(admin_app):
+    participant = admin_app.test_client()
+    b = to_trials(participant)
+    finish_all_trials(participant, b)
+    page = participant.get("/study/demo/")
+    participant.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "19", "attempt": "0"})
+    to_trials(admin_app.test_client(), query="pid=second")
+    c = admin_app.test_client()
+    login(c)
+    dash = c.get("/admin/").data.decode()
+    assert "completed 1" in dash and "in progress 1" in dash
+    assert re.search(r"<td>0</td>\s*<td>none → basic → full</td>", dash)
+    with admin_app.app_context():
+        pid = db.session.query(Participant).filter_by(platform_id="p1").one().id
+        second = db.session.query(Participant).filter_by(platform_id="second").one()
+    timeline = c.get(f"/admin/demo/participants/{pid}").data
+    assert b"trial_start" in timeline and b"<script>alert" not in timeline and b"&lt;script&gt;" in timeline
+    r = c.post(f"/admin/demo/participants/{second.id}/exclude", data={"csrf_token": csrf(c.get("/admin/")),
+                                                                      "reason": "bot-like"})
+    assert r.status_code == 302
+    with admin_app.app_context():
+        p = db.session.get(Participant, second.id)
+        assert p.status == "excluded" and p.excluded_reason == "bot-like"
+        from study_server.assignment import row_counts
+        from study_server.models import utcnow
+
+        assert row_counts(admin_app.extensions["studies"]["demo"].study, utcnow())[second.row] == 0
+    assert c.post(f"/admin/demo/participants/{pid}/exclude", data={"reason": "x"}).status_code == 400  # CSRF
+    assert c.post(f"/admin/demo/participants/{pid}/exclude",
+                  data={"csrf_token": csrf(c.get("/admin/")), "reason": ""}).status_code == 400
+
+
+def test_preview_and_export(admin_app):
+    participant = admin_app.test_client()
+    b = to_trials(participant)
+    participant.post("/api/events", headers=auth(b), json={"page_id": "p", "events": [
+        {"seq": 0, "t": 1.0, "type": "insert", "trial": -1, "payload": {
+            "object": "o1", "model": "ai2thor:Plate", "category": "Plate", "rank": 2, "source": "context"}}]})
+    c = admin_app.test_client()
+    login(c)
+    grid = c.get("/admin/demo/preview").data
+    assert grid.count(b"/admin/demo/preview/") == 12  # 3 conditions × 4 scenes
+    page = c.get("/admin/demo/preview/basic/bedside")
+    assert page.status_code == 200 and b'"preview": true' in page.data
+    r = c.get("/admin/demo/export.zip")
+    assert r.status_code == 200 and r.mimetype == "application/zip"
+    z = zipfile.ZipFile(io.BytesIO(r.data))
+    names = {n.split("/", 1)[1] for n in z.namelist()}
+    assert {"participants.csv", "trials.csv", "events.csv", "suggestions.csv", "picks.csv", "survey.csv",
+            "manifest.json", "data_dictionary.md", "event_schema.json"} <= names
+    picks = z.read("demo/picks.csv").decode().splitlines()
+    assert picks[0].startswith("participant,seq,trial") and ",2,0.5,context," in picks[1]

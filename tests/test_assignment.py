@@ -1,0 +1,145 @@
+"""Assignment to schedule rows: least-filled first, atomic under concurrent arrivals (threads, processes,
+gunicorn workers), on SQLite and on PostgreSQL; one session per platform id."""
+
+import multiprocessing
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from datetime import timedelta
+
+import pytest
+import requests
+from conftest import DEMO_STUDY, ROOT, make_app
+
+from study_server.assignment import arrive, row_counts
+from study_server.extensions import db
+from study_server.models import Participant, Trial, utcnow
+
+
+def study_of(app):
+    return app.extensions["studies"]["demo"].study
+
+
+def test_least_filled_row_and_one_session_per_platform_id(app):
+    with app.app_context():
+        study = study_of(app)
+        rows = [arrive(study, "link", f"w{i}")[0].row for i in range(12)]
+        assert sorted(Counter(rows).values()) == [2] * 6 and rows[:6] == [0, 1, 2, 3, 4, 5]
+        again, created = arrive(study, "link", "w3")
+        assert not created and again.row == rows[3]
+        assert db.session.query(Participant).count() == 12
+        trials = db.session.query(Trial).filter_by(participant_id=again.id).order_by(Trial.position).all()
+        assert [t.index for t in trials] == list(range(-1, 9))
+
+
+def test_stale_returned_and_excluded_sessions_free_their_row(app):
+    with app.app_context():
+        study = study_of(app)
+        people = [arrive(study, "link", f"w{i}")[0] for i in range(6)]
+        people[2].last_seen_at = utcnow() - timedelta(minutes=study.stale_after_minutes + 1)
+        people[4].status = "excluded"
+        people[5].status = "completed"
+        people[0].status = "returned"
+        db.session.commit()
+        counts = row_counts(study, utcnow())
+        assert counts == [0, 1, 0, 1, 0, 1]
+        assert arrive(study, "link", "new1")[0].row == 0
+        assert arrive(study, "link", "new2")[0].row == 2
+
+
+def concurrent_threads(app, pids):
+    def one(pid):
+        with app.app_context():
+            p, _ = arrive(study_of(app), "link", pid)
+            return pid, p.id, p.row
+    with ThreadPoolExecutor(max_workers=16) as pool:
+        return list(pool.map(one, pids))
+
+
+def check_balanced(app, results, n_unique):
+    by_pid = {}
+    for pid, participant_id, _ in results:
+        assert by_pid.setdefault(pid, participant_id) == participant_id  # one session per platform id
+    with app.app_context():
+        people = db.session.query(Participant).all()
+        assert len(people) == n_unique
+        counts = Counter(p.row for p in people)
+        assert max(counts.values()) - min(counts.values()) <= 1 and len(counts) == 6
+
+
+def test_concurrent_arrivals_in_threads_on_sqlite(app):
+    pids = [f"t{i}" for i in range(48)] + ["same"] * 12
+    check_balanced(app, concurrent_threads(app, pids), 49)
+
+
+def test_concurrent_arrivals_in_threads_on_postgresql(tmp_path, postgres_db, demo_resources):
+    app = make_app(tmp_path, postgres_db)
+    pids = [f"t{i}" for i in range(48)] + ["same"] * 12
+    check_balanced(app, concurrent_threads(app, pids), 49)
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+def test_concurrent_arrivals_in_processes(tmp_path, request, backend, demo_resources):
+    url = request.getfixturevalue("postgres_db") if backend == "postgresql" else \
+        f"sqlite:///{tmp_path / 'study.sqlite3'}"
+    app = make_app(tmp_path, url)
+    jobs = [(url, str(tmp_path / "instance"), str(DEMO_STUDY), [f"p{k}-{i}" for i in range(10)] + ["shared"])
+            for k in range(4)]
+    with multiprocessing.get_context("spawn").Pool(4) as pool:
+        results = [r for chunk in pool.map(__import__("workers").arrive_many, jobs) for r in chunk]
+    check_balanced(app, results, 41)
+
+
+def free_port() -> int:
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+@pytest.fixture
+def gunicorn_server(tmp_path, request, demo_resources):
+    """`make serve`'s server (gunicorn, 3 workers) on a fresh database; yields (base URL, app for queries)."""
+    def start(database_url):
+        app = make_app(tmp_path, database_url)  # migrates before the workers start
+        port = free_port()
+        env = {**os.environ, "DATABASE_URL": database_url, "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"),
+               "SCENESUGGEST_STUDIES": str(DEMO_STUDY), "SCENESUGGEST_SECRET_KEY": "x"}
+        proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "-w", "3", "-b", f"127.0.0.1:{port}",
+                                 "study_server:create_app()"], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, start_new_session=True)
+        request.addfinalizer(lambda: os.killpg(proc.pid, signal.SIGTERM))
+        base = f"http://127.0.0.1:{port}"
+        for _ in range(100):
+            try:
+                requests.get(f"{base}/api/openapi.json", timeout=5)
+                return base, app
+            except requests.RequestException:
+                time.sleep(0.1)
+        raise RuntimeError("gunicorn did not start")
+    return start
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+def test_concurrent_arrivals_over_http_with_several_gunicorn_workers(tmp_path, request, backend, gunicorn_server):
+    url = request.getfixturevalue("postgres_db") if backend == "postgresql" else \
+        f"sqlite:///{tmp_path / 'study.sqlite3'}"
+    base, app = gunicorn_server(url)
+
+    def one(pid):
+        r = requests.get(f"{base}/study/demo/start?pid={pid}", allow_redirects=False, timeout=30)
+        assert r.status_code == 302, r.text
+        return pid
+    with ThreadPoolExecutor(max_workers=12) as pool:
+        list(pool.map(one, [f"h{i}" for i in range(36)] + ["dup"] * 6))
+    with app.app_context():
+        people = db.session.query(Participant).all()
+        assert len(people) == 37
+        counts = Counter(p.row for p in people)
+        assert max(counts.values()) - min(counts.values()) <= 1

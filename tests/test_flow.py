@@ -1,0 +1,184 @@
+"""A participant's whole run with HTTP requests alone, and the ways out and back in."""
+
+import pytest
+from flowhelp import DEMOGRAPHICS, EXIT, auth, boot, csrf, enter, finish_all_trials, to_trials
+
+from study_server.extensions import db
+from study_server.models import Event, Participant, SessionLog, SurveyResponse, Trial
+
+
+def test_a_whole_run_of_the_demo_study(client, app):
+    b = to_trials(client)
+    assert b["trial"]["kind"] == "practice" and b["trial"]["condition"] == "full"
+    seen = finish_all_trials(client, b)
+    assert [s["trial"]["index"] for s in seen] == list(range(-1, 9))
+    conditions = [s["trial"]["condition"] for s in seen[1:]]
+    assert sorted(conditions) == sorted(["none", "basic", "full"] * 3)
+    page = client.get("/study/demo/")
+    assert b"Almost done" in page.data
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "19", "attempt": "0"})
+    assert r.status_code == 302
+    done = client.get("/study/demo/")
+    assert b"DEMO-DONE-7F3A" in done.data
+    with app.app_context():
+        p = db.session.query(Participant).one()
+        assert p.status == "completed" and p.code == "DEMO-DONE-7F3A" and p.acked_seq == 19
+        assert p.consent_version == "demo-2026-11" and p.study_hash == app.extensions["studies"]["demo"].study.hash
+        assert db.session.query(Event).count() == 20
+        assert all(t.done_at is not None for t in db.session.query(Trial).filter_by(participant_id=p.id))
+        answers = {s.survey: s.answers for s in db.session.query(SurveyResponse)}
+        assert answers["demographics"] == {"age": 31, "experience_3d": "Never", "pointing_device": "Trackpad"}
+        assert answers["exit"]["enjoy_suggestions"] == 5 and answers["exit"]["preference"] == "Suggestions, oriented"
+
+
+def test_the_completion_code_waits_for_the_last_events(client, app):
+    b = to_trials(client)
+    finish_all_trials(client, b)
+    page = client.get("/study/demo/")
+    # the client says its last event is seq 25, but the server holds up to 19: not complete yet
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "25", "attempt": "0"})
+    assert r.status_code == 202 and b"Saving your work" in r.data and b'name="attempt" value="1"' in r.data
+    events = [{"seq": s, "t": 1.0, "type": "focus", "trial": None, "payload": {"state": "blur"}} for s in range(20, 26)]
+    client.post("/api/events", headers=auth(b), json={"page_id": "exit", "events": events})
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "25", "attempt": "1"})
+    assert r.status_code == 302 and b"DEMO-DONE" in client.get("/study/demo/").data
+
+
+def test_when_the_network_is_gone_the_code_comes_after_a_few_attempts(client, app):
+    b = to_trials(client)
+    finish_all_trials(client, b)
+    page = client.get("/study/demo/")
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "40", "attempt": "5"})
+    assert r.status_code == 302 and b"DEMO-DONE" in client.get("/study/demo/").data
+    with app.app_context():
+        assert db.session.query(SessionLog).filter_by(kind="completed_with_missing_events").count() == 1
+
+
+def test_declining_consent_and_failing_the_device_check_end_with_their_codes(client, app):
+    page = enter(client, query="pid=decliner")
+    client.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "1400", "height": "900"})
+    client.post("/study/demo/consent", data={"csrf_token": csrf(page), "agree": "no"})
+    assert b"DEMO-NOCONSENT" in client.get("/study/demo/").data
+
+    phone = client.application.test_client()
+    page = enter(phone, query="pid=phone", ua="Mozilla/5.0 (iPhone; CPU iPhone OS 17_0) Mobile Safari")
+    phone.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "1400", "height": "900"})
+    assert b"DEMO-SCREENED" in phone.get("/study/demo/").data
+
+    small = client.application.test_client()
+    page = enter(small, query="pid=small")
+    small.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "800", "height": "900"})
+    assert b"DEMO-SCREENED" in small.get("/study/demo/").data
+    with app.app_context():
+        assert {p.platform_id: p.status for p in db.session.query(Participant)} == {
+            "decliner": "no_consent", "phone": "screened_out", "small": "screened_out"}
+
+
+def test_survey_answers_are_checked_and_kept_on_error(client):
+    page = enter(client)
+    client.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "1400", "height": "900"})
+    client.post("/study/demo/consent", data={"csrf_token": csrf(page), "agree": "yes"})
+    r = client.post("/study/demo/demographics", data={"csrf_token": csrf(page), "age": "12",
+                                                      "experience_3d": "Daily", "pointing_device": "Mouse"})
+    assert r.status_code == 422
+    assert b"between 18 and 100" in r.data and b"choose one of the options" in r.data
+    assert b'value="Mouse" checked' in r.data
+    r = client.post("/study/demo/demographics", data={"csrf_token": csrf(page), **DEMOGRAPHICS})
+    assert r.status_code == 302
+
+
+def test_forms_need_their_csrf_token(client, app):
+    enter(client)
+    r = client.post("/study/demo/device", data={"width": "1400", "height": "900"})
+    assert r.status_code == 400 and b"expired" in r.data
+    with app.app_context():
+        assert db.session.query(Participant).one().step == "device"
+
+
+def test_reload_back_button_and_second_tab_resume_and_are_logged(client, app):
+    b = to_trials(client)
+    first = client.get("/study/demo/")  # reload
+    assert boot(first)["trial"] == b["trial"]
+    # the back button re-posts nothing: an old form sent again does not move the participant backwards
+    client.post("/study/demo/consent", data={"csrf_token": client.form_token, "agree": "no"})
+    again = client.get("/study/demo/")
+    assert boot(again)["trial"] == b["trial"]
+    # the same platform id arriving again (a second tab, or the link opened twice) gets the same session
+    r = client.get("/study/demo/start?pid=p1")
+    assert r.status_code == 302
+    with app.app_context():
+        p = db.session.query(Participant).one()
+        assert p.status == "in_progress" and p.step == "trial"
+        kinds = [row.kind for row in db.session.query(SessionLog).filter_by(participant_id=p.id)]
+        assert kinds.count("resume") >= 3
+
+
+def test_platform_entry_parameters(app):
+    from conftest import DEMO_STUDY  # noqa: F401  (documentation of which study is used)
+
+    c = app.test_client()
+    r = c.get("/study/demo/start")  # a link study without pid gets an anonymous id, remembered by the browser
+    assert r.status_code == 302
+    again = c.get("/study/demo/start")
+    assert again.status_code == 302
+    with app.app_context():
+        assert db.session.query(Participant).count() == 1
+        assert db.session.query(Participant).one().platform_id.startswith("link-")
+    assert c.get("/study/nope/start?pid=x").status_code == 404
+    assert b"Please start this study" in app.test_client().get("/study/demo/").data
+
+
+@pytest.fixture
+def platform_app(tmp_path, demo_resources):
+    """The demo study as a Prolific and as an MTurk study."""
+    from conftest import make_app
+
+    def make(kind):
+        text = demo_resources.read_text().replace('kind = "link"', f'kind = "{kind}"\ncompletion_url = '
+                                                   '"https://app.prolific.com/submissions/complete?cc={code}"')
+        text = text.replace('../../var/', str(demo_resources.parents[2] / "var") + "/")
+        text = text.replace('target = "scenes/', f'target = "{demo_resources.parent}/scenes/')
+        path = tmp_path / f"{kind}.toml"
+        path.write_text(text)
+        return make_app(tmp_path / kind, studies=[path])
+    return make
+
+
+def test_prolific_parameters_are_required_and_stored(platform_app):
+    app = platform_app("prolific")
+    c = app.test_client()
+    r = c.get("/study/demo/start?STUDY_ID=s")
+    assert r.status_code == 400 and b"link on your crowdsourcing platform" in r.data
+    page = enter(c, query="PROLIFIC_PID=abc123&STUDY_ID=s1&SESSION_ID=x9")
+    assert b"device-form" in page.data
+    with app.app_context():
+        p = db.session.query(Participant).one()
+        assert (p.platform, p.platform_id, p.platform_meta["SESSION_ID"]) == ("prolific", "abc123", "x9")
+
+
+def test_mturk_preview_mode_creates_nobody(platform_app):
+    app = platform_app("mturk")
+    c = app.test_client()
+    r = c.get("/study/demo/start?assignmentId=ASSIGNMENT_ID_NOT_AVAILABLE&hitId=h")
+    assert r.status_code == 200 and b"Accept the HIT" in r.data
+    with app.app_context():
+        assert db.session.query(Participant).count() == 0
+    enter(c, query="workerId=W1&assignmentId=A1&hitId=H1&turkSubmitTo=https://www.mturk.com")
+    with app.app_context():
+        assert db.session.query(Participant).one().platform_meta["assignmentId"] == "A1"
+
+
+def test_failures_show_a_friendly_page_and_are_logged(client, app, monkeypatch):
+    from study_server import flow
+
+    to_trials(client)
+
+    def broken(*args):
+        raise RuntimeError("disk on fire")
+    monkeypatch.setattr(flow, "check_session_time", broken)
+    r = client.get("/study/demo/")
+    assert r.status_code == 500 and b"Your work is saved" in r.data and b"Traceback" not in r.data
+    assert b"disk on fire" not in r.data
+    with app.app_context():
+        row = db.session.query(SessionLog).filter_by(kind="error").one()
+        assert row.detail["error"] == "RuntimeError" and row.detail["reference"].encode() in r.data

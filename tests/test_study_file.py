@@ -1,0 +1,86 @@
+"""Study files: the demo validates; mistakes are reported with the key that is wrong."""
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+from conftest import DEMO_STUDY
+
+from study_server.study_file import StudyFileError, load_study
+
+
+@pytest.fixture
+def study_dir(tmp_path):
+    shutil.copytree(DEMO_STUDY.parent, tmp_path / "demo")
+    return tmp_path / "demo"
+
+
+def edit(study_dir, old: str, new: str):
+    path = study_dir / "study.toml"
+    text = path.read_text()
+    assert old in text, old
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+def test_the_demo_study_is_valid():
+    study = load_study(DEMO_STUDY)
+    assert study.id == "demo" and [c.id for c in study.conditions] == ["none", "basic", "full"]
+    assert study.n_rows == 6 and len(study.hash) == 64
+    assert len([t for t in study.plan(0) if t.kind == "trial"]) == 9
+    assert [q.id for q in study.exit_survey][:4] == ["enjoy_list", "competent_list", "enjoy_suggestions",
+                                                      "competent_suggestions"]
+
+
+@pytest.mark.parametrize(("old", "new", "key", "words"), [
+    ('id = "demo"', 'id = "de mo"', "id", "letters"),
+    ('title = "Furnish a room"\n', 'title = "Furnish a room"\ncolour = "red"\n', "colour", "unknown key"),
+    ('id = "basic"', 'id = "fancy"', "conditions[1].id", "not one of"),
+    ('[[conditions]]\nid = "full"', '[[conditions]]\nid = "none"', "conditions[2].id", "twice"),
+    ('target = "scenes/bedside.json"', 'target = "scenes/nowhere.json"', "scenes[2].target", "no such file"),
+    ('scenes = ["desk-corner", "bedside", "sofa-corner"]', 'scenes = ["desk-corner", "attic"]', "periods[0].scenes[1]",
+     "no scene 'attic'"),
+    ('kind = "williams"', 'kind = "latin"', "design.kind", "not one of"),
+    ('participants = 12', 'participants = -3', "design.participants", "number"),
+    ('label = "Suggestions"\n', 'label = "Suggestions"\nengine = { lambda2 = -1 }\n', "conditions[1].engine.lambda2",
+     "≥ 0"),
+    ('label = "Suggestions"\n', 'label = "Suggestions"\nengine = { lambda9 = 1 }\n', "conditions[1].engine.lambda9",
+     "unknown key"),
+    ('no_consent = "DEMO-NOCONSENT"\n', '', "platform.codes.no_consent", "missing"),
+    ('kind = "link"', 'kind = "link"\ncompletion_url = "https://x.org/done"', "platform.completion_url", "{code}"),
+    ('options = ["Never", "A few times", "Regularly"]', 'options = ["Only"]', "demographics[1].options", "two"),
+    ('kind = "likert"', 'kind = "slider"', "exit_survey[0].kind", "not one of"),
+    ('condition = "full"', 'condition = "sideways"', "practice.condition", "not one of"),
+])
+def test_mistakes_name_the_key(study_dir, old, new, key, words):
+    path = edit(study_dir, old, new)
+    with pytest.raises(StudyFileError) as info:
+        load_study(path)
+    assert info.value.field == key and words in str(info.value)
+    assert str(info.value).startswith(str(path))
+
+
+def test_invalid_toml_reports_the_line(study_dir):
+    path = edit(study_dir, 'title = "Furnish a room"', 'title = "Furnish a room')
+    with pytest.raises(StudyFileError) as info:
+        load_study(path)
+    assert info.value.line == 6 and str(info.value).startswith(f"{path}:6: not valid TOML")
+
+
+def test_validate_command(study_dir, demo_resources):
+    cli = [sys.executable, "-m", "scenesuggest.cli", "study", "validate"]
+    ok = subprocess.run([*cli, str(DEMO_STUDY), "--json"], capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    assert json.loads(ok.stdout)["trials_per_participant"] == 9
+    bad = subprocess.run([*cli, str(edit(study_dir, 'kind = "williams"', 'kind = "latin"'))], capture_output=True,
+                         text=True)
+    assert bad.returncode == 2 and "field 'design.kind'" in bad.stderr
+    missing = subprocess.run([*cli, str(edit(study_dir, 'kind = "latin"', 'kind = "williams"'))],
+                             capture_output=True, text=True)
+    assert missing.returncode == 2 and "field 'resources.priors'" in missing.stderr  # the copy's var/ is empty
+    bad_scene = study_dir / "scenes" / "bedside.json"
+    bad_scene.write_text(bad_scene.read_text().replace('"scene_type"', '"scene_kind"', 1))
+    broken = subprocess.run([*cli, str(study_dir / "study.toml"), "--no-resources"], capture_output=True, text=True)
+    assert broken.returncode == 2 and "bedside.json" in broken.stderr and "scene_kind" in broken.stderr
