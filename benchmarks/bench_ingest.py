@@ -1,0 +1,192 @@
+"""Ingestion benchmark: concurrent participants posting batched events over real HTTP to the study server run as
+`make serve` runs it (gunicorn, 2 workers, SQLite in WAL mode), with some batches sent twice on purpose.
+
+Two phases: *paced* — every participant flushes a batch once a second, as the client's outbox does (with 50
+participants and 100-event batches that offers 5,000 events/s) — and *saturated* — every participant posts
+back to back, which measures the most the server can take (latency then is queueing).
+Prints events/s stored, acknowledgement latency percentiles, and events sent vs rows stored (lost, duplicated).
+Budget on a 2-core machine: ≥ 5,000 events/s with p95 ≤ 100 ms, nothing lost or duplicated.
+Usage: .venv/bin/python benchmarks/bench_ingest.py [--participants 50] [--batches 40] [--batch-size 100]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import re
+import signal
+import socket
+import sqlite3
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "experiments" / "demo" / "study.toml"
+
+
+def free_port() -> int:
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def start_server(instance: Path, database: Path, workers: int) -> tuple[subprocess.Popen, str]:
+    env = {**os.environ, "SCENESUGGEST_INSTANCE": str(instance), "DATABASE_URL": f"sqlite:///{database}",
+           "SCENESUGGEST_STUDIES": str(STUDY)}
+    subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "migrate"], env=env, check=True,
+                   capture_output=True)
+    port = free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "--workers", str(workers), "--bind",
+                             f"127.0.0.1:{port}", "study_server:create_app()"], env=env, cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    return proc, f"http://127.0.0.1:{port}"
+
+
+def wait_ready(base: str) -> None:
+    import requests
+
+    for _ in range(200):
+        try:
+            requests.get(f"{base}/api/openapi.json", timeout=5)
+            return
+        except requests.RequestException:
+            time.sleep(0.1)
+    raise RuntimeError("server did not start")
+
+
+def enrol(base: str, pid: str) -> str:
+    """Walk one participant to the first trial over HTTP; returns its session token."""
+    import requests
+
+    s = requests.Session()
+    page = s.get(f"{base}/study/demo/start?pid={pid}", timeout=30).text
+    token = re.search(r'name="csrf_token" value="([^"]+)"', page).group(1)
+    s.post(f"{base}/study/demo/device", data={"csrf_token": token, "width": 1400, "height": 900}, timeout=30)
+    s.post(f"{base}/study/demo/consent", data={"csrf_token": token, "agree": "yes"}, timeout=30)
+    s.post(f"{base}/study/demo/demographics", data={"csrf_token": token, "age": "30", "experience_3d": "Never",
+                                                    "pointing_device": "Mouse"}, timeout=30)
+    for _ in range(10):
+        page = s.get(f"{base}/study/demo/", timeout=30).text
+        found = re.search(r'"token": "([^"]+)"', page.replace("\\u0022", '"'))
+        if 'id="boot"' in page and found:
+            return found.group(1)
+        s.post(f"{base}/study/demo/instructions", data={"csrf_token": token, "go": "next"}, timeout=30)
+    raise RuntimeError("could not reach the trials")
+
+
+def participant(base: str, token: str, first_seq: int, batches: int, size: int, interval: float, resend: float,
+                rng: random.Random, lat: list, errors: list, lock: threading.Lock) -> int:
+    """Post ``batches`` batches of ``size`` events, one every ``interval`` seconds (0: back to back); returns the
+    next seq."""
+    import requests
+
+    s = requests.Session()
+    headers = {"Authorization": f"Bearer {token}"}
+    seq = first_seq
+    next_at = time.perf_counter() + rng.uniform(0, interval)
+    for _ in range(batches):
+        if interval:
+            time.sleep(max(0.0, next_at - time.perf_counter()))
+            next_at += interval
+        events = [{"seq": seq + i, "t": time.time() * 1000, "type": "camera", "trial": -1,
+                   "payload": {"action": "orbit", "distance": 3.5}} for i in range(size)]
+        seq += size
+        sends = 2 if rng.random() < resend else 1
+        for _ in range(sends):
+            t = time.perf_counter()
+            try:
+                r = s.post(f"{base}/api/events", json={"page_id": "bench", "events": events}, headers=headers,
+                           timeout=60)
+                ok = r.status_code == 200 and r.json()["acked_seq"] == seq - 1
+            except Exception as e:  # counted, not fatal
+                ok = False
+                r = e
+            with lock:
+                lat.append((time.perf_counter() - t) * 1000)
+                if not ok:
+                    errors.append(str(getattr(r, "status_code", r)))
+    return seq
+
+
+def percentile(values, q):
+    values = sorted(values)
+    return values[min(len(values) - 1, int(round(q / 100 * (len(values) - 1))))]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--participants", type=int, default=50)
+    parser.add_argument("--batches", type=int, default=20, help="batches per participant in each phase")
+    parser.add_argument("--batch-size", type=int, default=100)
+    parser.add_argument("--interval", type=float, default=1.0,
+                        help="seconds between a participant's batches in the paced phase (the client flushes "
+                             "its outbox about once a second)")
+    parser.add_argument("--resend", type=float, default=0.05, help="fraction of batches sent twice")
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    if not (ROOT / "var" / "priors" / "ai2thor.npz").is_file():
+        print(json.dumps({"benchmark": "ingest", "error": "run `make demo` first (the demo study's resources)"}))
+        return 1
+    with tempfile.TemporaryDirectory() as tmp:
+        database = Path(tmp) / "bench.sqlite3"
+        proc, base = start_server(Path(tmp) / "instance", database, args.workers)
+        try:
+            wait_ready(base)
+            with ThreadPoolExecutor(max_workers=8) as pool:
+                tokens = list(pool.map(lambda i: enrol(base, f"bench-{i}"), range(args.participants)))
+            phases = {}
+            seqs = [0] * args.participants
+            for name, interval in (("paced", args.interval), ("saturated", 0.0)):
+                lat, errors, lock = [], [], threading.Lock()
+                started = time.perf_counter()
+                with ThreadPoolExecutor(max_workers=args.participants) as pool:
+                    ends = list(pool.map(lambda k: participant(
+                        base, tokens[k], seqs[k], args.batches, args.batch_size, interval, args.resend,
+                        random.Random(k), lat, errors, lock), range(args.participants)))
+                phases[name] = {"seconds": time.perf_counter() - started, "lat": lat, "errors": errors,
+                                "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True))}
+                seqs = ends
+        finally:
+            os.killpg(proc.pid, signal.SIGTERM)
+            proc.wait(timeout=30)
+        with sqlite3.connect(database) as conn:
+            stored = conn.execute("SELECT count(*) FROM events").fetchone()[0]
+            distinct = conn.execute("SELECT count(*) FROM (SELECT DISTINCT participant_id, seq FROM events)"
+                                    ).fetchone()[0]
+    sent_total = sum(p["events"] for p in phases.values())
+    paced, saturated = phases["paced"], phases["saturated"]
+    errors = paced["errors"] + saturated["errors"]
+    print(json.dumps({
+        "benchmark": "ingest",
+        "participants": args.participants,
+        "batch_size": args.batch_size,
+        "batch_interval_s": args.interval,
+        "gunicorn_workers": args.workers,
+        "database": "sqlite-wal",
+        "events_per_s": round(paced["events"] / paced["seconds"], 1),
+        "p50_ms": round(percentile(paced["lat"], 50), 1),
+        "p95_ms": round(percentile(paced["lat"], 95), 1),
+        "p99_ms": round(percentile(paced["lat"], 99), 1),
+        "saturated_events_per_s": round(saturated["events"] / saturated["seconds"], 1),
+        "saturated_p95_ms": round(percentile(saturated["lat"], 95), 1),
+        "posts": len(paced["lat"]) + len(saturated["lat"]),
+        "events_sent": sent_total,
+        "events_stored": stored,
+        "lost": sent_total - distinct,
+        "duplicates": stored - distinct,
+        "errors": len(errors),
+    }, indent=1))
+    return 0 if not errors and stored == sent_total else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
