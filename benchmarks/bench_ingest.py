@@ -117,6 +117,17 @@ def participant(base: str, token: str, first_seq: int, batches: int, size: int, 
     return seq
 
 
+def run_phase(base: str, tokens: list[str], seqs: list[int], args, interval: float) -> dict:
+    lat, errors, lock = [], [], threading.Lock()
+    started = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=len(tokens)) as pool:
+        futures = [pool.submit(participant, base, tokens[k], seqs[k], args.batches, args.batch_size, interval,
+                               args.resend, random.Random(k), lat, errors, lock) for k in range(len(tokens))]
+        ends = [f.result() for f in futures]
+    return {"seconds": time.perf_counter() - started, "lat": lat, "errors": errors, "ends": ends,
+            "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True))}
+
+
 def percentile(values, q):
     values = sorted(values)
     return values[min(len(values) - 1, int(round(q / 100 * (len(values) - 1))))]
@@ -146,15 +157,8 @@ def main() -> int:
             phases = {}
             seqs = [0] * args.participants
             for name, interval in (("paced", args.interval), ("saturated", 0.0)):
-                lat, errors, lock = [], [], threading.Lock()
-                started = time.perf_counter()
-                with ThreadPoolExecutor(max_workers=args.participants) as pool:
-                    ends = list(pool.map(lambda k: participant(
-                        base, tokens[k], seqs[k], args.batches, args.batch_size, interval, args.resend,
-                        random.Random(k), lat, errors, lock), range(args.participants)))
-                phases[name] = {"seconds": time.perf_counter() - started, "lat": lat, "errors": errors,
-                                "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True))}
-                seqs = ends
+                phases[name] = run_phase(base, tokens, seqs, args, interval)
+                seqs = phases[name]["ends"]
         finally:
             os.killpg(proc.pid, signal.SIGTERM)
             proc.wait(timeout=30)

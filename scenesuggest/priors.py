@@ -44,8 +44,10 @@ ANY = "*"
 K_MAX = 8
 BINS = 36
 MIN_BANDWIDTH_M = 0.05
-#: Peak normalisers are evaluated at up to this many sample points per KDE.
-PEAK_POINTS = 1500
+#: Peak normalisers are evaluated at up to this many sample points per KDE; KDEs of up to SMALL_SEGMENT
+#: samples are normalised together, exactly.
+PEAK_POINTS = 512
+SMALL_SEGMENT = 24
 FACES = frames.FACES
 
 
@@ -286,33 +288,72 @@ def _pair_arrays(pairs, expand, s_index, any_s, progress) -> dict[str, np.ndarra
     seg_id = np.r_[0, np.cumsum((np.diff(group) != 0) | (np.diff(child) != 0))] if len(group) else group
     starts = np.flatnonzero(np.r_[True, np.diff(seg_id) != 0]) if len(group) else np.zeros(0, np.int64)
     counts = np.diff(np.r_[starts, len(group)])
-    n_seg = len(starts)
-    bandwidth = np.zeros((n_seg, 2), dtype=np.float32)
-    weight = np.zeros(n_seg, dtype=np.float32)
-    hists = np.zeros((n_seg, BINS), dtype=np.float32)
-    for i in progress(range(n_seg), "fitting densities"):
-        a, n = starts[i], counts[i]
-        pts = xy[a:a + n].astype(np.float64)
-        bw = np.maximum(pts.std(axis=0) * n ** (-1 / 6), MIN_BANDWIDTH_M)
-        bandwidth[i] = bw
-        weight[i] = 1.0 / _peak(pts, bw)
-        hists[i] = orientation_histogram(theta[a:a + n])
+    bandwidth = _bandwidths(xy.astype(np.float64), starts, counts)
+    peaks = np.zeros(len(starts))
+    small = counts <= SMALL_SEGMENT
+    peaks[small] = _small_peaks(xy, starts[small], counts[small], bandwidth[small])
+    for i in progress(np.flatnonzero(~small), "fitting densities"):
+        peaks[i] = _peak(xy[starts[i]:starts[i] + counts[i]].astype(np.float64), bandwidth[i])
     return {
         "group_keys": np.array(keys, dtype=np.int32).reshape(-1, 4),
         "seg_group": group[starts].astype(np.int32), "seg_child": child[starts].astype(np.int32),
         "seg_start": starts.astype(np.int64), "seg_count": counts.astype(np.int32),
-        "seg_bandwidth": bandwidth, "seg_weight": weight, "seg_hist": hists, "pair_xy": xy,
+        "seg_bandwidth": bandwidth.astype(np.float32), "seg_weight": (1.0 / peaks).astype(np.float32),
+        "seg_hist": orientation_histograms(theta, seg_id, len(starts)), "pair_xy": xy,
     }
 
 
+def _bandwidths(xy: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Scott's rule per segment (σ · n^(−1/6) per axis), at least MIN_BANDWIDTH_M."""
+    if not len(starts):
+        return np.zeros((0, 2))
+    n = counts[:, None].astype(np.float64)
+    mean = np.add.reduceat(xy, starts, axis=0) / n
+    var = np.maximum(np.add.reduceat(xy ** 2, starts, axis=0) / n - mean ** 2, 0.0)
+    return np.maximum(np.sqrt(var) * n ** (-1 / 6), MIN_BANDWIDTH_M)
+
+
+def _small_peaks(xy: np.ndarray, starts: np.ndarray, counts: np.ndarray, bandwidth: np.ndarray) -> np.ndarray:
+    """Peaks of many small KDEs at once: samples padded to SMALL_SEGMENT, all pairs evaluated together."""
+    out = np.zeros(len(starts))
+    for lo in range(0, len(starts), 4096):
+        st, ct, bw = starts[lo:lo + 4096], counts[lo:lo + 4096], bandwidth[lo:lo + 4096]
+        offsets = np.arange(SMALL_SEGMENT)
+        valid = offsets[None, :] < ct[:, None]
+        idx = np.where(valid, st[:, None] + offsets[None, :], st[:, None])
+        pts = xy[idx].astype(np.float64) / bw[:, None, :]
+        d2 = ((pts[:, :, None, :] - pts[:, None, :, :]) ** 2).sum(axis=3)
+        k = np.exp(-0.5 * d2) * valid[:, None, :]
+        out[lo:lo + 4096] = np.where(valid, k.sum(axis=2), 0.0).max(axis=1)
+    return out
+
+
 def _peak(points: np.ndarray, bandwidth: np.ndarray) -> float:
-    """The largest value of Σ exp(−q/2) over (up to PEAK_POINTS of) the sample points themselves."""
-    probe = points[:: max(1, len(points) // PEAK_POINTS)]
+    """The largest value of Σ exp(−q/2) over the sample points (all of them for small samples; for large ones
+    the most repeated points and an even spread of the rest, which is where a KDE's peak lies)."""
+    unique, weight = np.unique(points, axis=0, return_counts=True)
+    if len(unique) <= PEAK_POINTS:
+        probe = unique
+    else:
+        busiest = unique[np.argsort(-weight, kind="stable")[: PEAK_POINTS // 2]]
+        spread = unique[:: max(1, len(unique) // (PEAK_POINTS // 2))]
+        probe = np.vstack([busiest, spread])
     best = 0.0
-    for chunk in np.array_split(probe, max(1, len(probe) // 256)):
-        d = (chunk[:, None, :] - points[None, :, :]) / bandwidth
-        best = max(best, float(np.exp(-0.5 * (d ** 2).sum(axis=2)).sum(axis=1).max()))
+    for chunk in np.array_split(probe, max(1, len(probe) // 128)):
+        d = (chunk[:, None, :] - unique[None, :, :]) / bandwidth
+        best = max(best, float((np.exp(-0.5 * (d ** 2).sum(axis=2)) @ weight).max()))
     return best
+
+
+def orientation_histograms(theta: np.ndarray, segment: np.ndarray, n_segments: int) -> np.ndarray:
+    """:func:`orientation_histogram` of every segment at once (``segment`` gives each angle's segment)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    ok = np.isfinite(theta)
+    bins = np.round(theta[ok] / (2 * math.pi / BINS)).astype(np.int64) % BINS
+    h = np.bincount(segment[ok] * BINS + bins, minlength=n_segments * BINS).reshape(n_segments, BINS).astype(float)
+    h = (np.roll(h, 1, axis=1) + 2 * h + np.roll(h, -1, axis=1)) / 4
+    peak = h.max(axis=1, keepdims=True)
+    return np.where(peak > 0, h / np.where(peak > 0, peak, 1.0), 1.0).astype(np.float32)
 
 
 def orientation_histogram(theta: np.ndarray) -> np.ndarray:
