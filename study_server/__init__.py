@@ -9,6 +9,7 @@ from pathlib import Path
 
 from flask import Flask
 from sqlalchemy import event
+from werkzeug.exceptions import HTTPException
 
 from . import config as settings
 from .extensions import db, migrate
@@ -53,7 +54,20 @@ def create_app(config: dict | None = None) -> Flask:
     app.register_blueprint(admin.bp)
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token
+    app.register_error_handler(HTTPException, _http_error)
     return app
+
+
+def _http_error(e: HTTPException):
+    """Errors outside the blueprints' own handlers (unknown URLs, wrong methods): JSON under /api/, a calm
+    page everywhere else."""
+    from flask import jsonify, render_template, request
+
+    if request.path.startswith("/api/"):
+        return jsonify({"error": e.description or e.name, "field": None}), e.code
+    message = "This page does not exist. Please use the link you were given." if e.code in (404, 405) else \
+        (e.description or e.name)
+    return render_template("message.html", title="Sorry", message=message, study=None), e.code
 
 
 def upgrade_database(app: Flask) -> None:

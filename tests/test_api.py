@@ -210,3 +210,12 @@ def test_security_headers(client):
     csp = r.headers["Content-Security-Policy"]
     assert "script-src 'self'" in csp and "frame-ancestors 'self'" in csp
     assert r.headers["X-Content-Type-Options"] == "nosniff"
+
+
+def test_unknown_urls_and_methods(client):
+    r = client.get("/api/nothing-here")
+    assert r.status_code == 404 and r.json["error"]
+    assert client.get("/api/events").status_code == 405
+    page = client.get("/study/demo/no-such-page")
+    assert page.status_code == 404 and b"use the link you were given" in page.data
+    assert client.get("/study/nope/").status_code == 404
