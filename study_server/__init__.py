@@ -46,14 +46,16 @@ def create_app(config: dict | None = None) -> Flask:
 
     app.extensions["studies"] = load_studies(app.config["STUDY_FILES"], check=app.config.get("CHECK_RESOURCES", True))
 
-    from .blueprints import admin, api, participant
+    from .blueprints import admin, api, participant, vendor
     from .security import csrf_token, security_headers
 
+    app.register_blueprint(vendor.bp)
     app.register_blueprint(participant.bp)
     app.register_blueprint(api.bp)
     app.register_blueprint(admin.bp)
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token
+    app.jinja_env.globals["import_map"] = vendor.IMPORT_MAP
     app.register_error_handler(HTTPException, _http_error)
     return app
 

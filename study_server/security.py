@@ -68,11 +68,15 @@ def admin_required(view):
 
 
 def security_headers(response):
-    """CSP allowing only this origin's scripts; frame-ancestors as configured for embedding platforms."""
+    """CSP allowing only this origin's scripts (and the one import map, by hash); frame-ancestors as configured
+    for embedding platforms."""
+    from .blueprints.vendor import IMPORT_MAP_HASH
+
     ancestors = current_app.config.get("FRAME_ANCESTORS", "'self'")
     response.headers.setdefault(
         "Content-Security-Policy",
-        "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:; "
+        f"default-src 'self'; script-src 'self' '{IMPORT_MAP_HASH}'; style-src 'self'; "
+        "img-src 'self' data: blob:; "
         "connect-src 'self'; worker-src 'self' blob:; object-src 'none'; base-uri 'none'; "
         f"form-action 'self' https:; frame-ancestors {ancestors}")
     response.headers.setdefault("X-Content-Type-Options", "nosniff")

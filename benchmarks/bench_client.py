@@ -1,0 +1,136 @@
+"""Client benchmark: the trial page in headless Chromium (WebGL on SwiftShader) at 800×600 with 60 objects.
+
+Measures the frame rate while the camera orbits (one step per animation frame, through the page's own orbit
+controls), the time from navigation to the first rendered frame, and
+the bytes transferred for the trial page (HTML, JS, CSS, models, thumbnails). Budgets on a 2-core machine:
+≥ 30 fps, first frame ≤ 2 s on localhost, ≤ 5 MB for the demo trial page.
+Usage: .venv/bin/python benchmarks/bench_client.py [--objects 60] [--seconds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from bench_ingest import free_port, wait_ready  # noqa: E402
+
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+        "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
+
+
+def scene_with(models: list[dict], n: int) -> dict:
+    """A 5 m × 4 m room with ``n`` objects standing on its floor in a grid, each a different model."""
+    objects = [{"id": "room", "model_id": "ai2thor:Room", "category": "Room", "size": [1, 1, 1],
+                "transform": [5, 0, 0, 0, 0, 2.7, 0, 0, 0, 0, 4, 0, 0, 0, 0, 1], "parent": None, "surface_type": None,
+                "attachment_face": None, "contact_point": None, "contact_normal": None}]
+    usable = [m for m in models if m["category"] != "Room" and max(m["size"]) < 1.2]
+    cols = math.ceil(math.sqrt(n))
+    for i in range(n):
+        m = usable[i % len(usable)]
+        x, z = -2.2 + 4.4 * (i % cols) / max(cols - 1, 1), -1.7 + 3.4 * (i // cols) / max(cols - 1, 1)
+        objects.append({"id": f"o{i}", "model_id": m["id"], "category": m["category"], "size": m["size"],
+                        "transform": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, x, 0, z, 1], "parent": "room",
+                        "surface_type": "up_interior", "attachment_face": "bottom", "contact_point": [x, 0, z],
+                        "contact_normal": [0, 1, 0]})
+    return {"format": "scenesuggest-scene", "version": 1, "id": "bench", "scene_type": "Room", "source": "bench",
+            "objects": objects}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--objects", type=int, default=60)
+    parser.add_argument("--seconds", type=float, default=5.0)
+    args = parser.parse_args()
+    chromium = shutil.which("chromium") or "/usr/bin/chromium"
+    if not Path(chromium).exists() or not (ROOT / "var" / "priors" / "ai2thor.npz").is_file():
+        print(json.dumps({"benchmark": "client", "error": "needs Chromium (apt) and `make demo`"}))
+        return 1
+    from playwright.sync_api import sync_playwright
+
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "SCENESUGGEST_INSTANCE": f"{tmp}/instance", "DATABASE_URL": f"sqlite:///{tmp}/db.sqlite3",
+               "SCENESUGGEST_STUDIES": str(ROOT / "experiments" / "demo" / "study.toml")}
+        subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "migrate"], env=env, check=True,
+                       capture_output=True)
+        port = free_port()
+        proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "-w", "2", "-b", f"127.0.0.1:{port}",
+                                 "study_server:create_app()"], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, start_new_session=True)
+        base = f"http://127.0.0.1:{port}"
+        try:
+            wait_ready(base)
+            with sync_playwright() as p:
+                browser = p.chromium.launch(executable_path=chromium, args=ARGS)
+                page = browser.new_page(viewport={"width": 1280, "height": 720})  # passes the device check
+                page.goto(f"{base}/study/demo/start?pid=bench-client")
+                page.click("text=I agree to take part")
+                page.fill("input[name=age]", "30")
+                page.check("input[name=experience_3d][value=Never]")
+                page.check("input[name=pointing_device][value=Mouse]")
+                page.click("button:has-text('Continue')")
+                while page.locator("button[name=go][value=next]").count():
+                    page.click("button[name=go][value=next]")
+                boot = json.loads(page.locator("#boot").inner_text())
+                models = page.evaluate("() => fetch('/api/models', {headers: {Authorization: 'Bearer ' + "
+                                       "JSON.parse(document.getElementById('boot').textContent).token}})"
+                                       ".then(r => r.json())")["models"]
+                key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
+                page.evaluate("([k, v]) => localStorage.setItem(k, v)", [key, json.dumps(scene_with(models,
+                                                                                                   args.objects))])
+                fresh = browser.new_context(viewport={"width": 800, "height": 600},
+                                            storage_state=page.context.storage_state())
+                measure = fresh.new_page()
+                measure.goto(f"{base}/study/demo/")
+                for _ in range(400):
+                    if measure.evaluate("() => !!(window.sceneSuggestTest && window.sceneSuggestTest.ready)"):
+                        break
+                    time.sleep(0.05)
+                measure.evaluate("() => window.sceneSuggestTest.loaded()")
+                first_frame = measure.evaluate("() => window.sceneSuggestTest.firstFrameAt()")
+                count = len(measure.evaluate("() => window.sceneSuggestTest.objects()")) - 1
+                time.sleep(0.5)
+                fps = measure.evaluate(f"() => window.sceneSuggestTest.orbit({args.seconds * 1000})")
+                transferred = measure.evaluate("""() => {
+                  const nav = performance.getEntriesByType('navigation')[0];
+                  const res = performance.getEntriesByType('resource');
+                  const sum = (k) => res.reduce((s, r) => s + (r[k] || 0), 0);
+                  return {page: (nav.transferSize || nav.encodedBodySize), transfer: sum('transferSize'),
+                          body: sum('encodedBodySize'),
+                          models: res.filter(r => r.name.endsWith('.glb')).reduce((s, r) => s + r.encodedBodySize, 0),
+                          js: res.filter(r => r.name.endsWith('.js')).reduce((s, r) => s + r.encodedBodySize, 0),
+                          count: res.length};
+                }""")
+                browser.close()
+        finally:
+            os.killpg(proc.pid, signal.SIGTERM)
+            proc.wait(timeout=20)
+    total = transferred["page"] + max(transferred["transfer"], transferred["body"])
+    print(json.dumps({
+        "benchmark": "client",
+        "viewport": "800x600",
+        "objects": count,
+        "fps": round(fps, 1),
+        "first_frame_ms": round(first_frame, 1),
+        "page_mb": round(total / 2**20, 3),
+        "js_mb": round(transferred["js"] / 2**20, 3),
+        "models_mb": round(transferred["models"] / 2**20, 3),
+        "requests": transferred["count"] + 1,
+        "renderer": "SwiftShader (software WebGL)",
+    }, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

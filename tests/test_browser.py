@@ -1,0 +1,379 @@
+"""The participant's editor in a real browser: Playwright driving Debian's Chromium (WebGL on SwiftShader) against
+the study server run as `make serve` runs it. Clicks land on real pixels of real objects (the page's test hook
+converts world points to pixels); the database is compared with what the page logged."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import signal
+import socket
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from conftest import DEMO_STUDY, IN_CI, ROOT, make_app
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+        "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
+ARTIFACTS = ROOT / "test-artifacts"
+
+
+def _require_browser():
+    try:
+        import playwright  # noqa: F401
+    except ImportError:
+        pytest.fail("playwright is not installed") if IN_CI else pytest.skip("playwright is not installed")
+    if not Path(CHROMIUM).exists():
+        message = "Chromium is not installed (apt-get install chromium)"
+        pytest.fail(message + " — required under CI=true") if IN_CI else pytest.skip(message)
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory, demo_resources):
+    """gunicorn with 2 workers on a fresh SQLite database; yields (base URL, database path)."""
+    _require_browser()
+    tmp = tmp_path_factory.mktemp("browser")
+    database = tmp / "study.sqlite3"
+    make_app(tmp, f"sqlite:///{database}")
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    env = {**os.environ, "DATABASE_URL": f"sqlite:///{database}", "SCENESUGGEST_INSTANCE": str(tmp / "instance"),
+           "SCENESUGGEST_STUDIES": str(DEMO_STUDY), "SCENESUGGEST_SECRET_KEY": "browser-tests"}
+    proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "-w", "2", "-b", f"127.0.0.1:{port}",
+                             "study_server:create_app()"], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    import requests
+
+    base = f"http://127.0.0.1:{port}"
+    for _ in range(200):
+        try:
+            requests.get(f"{base}/api/openapi.json", timeout=5)
+            break
+        except requests.RequestException:
+            time.sleep(0.1)
+    yield base, database
+    os.killpg(proc.pid, signal.SIGTERM)
+    proc.wait(timeout=20)
+
+
+@pytest.fixture(scope="module")
+def browser(server):
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:  # launch() gives the browser a fresh temporary profile
+        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        yield b
+        b.close()
+
+
+IGNORED_CONSOLE = ("GPU stall due to ReadPixels", "favicon", "dbus")
+
+
+@pytest.fixture
+def page(browser):
+    context = browser.new_context(viewport={"width": 1280, "height": 720})
+    pg = context.new_page()
+    pg.console_problems = []
+    pg.on("console", lambda m: m.type == "error" and not any(s in m.text for s in IGNORED_CONSOLE)
+          and pg.console_problems.append(m.text))
+    pg.on("pageerror", lambda e: pg.console_problems.append(str(e)))
+    yield pg
+    context.close()
+
+
+def until(page, expression: str, timeout: float = 20.0):
+    """Poll a JS expression (the page's CSP forbids Playwright's eval-based waiting)."""
+    from playwright.sync_api import Error
+
+    end = time.time() + timeout
+    while time.time() < end:
+        try:
+            value = page.evaluate(f"() => {expression}")
+        except Error:  # the page is navigating
+            value = None
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out waiting for {expression}")
+
+
+def hook(page, expression: str):
+    return page.evaluate(f"() => window.sceneSuggestTest.{expression}")
+
+
+def ready(page):
+    until(page, "!!(window.sceneSuggestTest && window.sceneSuggestTest.ready)")
+    page.evaluate("() => window.sceneSuggestTest.loaded()")
+
+
+def start(page, base: str, pid: str):
+    page.goto(f"{base}/study/demo/start?pid={pid}")
+    page.click("text=I agree to take part")
+    page.fill("input[name=age]", "29")
+    page.check("input[name=experience_3d][value='A few times']")
+    page.check("input[name=pointing_device][value=Trackpad]")
+    page.click("button:has-text('Continue')")
+    while page.locator("button[name=go][value=next]").count():
+        page.click("button[name=go][value=next]")
+    ready(page)
+
+
+def objects(page) -> dict:
+    return {o["id"]: o for o in hook(page, "objects()")}
+
+
+def floor_pixel(page, x=0.0, z=0.3):
+    return hook(page, f"worldToPixel({x}, 0, {z})")
+
+
+def heading_deg(transform, face="bottom"):
+    """Yaw of the front (+Z column of the column-major matrix) about +Y, degrees in [0, 360)."""
+    fx, fz = transform[8], transform[10]
+    return math.degrees(math.atan2(fx, fz)) % 360
+
+
+def suggest_at(page, x, y, shift=True):
+    before = hook(page, "lastSuggest && lastSuggest.list_id") or None
+    if shift:
+        page.keyboard.down("Shift")
+    page.mouse.click(x, y)
+    if shift:
+        page.keyboard.up("Shift")
+    until(page, f"window.sceneSuggestTest.lastSuggest && window.sceneSuggestTest.lastSuggest.list_id !== {before!r}"
+          .replace("None", "null"))
+    page.evaluate("() => window.sceneSuggestTest.loaded()")
+    return hook(page, "lastSuggest")
+
+
+def done(page):
+    page.click("#done-button")
+    with page.expect_navigation(timeout=30000):
+        page.click("#confirm-yes")
+
+
+def db_events(database: Path, pid: str) -> list[tuple[int, str]]:
+    with sqlite3.connect(database) as conn:
+        return conn.execute("SELECT e.seq, e.type FROM events e JOIN participants p ON p.id = e.participant_id "
+                            "WHERE p.platform_id = ? ORDER BY e.seq", (pid,)).fetchall()
+
+
+def screenshot(page, name: str):
+    ARTIFACTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(ARTIFACTS / f"{name}.png"))
+
+
+def place_with_suggestions(page, mode_toggle=False):
+    """Ask for suggestions on the floor; the top one is placed at once on the clicked surface."""
+    x, y = floor_pixel(page, -0.6, 0.4)
+    if mode_toggle:
+        page.click("#suggest-mode")
+    response = suggest_at(page, x, y, shift=not mode_toggle)
+    if mode_toggle:
+        page.click("#suggest-mode")
+    placed = [o for o in objects(page).values() if o["parent"] == response["hit"]["parent"] and o["id"] != "room"]
+    top = response["suggestions"][0]
+    newest = placed[-1]
+    assert newest["category"] == top["category"] and newest["model_id"] == top["models"][0]["id"]
+    assert newest["parent"] == "room" and newest["surface_type"] == "up_interior"
+    assert math.dist(newest["contact_point"], response["hit"]["point"]) < 1e-6  # on the clicked point
+    return response, newest
+
+
+def run_none_trial(page):
+    # from the fixed list: the first model, then a click on the floor
+    page.click(".side-panel .tile >> nth=0")
+    x, y = floor_pixel(page, 0.6, 0.2)
+    page.mouse.click(x, y)
+    until(page, "window.sceneSuggestTest.objects().length === 2")
+    # by search: a lamp
+    page.fill(".side-panel input[type=search]", "lamp")
+    until(page, "document.querySelector('.side-panel .tile[data-model]') && "
+                "document.querySelector('.side-panel .tile[data-model]').dataset.model.includes('Lamp')")
+    page.click(".side-panel .tile >> nth=0")
+    x, y = floor_pixel(page, -0.6, 0.2)
+    page.mouse.click(x, y)
+    until(page, "window.sceneSuggestTest.objects().length === 3")
+    placed = [o for o in objects(page).values() if o["id"] != "room"]
+    assert any("Lamp" in o["category"] for o in placed)
+    assert all(abs(heading_deg(o["transform"])) < 1e-6 for o in placed)  # canonical pose
+    return placed
+
+
+def move_rotate_delete_undo(page):
+    """Drag an object across the floor, turn it, delete it and undo the deletion."""
+    obj = [o for o in objects(page).values() if o["id"] != "room"][-1]
+    page.evaluate("() => window.sceneSuggestTest.loaded()")
+    grab = hook(page, f"grabPixel({obj['id']!r})")
+    assert grab, f"no visible pixel of {obj['category']} to grab"
+    x0, y0 = grab
+    x1, y1 = floor_pixel(page, 0.0, 1.2)
+    page.mouse.move(x0, y0)
+    page.mouse.down()
+    for k in range(1, 11):
+        page.mouse.move(x0 + (x1 - x0) * k / 10, y0 + (y1 - y0) * k / 10)
+    page.mouse.up()
+    moved = objects(page)[obj["id"]]
+    assert math.dist(moved["contact_point"], obj["contact_point"]) > 0.3
+    before = heading_deg(moved["transform"])
+    page.keyboard.press("e")
+    turned = objects(page)[obj["id"]]
+    assert abs(((heading_deg(turned["transform"]) - before + 180) % 360) - 180) == pytest.approx(15, abs=0.01)
+    # the ring: grab it at the front (0°) and drag it a quarter turn round the object
+    start_deg = heading_deg(turned["transform"])
+    path = [hook(page, f"ringPixel({a})") for a in range(0, 91, 10)]
+    page.mouse.move(*path[0])
+    page.mouse.down()
+    for px in path[1:]:
+        page.mouse.move(*px)
+    page.mouse.up()
+    ringed = objects(page)[obj["id"]]
+    assert abs(((heading_deg(ringed["transform"]) - start_deg + 180) % 360) - 180) == pytest.approx(90, abs=3)
+    assert hook(page, "events.at(-1).type") == "rotate_end"
+    page.keyboard.press("Delete")
+    assert obj["id"] not in objects(page)
+    page.keyboard.press("Control+z")
+    assert obj["id"] in objects(page)
+    page.evaluate("() => window.sceneSuggestTest.loaded()")
+    grab = hook(page, f"grabPixel({obj['id']!r})")
+    assert grab, (obj, hook(page, f"pickAt(...window.sceneSuggestTest.centrePixel({obj['id']!r}))"))
+    x, y = grab
+    page.mouse.click(x, y)  # a click on an object selects it …
+    assert hook(page, "events.at(-1).payload") == {"object": obj["id"]}
+    x, y = floor_pixel(page, 1.5, -1.5)
+    page.mouse.click(x, y)  # … and one on empty floor deselects
+    assert hook(page, "events.at(-1).type") == "select" and hook(page, "events.at(-1).payload.object") is None
+
+
+def test_a_whole_participant_run(page, server):
+    base, database = server
+    pid = "browser-run"
+    start(page, base, pid)
+    seen = set()
+    conditions = []
+    while True:
+        cond = hook(page, "condition")
+        trial = hook(page, "trial")
+        conditions.append(cond)
+        shoot = cond not in seen and trial >= 0
+        if cond == "none":
+            assert page.locator(".side-panel .tile").count() == 118
+            run_none_trial(page)
+            if shoot:
+                screenshot(page, f"condition-{cond}")
+            move_rotate_delete_undo(page)
+        else:
+            response, placed = place_with_suggestions(page, mode_toggle=(trial % 2 == 1))
+            if cond == "full":  # oriented as the engine said
+                engine_heading = response["suggestions"][0]["heading_deg"] % 360
+                assert heading_deg(placed["transform"]) == pytest.approx(engine_heading, abs=0.01)
+            else:  # canonical pose
+                assert heading_deg(placed["transform"]) == pytest.approx(0, abs=1e-6)
+            if shoot:
+                screenshot(page, f"condition-{cond}")
+            # another suggestion replaces it in place
+            second = response["suggestions"][1]
+            page.click(f".suggestions .tile[data-rank='2'][data-category='{second['category']}']")
+            replaced = [o for o in objects(page).values() if o["id"] not in ("room", placed["id"])]
+            assert placed["id"] not in objects(page) and replaced[-1]["category"] == second["category"]
+            assert math.dist(replaced[-1]["contact_point"], placed["contact_point"]) < 1e-9
+            if cond not in seen:
+                page.click(".suggestions button.close")
+                move_rotate_delete_undo(page)
+        if shoot:
+            seen.add(cond)
+        done(page)
+        if "Almost done" in page.content():
+            break
+        ready(page)
+    assert sorted(conditions[1:]) == sorted(["none", "basic", "full"] * 3) and conditions[0] == "full"
+    page.fill("textarea[name=comments]", "The suggestions were handy.")
+    for q in ("enjoy_list", "competent_list", "enjoy_suggestions", "competent_suggestions"):
+        page.check(f"input[name={q}][value='4']")
+    page.check("input[name=preference][value='Suggestions, oriented']")
+    page.click("button:has-text('Continue')")
+    page.wait_for_selector(".code")
+    assert page.inner_text(".code") == "DEMO-DONE-7F3A"
+    events = db_events(database, pid)
+    seqs = [s for s, _ in events]
+    assert seqs == list(range(len(seqs)))  # every event stored once, none missing
+    types = {t for _, t in events}
+    assert {"trial_start", "trial_done", "context_query", "list_shown", "insert", "replace", "move_start", "move_end",
+            "rotate_start", "rotate_end", "delete", "undo", "search", "select", "pointer"} <= types
+    assert not page.console_problems, page.console_problems
+
+
+def test_reload_in_the_middle_of_a_trial_resumes_without_loss(page, server):
+    base, database = server
+    pid = "browser-reload"
+    start(page, base, pid)
+    place_with_suggestions(page)
+    before_objects = objects(page)
+    logged = hook(page, "events.map(e => [e.seq, e.type])")
+    page.reload()
+    ready(page)
+    assert objects(page).keys() == before_objects.keys()
+    assert hook(page, "trial") == -1
+    x, y = floor_pixel(page, 0.8, -0.5)
+    suggest_at(page, x, y)
+    logged += hook(page, "events.map(e => [e.seq, e.type])")
+    until(page, "window.sceneSuggestTest.pending() === 0")
+    stored = [list(e) for e in db_events(database, pid)]
+    assert [s for s, _ in stored] == list(range(len(stored)))  # nothing lost, nothing twice
+    assert all(e in stored for e in logged)  # everything the page logged, including what it sent while unloading
+    assert {"resume", "visibility"} <= {t for _, t in stored}
+
+
+def test_offline_for_a_while_then_every_event_arrives_once(page, server):
+    base, database = server
+    pid = "browser-offline"
+    start(page, base, pid)
+    place_with_suggestions(page)
+    until(page, "window.sceneSuggestTest.pending() === 0")
+    page.context.set_offline(True)
+    obj = [o for o in objects(page).values() if o["id"] != "room"][-1]
+    x, y = hook(page, f"grabPixel({obj['id']!r})")
+    page.mouse.click(x, y)  # select
+    for _ in range(6):
+        page.keyboard.press("q")
+    page.keyboard.press("Control+z")
+    time.sleep(2.5)
+    assert hook(page, "pending()") > 0
+    assert "Connection lost" in page.inner_text("#banner")
+    page.context.set_offline(False)
+    until(page, "window.sceneSuggestTest.pending() === 0", timeout=60)
+    logged = sorted(tuple(e) for e in hook(page, "events.map(e => [e.seq, e.type])"))
+    assert [tuple(e) for e in db_events(database, pid)] == logged
+    assert not page.is_visible("#banner") or "Connection lost" not in page.inner_text("#banner")
+
+
+def test_a_model_that_fails_to_load_offers_a_retry(page, server):
+    base, _ = server
+    fail = {"on": True}
+
+    def glb(route):
+        if fail["on"] and "GarbageCan" in route.request.url:
+            route.abort()
+        else:
+            route.continue_()
+    page.route(re.compile(r".*\.glb$"), glb)
+    start(page, base, "browser-retry")
+    x, y = floor_pixel(page, 0.0, 0.0)
+    page.click("#suggest-mode")
+    response = suggest_at(page, x, y, shift=False)
+    assert response["suggestions"][0]["category"] == "GarbageCan"  # the demo's top pick on this floor spot
+    until(page, "!document.getElementById('banner').hidden")
+    assert "did not load" in page.inner_text("#banner")
+    screenshot(page, "model-retry")
+    fail["on"] = False
+    page.click("#banner button")
+    until(page, "document.getElementById('banner').hidden")
