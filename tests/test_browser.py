@@ -377,3 +377,26 @@ def test_a_model_that_fails_to_load_offers_a_retry(page, server):
     fail["on"] = False
     page.click("#banner button")
     until(page, "document.getElementById('banner').hidden")
+
+
+def test_a_second_tab_takes_over_and_nothing_is_numbered_twice(page, server):
+    base, database = server
+    pid = "browser-tabs"
+    start(page, base, pid)
+    place_with_suggestions(page)
+    second = page.context.new_page()
+    second.goto(f"{base}/study/demo/")
+    ready(second)
+    until(page, "document.body.classList.contains('inactive')")
+    assert "another tab" in page.inner_text("#banner")
+    x, y = second.evaluate("() => window.sceneSuggestTest.worldToPixel(0.8, 0, -0.5)")
+    second.keyboard.down("Shift")
+    second.mouse.click(x, y)
+    second.keyboard.up("Shift")
+    until(second, "window.sceneSuggestTest.objects().length === 3")  # the first tab's object came along
+    until(second, "window.sceneSuggestTest.pending() === 0")
+    seqs = [s for s, _ in db_events(database, pid)]
+    assert seqs == list(range(len(seqs)))
+    logged = [e[0] for e in hook(page, "events.map(e => [e.seq])")] + \
+        [e[0] for e in second.evaluate("() => window.sceneSuggestTest.events.map(e => [e.seq])")]
+    assert len(logged) == len(set(s for s in logged if s >= 0))

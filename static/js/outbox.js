@@ -49,7 +49,14 @@ export class Outbox {
     this.write(state);
   }
 
+  /** Stop logging and sending (another page of the session has taken over). */
+  stop() {
+    this.stopped = true;
+    clearTimeout(this.timer);
+  }
+
   log(type, payload = {}, trial = null) {
+    if (this.stopped) return -1;
     const state = this.read();
     const event = { seq: state.nextSeq, t: performance.timeOrigin + performance.now(), type, trial, payload };
     state.nextSeq += 1;
@@ -70,6 +77,7 @@ export class Outbox {
 
   /** Send everything pending; resolves true when the server has acknowledged all of it. */
   async flush({ keepalive = false } = {}) {
+    if (this.stopped) return true;
     if (this.sending) return this.sending;
     this.sending = this.send(keepalive).finally(() => { this.sending = null; });
     return this.sending;

@@ -99,7 +99,24 @@ function canonical(model, hit) {
     normal: hit.normal, face, q: G.attachRotation(face, hit.normal) };
 }
 
+/** One editing page at a time: a newer tab or window of the same session takes over and this one steps aside
+ * (flushing what it logged), so two pages never number events or edit the scene side by side. */
+function handOver() {
+  if (!("BroadcastChannel" in window)) return;
+  const channel = new BroadcastChannel(`scenesuggest-${boot.study}-${boot.token.slice(-12)}`);
+  channel.onmessage = async (e) => {
+    if (e.data?.type !== "hello" || e.data.page === boot.page_id) return;
+    channel.close();
+    document.body.classList.add("inactive");
+    await outbox.flush();
+    outbox.stop();
+    say(strings.otherTab);
+  };
+  channel.postMessage({ type: "hello", page: boot.page_id });
+}
+
 async function main() {
+  handOver();
   if (!boot.preview) {
     const state = await json("/session");
     outbox.resumeFrom(state.acked_seq);
