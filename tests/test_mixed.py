@@ -9,14 +9,13 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import SHARED_DATA, require
 from scipy import optimize, stats
 from scipy.special import gammaln
 
 from analysis import AnalysisError
 from analysis.design import build_design
 from analysis.mixed import fit, holm, lr_test, pairwise
-
-from conftest import SHARED_DATA, require
 
 LEVELS = ["manual", "suggest_noorient", "suggest"]
 
