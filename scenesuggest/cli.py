@@ -34,6 +34,20 @@ def emit(data: dict, as_json: bool, human: str) -> None:
 
 
 class _Group(click.Group):
+    #: Command groups of other packages, imported only when used: name → (module, attribute).
+    lazy = {"analyze": ("analysis.cli", "analyze")}
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted([*super().list_commands(ctx), *self.lazy])
+
+    def get_command(self, ctx: click.Context, name: str):
+        if name in self.lazy:
+            import importlib
+
+            module, attribute = self.lazy[name]
+            return getattr(importlib.import_module(module), attribute)
+        return super().get_command(ctx, name)
+
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)

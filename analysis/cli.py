@@ -1,0 +1,136 @@
+"""``scenesuggest analyze …``: the report, mixed models and bootstrap intervals from the command line.
+
+Errors in the input print ``Error: WHERE: message`` and exit with 2; ``--json`` prints one JSON document.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import click
+import pandas as pd
+
+from .errors import AnalysisError
+
+
+class _Group(click.Group):
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except AnalysisError as e:
+            click.echo(f"Error: {e}", err=True)
+            ctx.exit(2)
+
+
+def _finite(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    return value
+
+
+def _emit(data: dict, as_json: bool, human: str) -> None:
+    click.echo(json.dumps(_finite(data), indent=1) if as_json else human)
+
+
+def _read_csv(path: str) -> pd.DataFrame:
+    try:
+        return pd.read_csv(path)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+        raise AnalysisError(f"cannot be read as CSV ({e})", path) from None
+
+
+@click.group(cls=_Group)
+def analyze() -> None:
+    """Analyse a study: the report, mixed models, bootstrap intervals."""
+
+
+@analyze.command("report")
+@click.option("--export", "export_dir", type=click.Path(file_okay=False), help="Export folder (study export).")
+@click.option("--db", "db_url", help="Database URL of the study server (sqlite:///…, postgresql+psycopg://…).")
+@click.option("--study", default=None, help="Study id when the database holds several.")
+@click.option("--out", required=True, type=click.Path(file_okay=False), help="Folder for the report.")
+@click.option("--resamples", default=1000, show_default=True, type=click.IntRange(min=10))
+@click.option("--seed", default=0, show_default=True)
+@click.option("--unit", type=click.Choice(["trial", "participant"]), default="trial", show_default=True,
+              help="What the bootstrap resamples.")
+@click.option("--json", "as_json", is_flag=True)
+def report_cmd(export_dir, db_url, study, out, resamples, seed, unit, as_json) -> None:
+    """Every table and figure of a study, with a README stating design, N, exclusions, origin and seed."""
+    from .load import read_study
+    from .report import build_report
+
+    start = time.perf_counter()
+
+    def progress(label: str) -> None:
+        click.echo(f"[{time.perf_counter() - start:5.1f} s] {label}", err=True)
+
+    data = read_study(export_dir, db_url, study)
+    summary = build_report(data, out, resamples=resamples, seed=seed, unit=unit, progress=progress)
+    readme = Path(out) / "README.md"
+    _emit({"out": str(out), "readme": str(readme), "notes": summary["notes"],
+           "participants": summary["participants"], "trials": summary["trials"]}, as_json,
+          f"report written to {readme}" + "".join(f"\nnote: {n}" for n in summary["notes"]))
+
+
+@analyze.command("lmm")
+@click.argument("csv_file", metavar="CSV", type=click.Path(dir_okay=False))
+@click.option("--response", required=True, help="Column to model.")
+@click.option("--fixed", required=True, help="Fixed effect column (tested by a likelihood-ratio test).")
+@click.option("--random", "random", required=True, multiple=True,
+              help="Grouping column for a random intercept (repeat for crossed factors); X|G adds a slope.")
+@click.option("--family", type=click.Choice(["gaussian", "poisson"]), default="gaussian", show_default=True)
+@click.option("--reference", default=None, help="Reference level of --fixed (default: its first level).")
+@click.option("--reml", is_flag=True, help="Report the REML fit as well (the test always uses ML).")
+@click.option("--json", "as_json", is_flag=True)
+def lmm_cmd(csv_file, response, fixed, random, family, reference, reml, as_json) -> None:
+    """A mixed model with and without the fixed effect, and their likelihood-ratio test (as lme4 REML = FALSE,
+    glmer Laplace)."""
+    from .design import build_design
+    from .mixed import compare, fit
+
+    data = _read_csv(csv_file)
+    design = build_design(data, response, [fixed], list(random), reference)
+    result = compare(design, fixed, family)
+    f, t = result.full, result.lrt
+    out = {"nobs": f.nobs, "loglik": f.loglik, "formula": f.formula, "family": family, "dropped_rows": f.dropped,
+           "fixed": {k: {"estimate": v, "se": f.se[k]} for k, v in f.fixed.items()}, "variance": f.variance,
+           "lrt": {"chi2": t.chi2, "df": t.df, "p": t.p, "null_loglik": t.null_loglik}}
+    if reml and family == "gaussian":
+        r = fit(design, reml=True)
+        out["reml"] = {"reml_criterion": -2 * r.loglik, "variance": r.variance,
+                       "fixed": {k: {"estimate": v, "se": r.se[k]} for k, v in r.fixed.items()}}
+    lines = [f"{f.formula}  ({family}, N = {f.nobs}" + (f", {f.dropped} rows with missing values dropped"
+                                                        if f.dropped else "") + ")",
+             f"log-likelihood {f.loglik:.4f}", "", "fixed effects        estimate        SE"]
+    lines += [f"  {k:<18} {v:>10.4g} {f.se[k]:>9.4g}" for k, v in f.fixed.items()]
+    lines += ["", "variance components"] + [f"  {k:<18} {v:>10.4g}" for k, v in f.variance.items()]
+    lines += ["", f"LR test of {fixed}: {t.text()}"]
+    _emit(out, as_json, "\n".join(lines))
+
+
+@analyze.command("bootstrap")
+@click.argument("csv_file", metavar="CSV", type=click.Path(dir_okay=False))
+@click.option("--value", required=True, help="Column whose mean is estimated.")
+@click.option("--by", required=True, help="Column whose levels get one interval each.")
+@click.option("--unit", type=click.Choice(["trial", "participant"]), default="trial", show_default=True,
+              help="Resample rows of each trial together, or all rows of each participant.")
+@click.option("--resamples", default=1000, show_default=True, type=click.IntRange(min=10))
+@click.option("--seed", default=0, show_default=True)
+@click.option("--json", "as_json", is_flag=True)
+def bootstrap_cmd(csv_file, value, by, unit, resamples, seed, as_json) -> None:
+    """Means per level with 95% percentile bootstrap intervals (seeded)."""
+    from .bootstrap import bootstrap_by
+
+    result = bootstrap_by(_read_csv(csv_file), value, by, None, unit, resamples, seed)
+    out = {"by": {k: v.to_dict() for k, v in result.items()}, "resamples": resamples, "unit": unit, "seed": seed}
+    width = max((len(k) for k in result), default=0)
+    human = "\n".join(f"{k:<{width}}  {v.text(4)}  (n = {v.n})" for k, v in result.items())
+    _emit(out, as_json, f"mean of {value} by {by}, 95% interval from {resamples} resamples of {unit}s:\n{human}")
+

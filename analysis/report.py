@@ -1,0 +1,165 @@
+"""``scenesuggest analyze report``: every table and figure of a study in one folder, with a README that states
+the design, N, exclusions, the data's origin and the seed.
+
+Each part is computed on its own: a part that cannot be computed (a measure that cannot be modelled, a
+condition without data) leaves a note in the README and the rest of the report still stands.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import figures
+from .load import StudyData
+from .measures import TRIAL_MEASURES, participants_table, picks_table, trials_table
+from .tables import Table, condition_tests, contrasts_table, survey_table, table1, table2, tests_table
+
+
+def _json_default(value):
+    if isinstance(value, np.integer | np.bool_):
+        return value.item()
+    if isinstance(value, np.floating):
+        return None if not np.isfinite(value) else float(value)
+    raise TypeError(type(value).__name__)
+
+
+def _clean(value):
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_clean(v) for v in value]
+    return value
+
+
+def select(data: StudyData) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, list[str], list[str]]:
+    """Trials, picks and participants to analyse, the conditions in order, and notes on what was left out."""
+    notes = []
+    trials = trials_table(data)
+    people = participants_table(data)
+    excluded = people.loc[people["status"] == "excluded", "participant"]
+    if len(excluded):
+        reasons = data.participants.set_index("participant").reindex(excluded)
+        why = reasons.get("excluded_reason", pd.Series(dtype=str)).fillna("").tolist()
+        notes.append(f"{len(excluded)} participant(s) excluded by the experimenter: "
+                     + "; ".join(f"{p} ({w or 'no reason given'})" for p, w in zip(excluded, why, strict=True)))
+    trials = trials[~trials["participant"].isin(excluded)]
+    conditions = data.conditions
+    stated = data.manifest.get("design", {}).get("conditions")
+    if stated:
+        unknown = trials.loc[~trials["condition"].isin(stated), "condition"]
+        if len(unknown):
+            notes.append(f"{len(unknown)} trial(s) with a condition the study does not define "
+                         f"({', '.join(sorted(map(str, unknown.unique())))}) are left out")
+            trials = trials[trials["condition"].isin(stated)]
+    for c in conditions:
+        if not ((trials["condition"] == c) & trials["complete"]).any():
+            notes.append(f"condition {c!r} has no completed trials: its rows say “no data” and it is not modelled")
+    incomplete = trials[~trials["complete"]]
+    if len(incomplete):
+        notes.append(f"{len(incomplete)} scheduled trial(s) were not completed (no “done”) by "
+                     f"{incomplete['participant'].nunique()} participant(s); their completed trials are analysed")
+    picks = picks_table(data, trials)
+    unranked = int(picks["rank"].isna().sum())
+    if unranked:
+        notes.append(f"{unranked} pick(s) without a rank are left out of MRR and Table 2")
+    return trials.reset_index(drop=True), picks, people, conditions, notes
+
+
+def _design_text(data: StudyData, conditions: list[str]) -> list[str]:
+    design = data.manifest.get("design", {})
+    lines = [f"- Conditions (reference first): {', '.join(conditions)}."]
+    if design:
+        lines.append(f"- Design: {design.get('kind', '?')} ordering of conditions, {design.get('blocking', '?')} "
+                     f"blocking, {design.get('rows', '?')} schedule rows; periods (scenes): "
+                     + "; ".join(", ".join(p) for p in design.get("periods", [])) + ".")
+    return lines
+
+
+def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, seed: int = 0, unit: str = "trial",
+                 progress: Callable[[str], None] = lambda label: None) -> dict:
+    """Write the report into ``out``; returns its machine-readable summary (also ``results.json``)."""
+    out = Path(out)
+    (out / "tables").mkdir(parents=True, exist_ok=True)
+    progress("measures")
+    trials, picks, people, conditions, notes = select(data)
+    done = trials[trials["complete"]]
+    measures_dir = out / "measures"
+    measures_dir.mkdir(exist_ok=True)
+    trials.to_csv(measures_dir / "trials.csv", index=False)
+    picks.to_csv(measures_dir / "picks.csv", index=False)
+    people.to_csv(measures_dir / "participants.csv", index=False)
+
+    progress("bootstrap intervals")
+    tables: list[Table] = [table1(trials, picks, conditions, resamples, seed, unit), table2(picks, conditions)]
+    results = condition_tests(trials, picks, conditions, progress)
+    tables += [tests_table(results), contrasts_table(results), survey_table(people)]
+    for r in results:
+        if r.error:
+            notes.append(f"{r.label}: not modelled — {r.error}")
+    for t in tables:
+        for ext, text in (("md", t.markdown()), ("tex", t.latex()), ("csv", t.csv())):
+            (out / "tables" / f"{t.name}.{ext}").write_text(text, encoding="utf-8")
+
+    progress("figures")
+    figure_files = []
+    for make, frame in ((figures.time_by_scene, trials), (figures.rank_distribution, picks),
+                        (figures.learning_curves, trials)):
+        if frame is picks and picks.dropna(subset=["rank"]).empty or frame is trials and done.empty:
+            notes.append(f"figure {make.__name__}: no data")
+            continue
+        figure_files += make(frame, conditions, out / "figures")
+
+    people_analysed = done["participant"].nunique()
+    summary = {
+        "study": data.manifest.get("study"), "source": data.manifest.get("source"),
+        "study_hash": data.manifest.get("study_hash"), "code_version": data.manifest.get("code_version"),
+        "exported_at": data.manifest.get("exported_at"), "generated_at": datetime.now(UTC).isoformat(),
+        "seed": seed, "resamples": resamples, "unit": unit, "conditions": conditions,
+        "participants": {"total": len(data.participants),
+                         "completed": int((data.participants["status"] == "completed").sum()),
+                         "analysed": int(people_analysed)},
+        "trials": {"scheduled": len(trials), "completed": len(done)}, "picks": len(picks), "notes": notes,
+        "table1": tables[0].data, "table2": tables[1].data,
+        "tests": {r.measure: (r.comparison.to_dict() | {"contrasts": [c.to_dict() for c in r.contrasts]}
+                              if r.comparison else {"error": r.error}) for r in results},
+    }
+    (out / "results.json").write_text(json.dumps(_clean(summary), indent=1, default=_json_default))
+    progress("README")
+    (out / "README.md").write_text(_readme(data, summary, tables, figure_files, out, conditions), encoding="utf-8")
+    return summary
+
+
+def _readme(data, summary, tables, figure_files, out, conditions) -> str:
+    p, t = summary["participants"], summary["trials"]
+    m = data.manifest
+    lines = [f"# Analysis report: {m.get('title') or m.get('study') or 'study'}", "",
+             f"Generated {summary['generated_at']} by `scenesuggest analyze report`.", "", "## Data", "",
+             f"- Source: `{m.get('source')}`" + (f", exported {m['exported_at']}" if m.get("exported_at") else "")
+             + (f" by SceneSuggest {m['code_version']}" if m.get("code_version") else "") + ".",
+             f"- Study: `{m.get('study')}`, study file sha256 `{m.get('study_hash')}`.",
+             *_design_text(data, conditions),
+             f"- N: {p['total']} participants arrived, {p['completed']} completed, {p['analysed']} contributed "
+             f"completed trials; {t['completed']} of {t['scheduled']} scheduled trials completed; "
+             f"{summary['picks']} picks.",
+             f"- Bootstrap: {summary['resamples']} percentile resamples of {summary['unit']}s, seed "
+             f"{summary['seed']}.", "", "## Exclusions and notes", ""]
+    lines += [f"- {n}" for n in summary["notes"]] or ["- none"]
+    lines += ["", "## Measures", ""] + [f"- `{k}`: {v}" for k, v in TRIAL_MEASURES.items()]
+    lines += ["- MRR: mean of 1 / rank over every pick with a rank (fixed list, search results or suggestions).",
+              "", "## Tables", ""]
+    for table in tables:
+        lines += [table.markdown(), f"Also as `tables/{table.name}.tex` (booktabs) and `tables/{table.name}.csv`.",
+                  ""]
+    lines += ["## Figures", ""]
+    lines += [f"![{f.stem}]({f.relative_to(out).as_posix()})" for f in figure_files if f.suffix == ".png"]
+    lines += ["", "Each figure is also an SVG beside its PNG. Per-trial, per-pick and per-participant measures are "
+                  "in `measures/`; every number above is in `results.json`.", ""]
+    return "\n".join(lines)

@@ -1,0 +1,211 @@
+"""The paper's tables from trial and pick measures, each renderable as Markdown, LaTeX (booktabs) and CSV.
+
+- Table 1: per condition, mean total / rotation / translation time, translation distance, model queries and
+  MRR, each with a 95% percentile bootstrap interval.
+- Table 2: the distribution of chosen ranks (1, 2, 3, 4+) per condition.
+- Likelihood-ratio tests of condition for every Table 1 measure (linear mixed models; Poisson for counts) and
+  Holm-corrected pairwise contrasts; Likert means and preference counts.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .bootstrap import bootstrap_by
+from .design import build_design
+from .errors import AnalysisError
+from .mixed import compare, format_p, pairwise
+
+#: (column, label, digits, family, table) — what Table 1 and the tests cover; ``picks`` rows for MRR.
+MEASURES = [
+    ("total_time", "Total time (s)", 1, "gaussian", "trials"),
+    ("rotation_time", "Rotation time (s)", 1, "gaussian", "trials"),
+    ("translation_time", "Translation time (s)", 1, "gaussian", "trials"),
+    ("translation_distance", "Translation distance (m)", 2, "gaussian", "trials"),
+    ("n_queries", "Model queries", 2, "poisson", "trials"),
+    ("reciprocal_rank", "MRR", 3, "gaussian", "picks"),
+]
+RANK_BINS = ("1", "2", "3", "4+")
+
+
+@dataclass
+class Table:
+    """A rendered table: ``rows`` are display strings, ``data`` the same content as numbers for CSV."""
+
+    name: str
+    title: str
+    caption: str
+    columns: list[str]
+    rows: list[list[str]]
+    data: list[dict] = field(default_factory=list)
+
+    def markdown(self) -> str:
+        lines = [f"**{self.title}.** {self.caption}", "", "| " + " | ".join(self.columns) + " |",
+                 "|" + "|".join(["---"] + ["---:"] * (len(self.columns) - 1)) + "|"]
+        lines += ["| " + " | ".join(r) + " |" for r in self.rows]
+        return "\n".join(lines) + "\n"
+
+    def latex(self) -> str:
+        spec = "l" + "r" * (len(self.columns) - 1)
+        body = [" & ".join(_tex(c) for c in r) + r" \\" for r in self.rows]
+        return "\n".join([r"\begin{table}", r"\centering", rf"\caption{{{_tex(self.title)}. {_tex(self.caption)}}}",
+                          rf"\label{{tab:{self.name}}}", rf"\begin{{tabular}}{{{spec}}}", r"\toprule",
+                          " & ".join(_tex(c) for c in self.columns) + r" \\", r"\midrule", *body, r"\bottomrule",
+                          r"\end{tabular}", r"\end{table}"]) + "\n"
+
+    def csv(self) -> str:
+        buf = io.StringIO()
+        if self.data:
+            w = csv.DictWriter(buf, fieldnames=list(self.data[0]), lineterminator="\n")
+            w.writeheader()
+            w.writerows(self.data)
+        return buf.getvalue()
+
+
+_TEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
+        "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}", "−": "--", "–": "--", "<": r"$<$",
+        ">": r"$>$", "“": "``", "”": "''"}
+
+
+def _tex(text: str) -> str:
+    """LaTeX-escape a cell (χ² becomes math)."""
+    return "".join(_TEX.get(ch, ch) for ch in str(text)).replace("χ²", r"$\chi^2$")
+
+
+def _frame(trials: pd.DataFrame, picks: pd.DataFrame, table: str) -> pd.DataFrame:
+    return picks if table == "picks" else trials[trials["complete"]]
+
+
+def table1(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str], resamples: int = 1000,
+           seed: int = 0, unit: str = "trial") -> Table:
+    """Means with 95% bootstrap intervals per condition (seeded; one generator per measure)."""
+    stats = {m: bootstrap_by(_frame(trials, picks, t), m, "condition", conditions, unit, resamples, seed)
+             for m, _, _, _, t in MEASURES}
+    rows, data = [], []
+    for c in conditions:
+        n = int(((trials["condition"] == c) & trials["complete"]).sum())
+        rows.append([c, str(n)] + [stats[m][c].text(d) for m, _, d, _, _ in MEASURES])
+        record = {"condition": c, "trials": n}
+        for m, _, _, _, _ in MEASURES:
+            iv = stats[m][c]
+            record |= {f"{m}_mean": iv.mean, f"{m}_low": iv.low, f"{m}_high": iv.high, f"{m}_n": iv.n}
+        data.append(record)
+    what = "participants (all of a participant's trials together)" if unit == "participant" else "trials"
+    caption = (f"Means per condition with 95% percentile bootstrap intervals from {resamples} resamples of "
+               f"{what}, seed {seed}. MRR is the mean reciprocal rank of chosen models over all picks.")
+    return Table("table1", "Table 1: time, queries and MRR by condition", caption,
+                 ["Condition", "Trials"] + [label for _, label, _, _, _ in MEASURES], rows, data)
+
+
+def table2(picks: pd.DataFrame, conditions: list[str]) -> Table:
+    """How often the chosen model was 1st, 2nd, 3rd or lower in the list it was picked from."""
+    rows, data = [], []
+    ranked = picks.dropna(subset=["rank"])
+    for c in conditions:
+        r = ranked.loc[ranked["condition"] == c, "rank"]
+        counts = [int((r == 1).sum()), int((r == 2).sum()), int((r == 3).sum()), int((r >= 4).sum())]
+        total = sum(counts)
+        shares = [k / total if total else float("nan") for k in counts]
+        rows.append([c, str(total)] + [f"{k} ({s:.1%})" if total else "–" for k, s in zip(counts, shares,
+                                                                                          strict=True)])
+        data.append({"condition": c, "picks": total, **{f"rank_{b}": k for b, k in zip(RANK_BINS, counts,
+                                                                                           strict=True)},
+                     **{f"share_{b}": s for b, s in zip(RANK_BINS, shares, strict=True)}})
+    return Table("table2", "Table 2: rank of the chosen model", "Picks by their rank in the list they were "
+                 "chosen from (fixed list, search results or context suggestions); share of the condition's picks.",
+                 ["Condition", "Picks", "Rank 1", "Rank 2", "Rank 3", "Rank 4+"], rows, data)
+
+
+def random_terms(frame: pd.DataFrame) -> list[str]:
+    """Crossed random intercepts for participant and scene, leaving out a factor with a single level."""
+    return [g for g in ("participant", "scene") if frame[g].nunique() > 1]
+
+
+@dataclass
+class TestResult:
+    measure: str
+    label: str
+    family: str
+    comparison: object | None = None
+    contrasts: list = field(default_factory=list)
+    error: str = ""
+
+
+def condition_tests(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str],
+                    progress=lambda label: None) -> list[TestResult]:
+    """Per measure: the model with and without condition, the LR test, and pairwise contrasts. A measure that
+    cannot be modelled keeps its error message instead."""
+    out = []
+    for m, label, _, family, table in MEASURES:
+        progress(f"model of {m}")
+        frame = _frame(trials, picks, table)
+        frame = frame[frame["condition"].isin(conditions)].copy()
+        frame["condition"] = pd.Categorical(frame["condition"], conditions)
+        result = TestResult(m, label, family)
+        try:
+            present = [c for c in conditions if (frame["condition"] == c).any()]
+            design = build_design(frame, m, ["condition"], random_terms(frame))
+            result.comparison = compare(design, "condition", family)
+            result.contrasts = pairwise(result.comparison.full, "condition", present)
+        except AnalysisError as e:
+            result.error = str(e)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError) as e:
+            result.error = f"the model could not be fitted ({e})"
+        out.append(result)
+    return out
+
+
+def tests_table(results: list[TestResult]) -> Table:
+    rows, data = [], []
+    for r in results:
+        if r.comparison is None:
+            rows.append([r.label, r.family, "–", "–", r.error])
+            data.append({"measure": r.measure, "family": r.family, "error": r.error})
+            continue
+        t = r.comparison.lrt
+        rows.append([r.label, "LMM" if r.family == "gaussian" else "Poisson GLMM",
+                     f"χ²({t.df}, N = {t.nobs}) = {t.chi2:.2f}", format_p(t.p), ""])
+        data.append({"measure": r.measure, "family": r.family, "chi2": t.chi2, "df": t.df, "n": t.nobs, "p": t.p,
+                     "loglik_full": t.full_loglik, "loglik_null": t.null_loglik, "error": ""})
+    return Table("lr_tests", "Likelihood-ratio tests of condition", "Maximum-likelihood mixed models with crossed "
+                 "random intercepts for participant and scene, with and without condition (Poisson with log link "
+                 "for counts; reciprocal ranks per pick).", ["Measure", "Model", "Test", "p", "Note"], rows, data)
+
+
+def contrasts_table(results: list[TestResult]) -> Table:
+    rows, data = [], []
+    for r in results:
+        for c in r.contrasts:
+            scale = " (log rate)" if r.family == "poisson" else ""
+            rows.append([r.label, f"{c.a} − {c.b}", f"{c.estimate:.3g}{scale}", f"{c.se:.3g}", f"{c.z:.2f}",
+                         format_p(c.p), format_p(c.p_holm)])
+            data.append({"measure": r.measure, **c.to_dict()})
+    return Table("contrasts", "Pairwise contrasts between conditions", "Wald z tests from the full model; "
+                 "p-values Holm-corrected over the three contrasts of each measure.",
+                 ["Measure", "Contrast", "Estimate", "SE", "z", "p", "p (Holm)"], rows, data)
+
+
+def survey_table(participants: pd.DataFrame) -> Table:
+    """Exit-survey answers: numeric (Likert) items as mean, SD and n; choice items as counts."""
+    rows, data = [], []
+    for column in [c for c in participants.columns if str(c).startswith("exit.")]:
+        values = participants[column].dropna()
+        if values.empty:
+            continue
+        question = column.removeprefix("exit.")
+        if pd.api.types.is_numeric_dtype(values):
+            rows.append([question, f"{values.mean():.2f}", f"{values.std(ddof=1):.2f}" if len(values) > 1 else "–",
+                         str(len(values))])
+            data.append({"question": question, "answer": "", "mean": values.mean(), "sd": values.std(ddof=1),
+                         "n": len(values)})
+        else:
+            for answer, n in values.astype(str).value_counts().items():
+                rows.append([question, f"“{answer}”", "", str(n)])
+                data.append({"question": question, "answer": answer, "mean": "", "sd": "", "n": int(n)})
+    return Table("survey", "Exit survey", "Likert items: mean and standard deviation; choices: counts.",
+                 ["Question", "Mean / answer", "SD", "n"], rows, data)
