@@ -163,6 +163,14 @@ def test_unbalanced_data_reach_the_dense_likelihoods_maximum(sim):
     assert list(f.fixed.values()) == pytest.approx(beta, rel=1e-4)
     assert f.variance["participant"] == pytest.approx(np.exp(best.x[1]), rel=1e-3)
     assert f.variance["residual"] == pytest.approx(np.exp(best.x[0]), rel=1e-3)
+    # and statsmodels' MixedLM (crossed factors as variance components of a single group) agrees
+    from statsmodels.regression.mixed_linear_model import MixedLM, VCSpec
+
+    vc = VCSpec([t.group for t in design.random], [[list(t.levels)] for t in design.random], [[Z] for Z in Zs])
+    sm = max((MixedLM(design.y, design.X, groups=np.zeros(design.nobs), exog_vc=vc).fit(reml=False, method=m)
+              for m in ("bfgs", "lbfgs", "powell")), key=lambda r: r.llf)
+    assert f.loglik == pytest.approx(sm.llf, abs=1e-4) and f.loglik >= sm.llf - 1e-6
+    assert list(f.fixed.values()) == pytest.approx(sm.fe_params, rel=1e-4)
 
 
 def test_pairwise_contrasts_are_wald_tests_with_holm_correction(sim):
