@@ -108,9 +108,11 @@ def lmm_cmd(csv_file, response, fixed, random, family, reference, reml, as_json)
                        "fixed": {k: {"estimate": v, "se": r.se[k]} for k, v in r.fixed.items()}}
     lines = [f"{f.formula}  ({family}, N = {f.nobs}" + (f", {f.dropped} rows with missing values dropped"
                                                         if f.dropped else "") + ")",
-             f"log-likelihood {f.loglik:.4f}", "", "fixed effects        estimate        SE"]
-    lines += [f"  {k:<18} {v:>10.4g} {f.se[k]:>9.4g}" for k, v in f.fixed.items()]
-    lines += ["", "variance components"] + [f"  {k:<18} {v:>10.4g}" for k, v in f.variance.items()]
+             f"log-likelihood {f.loglik:.4f}", ""]
+    w = max(len(k) for k in [*f.fixed, *f.variance])
+    lines += [f"  {'fixed effects':<{w}} {'estimate':>10} {'SE':>9}"]
+    lines += [f"  {k:<{w}} {v:>10.4g} {f.se[k]:>9.4g}" for k, v in f.fixed.items()]
+    lines += ["", "  variance components"] + [f"  {k:<{w}} {v:>10.4g}" for k, v in f.variance.items()]
     lines += ["", f"LR test of {fixed}: {t.text()}"]
     _emit(out, as_json, "\n".join(lines))
 
