@@ -10,7 +10,7 @@ NPM_STAMP := node_modules/.installed
 DEMO_LIBRARY := var/library/ai2thor/library.json
 DEMO_PRIORS := var/priors/ai2thor.npz
 
-.PHONY: setup demo test lint pytest serve bench clean
+.PHONY: setup demo demo-report test lint pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
@@ -44,6 +44,16 @@ pytest: setup
 	$(BIN)/pytest
 
 test: demo lint pytest
+
+# A study of the demo with 20 simulated participants, exported and analysed (var/demo-report/report/README.md).
+DEMO_REPORT := var/demo-report
+demo-report: demo
+	rm -rf $(DEMO_REPORT) && mkdir -p $(DEMO_REPORT)
+	DATABASE_URL=sqlite:///$(CURDIR)/$(DEMO_REPORT)/study.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(DEMO_REPORT)/instance \
+		$(BIN)/scenesuggest study simulate --participants 20 --seed 0
+	SCENESUGGEST_INSTANCE=$(CURDIR)/$(DEMO_REPORT)/instance $(BIN)/scenesuggest study export --study demo \
+		--db sqlite:///$(CURDIR)/$(DEMO_REPORT)/study.sqlite3 --out $(DEMO_REPORT)/export
+	$(BIN)/scenesuggest analyze report --export $(DEMO_REPORT)/export --out $(DEMO_REPORT)/report
 
 bench: demo
 	$(BIN)/python benchmarks/bench_corpus.py

@@ -123,18 +123,23 @@ def trials_table(data: StudyData) -> pd.DataFrame:
 
 
 def picks_table(data: StudyData, trials: pd.DataFrame) -> pd.DataFrame:
-    """One row per model chosen from a list: its rank there (1-based), the list's source
-    (``fixed`` list / ``search`` / ``context``) and reciprocal rank, with the trial's condition and scene."""
+    """One row per model placed from a list: its rank there (1-based), the list's source (``fixed`` list /
+    ``search`` / ``context``), reciprocal rank, the trial's condition and scene, and ``final``: False when a
+    later pick replaced it in place (the top suggestion is placed at once; the participant's choice is the
+    last pick of such a chain, and only final picks count for MRR and the rank distribution)."""
     ev = data.events[data.events["type"].isin(["insert", "replace"])].dropna(subset=["trial"])
     rows = []
+    replaced = {(e.participant, e.trial, e.payload.get("replaces")) for e in ev.itertuples(index=False)
+                if e.type == "replace"}
     for e in ev.itertuples(index=False):
         p = e.payload
         rank = p.get("rank")
         rows.append({"participant": e.participant, "trial": int(e.trial), "seq": e.seq, "action": e.type,
                      "model": p.get("model"), "category": p.get("category"), "source": p.get("source"),
-                     "rank": float(rank) if rank else np.nan})
+                     "rank": float(rank) if rank else np.nan,
+                     "final": (e.participant, e.trial, p.get("object")) not in replaced})
     picks = pd.DataFrame(rows, columns=["participant", "trial", "seq", "action", "model", "category", "source",
-                                        "rank"])
+                                        "rank", "final"])
     picks["reciprocal_rank"] = 1.0 / picks["rank"]
     design = trials.loc[trials["complete"], ["participant", "trial", "condition", "scene"]]
     return picks.merge(design, on=["participant", "trial"], how="inner")

@@ -66,11 +66,15 @@ def select(data: StudyData) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, l
     if len(incomplete):
         notes.append(f"{len(incomplete)} scheduled trial(s) were not completed (no “done”) by "
                      f"{incomplete['participant'].nunique()} participant(s); their completed trials are analysed")
-    picks = picks_table(data, trials)
+    all_picks = picks_table(data, trials)
+    picks = all_picks[all_picks["final"]]
+    if len(picks) < len(all_picks):
+        notes.append(f"{len(all_picks) - len(picks)} pick(s) were replaced in place by another pick (a suggestion "
+                     "placed at once, then changed); only the final choice counts for MRR and Table 2")
     unranked = int(picks["rank"].isna().sum())
     if unranked:
         notes.append(f"{unranked} pick(s) without a rank are left out of MRR and Table 2")
-    return trials.reset_index(drop=True), picks, people, conditions, notes
+    return trials.reset_index(drop=True), picks.reset_index(drop=True), people, conditions, notes
 
 
 def _design_text(data: StudyData, conditions: list[str]) -> list[str]:

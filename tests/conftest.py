@@ -3,6 +3,7 @@ it skip with a reason when it is absent, except under CI=true, where its absence
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 
@@ -65,6 +66,42 @@ def demo_resources():
         priors.parent.mkdir(parents=True, exist_ok=True)
         subprocess.run([*cli, "priors", "train", "ai2thor", "-o", str(priors)], check=True, capture_output=True)
     return DEMO_STUDY
+
+
+@contextlib.contextmanager
+def gunicorn(tmp: Path, workers: int = 2):
+    """The study server as `make serve` runs it (gunicorn, the demo study) on a fresh SQLite database in ``tmp``
+    and a free loopback port; yields (base URL, database path)."""
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    database = tmp / "study.sqlite3"
+    make_app(tmp, f"sqlite:///{database}")
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    env = {**os.environ, "DATABASE_URL": f"sqlite:///{database}", "SCENESUGGEST_INSTANCE": str(tmp / "instance"),
+           "SCENESUGGEST_STUDIES": str(DEMO_STUDY), "SCENESUGGEST_SECRET_KEY": "test-server"}
+    proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "-w", str(workers), "-b", f"127.0.0.1:{port}",
+                             "study_server:create_app()"], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        for _ in range(300):
+            try:
+                urllib.request.urlopen(f"{base}/api/openapi.json", timeout=5).close()
+                break
+            except OSError:
+                time.sleep(0.1)
+        yield base, database
+    finally:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=20)
 
 
 def make_app(tmp_path, database_url: str | None = None, studies=None, **config):

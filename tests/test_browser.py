@@ -5,19 +5,14 @@ converts world points to pixels); the database is compared with what the page lo
 from __future__ import annotations
 
 import math
-import os
 import re
 import shutil
-import signal
-import socket
 import sqlite3
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
-from conftest import DEMO_STUDY, IN_CI, ROOT, make_app
+from conftest import IN_CI, ROOT, gunicorn
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -40,30 +35,8 @@ def _require_browser():
 def server(tmp_path_factory, demo_resources):
     """gunicorn with 2 workers on a fresh SQLite database; yields (base URL, database path)."""
     _require_browser()
-    tmp = tmp_path_factory.mktemp("browser")
-    database = tmp / "study.sqlite3"
-    make_app(tmp, f"sqlite:///{database}")
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    env = {**os.environ, "DATABASE_URL": f"sqlite:///{database}", "SCENESUGGEST_INSTANCE": str(tmp / "instance"),
-           "SCENESUGGEST_STUDIES": str(DEMO_STUDY), "SCENESUGGEST_SECRET_KEY": "browser-tests"}
-    proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "-w", "2", "-b", f"127.0.0.1:{port}",
-                             "study_server:create_app()"], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
-    import requests
-
-    base = f"http://127.0.0.1:{port}"
-    for _ in range(200):
-        try:
-            requests.get(f"{base}/api/openapi.json", timeout=5)
-            break
-        except requests.RequestException:
-            time.sleep(0.1)
-    yield base, database
-    os.killpg(proc.pid, signal.SIGTERM)
-    proc.wait(timeout=20)
+    with gunicorn(tmp_path_factory.mktemp("browser")) as running:
+        yield running
 
 
 @pytest.fixture(scope="module")

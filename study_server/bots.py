@@ -1,0 +1,398 @@
+"""Simulated participants: bots that take part in a study through its HTTP interface alone.
+
+A bot walks the whole flow (entry link, device check, consent, demographics, instructions, every trial, exit
+survey) and in each trial rebuilds the target scene the way a person would: in ``basic``/``full`` it asks for
+suggestions at each target object's contact point on its parent and picks the object's model at the rank the
+engine really gave it (searching by keyword when it is absent); in ``none`` it scans the fixed model list or
+searches. It then moves and turns the object until its pose matches the target.
+
+Time is not slept but simulated: each action costs the operator times of the keystroke-level model (Card, Moran
+& Newell 1980: K keystroke 0.28 s, P point 1.1 s, B button 0.1 s, M mental preparation 1.35 s), list scanning
+costs per item looked at, drags follow Fitts' law, and a participant-level speed factor varies them. The events
+carry these simulated client times, so the analysis sees how long a person would have taken given what the
+engine returned — condition differences come from the engine's ranks and orientations, not from typed-in
+effect sizes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from html import unescape
+from html.parser import HTMLParser
+
+import numpy as np
+
+#: Keystroke-level model operators, seconds (Card, Moran & Newell 1980).
+K, P, B, M = 0.28, 1.1, 0.1, 1.35
+SCAN_PER_ITEM = 0.35  # looking at one thumbnail of a list, s
+LIST_VISIBLE = 24  # items a person scans before giving up on the list and searching
+FITTS_A, FITTS_B, TARGET_M = 0.2, 0.15, 0.05  # drag time = a + b log2(d / w + 1)
+COARSE_DEG, POSE_TOLERANCE_DEG, POSE_TOLERANCE_M = 15.0, 4.0, 0.03
+
+
+class FlowError(RuntimeError):
+    """The server answered something a participant's browser would not have expected."""
+
+
+@dataclass
+class Response:
+    status: int
+    text: str
+
+    def json(self):
+        return json.loads(self.text)
+
+
+class FlaskTransport:
+    """Requests through a Flask test client (in-process; cookies kept by the client)."""
+
+    def __init__(self, client):
+        self.client = client
+
+    def get(self, path, headers=None) -> Response:
+        r = self.client.get(path, headers=headers or {}, follow_redirects=True)
+        return Response(r.status_code, r.get_data(as_text=True))
+
+    def post(self, path, form=None, json_body=None, headers=None) -> Response:
+        r = self.client.post(path, data=form, json=json_body, headers=headers or {}, follow_redirects=True)
+        return Response(r.status_code, r.get_data(as_text=True))
+
+
+class HttpTransport:
+    """Real HTTP to a running server (urllib, a cookie jar per participant, redirects followed)."""
+
+    def __init__(self, base_url: str, timeout: float = 30.0):
+        import http.cookiejar
+        import urllib.request
+
+        self.base = base_url.rstrip("/")
+        self.timeout = timeout
+        self.opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar()))
+
+    def _send(self, method, path, data=None, headers=None) -> Response:
+        import urllib.error
+        import urllib.request
+
+        req = urllib.request.Request(self.base + path, data=data, method=method, headers=headers or {})
+        try:
+            with self.opener.open(req, timeout=self.timeout) as r:
+                return Response(r.status, r.read().decode())
+        except urllib.error.HTTPError as e:
+            return Response(e.code, e.read().decode(errors="replace"))
+
+    def get(self, path, headers=None) -> Response:
+        return self._send("GET", path, headers=headers)
+
+    def post(self, path, form=None, json_body=None, headers=None) -> Response:
+        from urllib.parse import urlencode
+
+        headers = dict(headers or {})
+        if json_body is not None:
+            headers["Content-Type"] = "application/json"
+            return self._send("POST", path, json.dumps(json_body).encode(), headers)
+        headers["Content-Type"] = "application/x-www-form-urlencoded"
+        return self._send("POST", path, urlencode(form or {}).encode(), headers)
+
+
+class _Form(HTMLParser):
+    """The fields of a survey page: radio groups with their values, number inputs, text areas, hidden inputs."""
+
+    def __init__(self):
+        super().__init__()
+        self.radios: dict[str, list[str]] = {}
+        self.numbers: dict[str, tuple[float, float]] = {}
+        self.texts: list[str] = []
+        self.hidden: dict[str, str] = {}
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "input" and a.get("type") == "radio":
+            self.radios.setdefault(a["name"], []).append(a.get("value", ""))
+        elif tag == "input" and a.get("type") == "number":
+            self.numbers[a["name"]] = (float(a.get("min", 0)), float(a.get("max", 99)))
+        elif tag == "input" and a.get("type") == "hidden":
+            self.hidden[a["name"]] = a.get("value", "")
+        elif tag == "textarea":
+            self.texts.append(a["name"])
+
+
+def _boot(text: str) -> dict | None:
+    m = re.search(r'<script type="application/json" id="boot">(.*?)</script>', text, re.S)
+    return json.loads(unescape(m.group(1))) if m else None
+
+
+def heading_deg(transform: list[float]) -> float:
+    """Heading of a column-major 4×4 transform: the angle of its front (+Z) about +Y, degrees."""
+    return math.degrees(math.atan2(transform[8], transform[10]))
+
+
+def wrap_deg(a: float) -> float:
+    return (a + 180.0) % 360.0 - 180.0
+
+
+def words(category: str) -> str:
+    """The search text a person would type for a category: ``DeskLamp`` → ``desk lamp``."""
+    return re.sub(r"(?<=[a-z])(?=[A-Z])", " ", category).lower()
+
+
+@dataclass
+class BotResult:
+    pid: str
+    code: str | None = None
+    events: int = 0
+    trials: int = 0
+    missing_objects: int = 0
+    condition_seconds: dict[str, list[float]] = field(default_factory=dict)
+
+
+class Bot:
+    """One simulated participant; ``speed`` scales every operator time (1 = the model's average person)."""
+
+    def __init__(self, transport, study: str, pid: str, rng: np.random.Generator, speed: float | None = None):
+        self.http, self.study, self.pid, self.rng = transport, study, pid, rng
+        self.speed = speed if speed is not None else float(rng.lognormal(0.0, 0.25))
+        self.seq = 0
+        self.result = BotResult(pid)
+
+    # -- time -------------------------------------------------------------------------------------------------
+    def spend(self, seconds: float) -> None:
+        spent = seconds * self.speed * float(self.rng.lognormal(0.0, 0.15))
+        self.clock += spent * 1000.0
+        self.elapsed += spent
+
+    def event(self, kind: str, payload: dict) -> None:
+        self.batch.append({"seq": self.seq, "t": self.clock, "type": kind, "trial": self.trial["index"],
+                           "payload": payload})
+        self.seq += 1
+
+    # -- the participant flow -----------------------------------------------------------------------------------
+    def page(self) -> Response:
+        r = self.http.get(f"/study/{self.study}/")
+        if r.status >= 400:
+            raise FlowError(f"GET /study/{self.study}/ → {r.status}")
+        return r
+
+    def post_form(self, step: str, form: dict) -> Response:
+        token = re.search(r'name="csrf_token" value="([^"]+)"', self.page().text)
+        r = self.http.post(f"/study/{self.study}/{step}", form={"csrf_token": token.group(1) if token else "", **form})
+        if r.status >= 400:
+            raise FlowError(f"POST {step} → {r.status}")
+        return r
+
+    def run(self) -> BotResult:
+        r = self.http.get(f"/study/{self.study}/start?pid={self.pid}")
+        if r.status >= 400:
+            raise FlowError(f"entry link → {r.status}")
+        for _ in range(200):
+            text = self.page().text
+            boot = _boot(text)
+            if boot is not None:
+                self.do_trial(boot)
+            elif 'name="width"' in text:
+                self.post_form("device", {"width": "1440", "height": "900"})
+            elif 'name="agree"' in text:
+                self.post_form("consent", {"agree": "yes"})
+            elif 'id="exit-form"' in text:
+                self.survey("exit", text)
+            elif 'class="survey"' in text:
+                self.survey("demographics", text)
+            elif 'name="go"' in text:
+                self.post_form("instructions", {"go": "next"})
+            else:
+                code = re.search(r'class="code">([^<]+)<', text)
+                self.result.code = code.group(1) if code else None
+                return self.result
+        raise FlowError("the study never ended")
+
+    def survey(self, name: str, text: str) -> None:
+        form = _Form()
+        form.feed(text)
+        times = {c: float(np.mean(v)) for c, v in self.result.condition_seconds.items()}
+        fastest = min(times, key=times.get) if times else None
+        order = ["none", "basic", "full"]
+        answers = {}
+        for q, values in form.radios.items():
+            if q == "preference" and fastest in order and order.index(fastest) < len(values):
+                answers[q] = values[order.index(fastest)]
+            elif all(v.isdigit() for v in values):
+                # suggestions rated higher when they were faster for this participant
+                lift = 1 if ("suggest" in q) == (fastest in ("basic", "full")) else -1
+                mid = (len(values) + 1) / 2 + lift * 0.8 + self.rng.normal(0, 0.7)
+                answers[q] = str(int(np.clip(round(mid), 1, len(values))))
+            else:
+                answers[q] = values[int(self.rng.integers(len(values)))]
+        for q, (low, high) in form.numbers.items():
+            answers[q] = str(int(self.rng.integers(int(max(low, 18)), int(min(high, 70)) + 1)))
+        for q in form.texts:
+            answers[q] = ""
+        if name == "exit":
+            answers |= {"last_seq": str(self.seq - 1), "attempt": "0"}
+        self.post_form(name, answers)
+
+    # -- a trial --------------------------------------------------------------------------------------------------
+    def api(self, method: str, path: str, body=None) -> dict:
+        headers = {"Authorization": f"Bearer {self.token}"}
+        r = (self.http.get(f"/api{path}", headers=headers) if method == "GET" else
+             self.http.post(f"/api{path}", json_body=body, headers=headers))
+        if r.status >= 400:
+            raise FlowError(f"{method} /api{path} → {r.status}: {r.text[:200]}")
+        return r.json()
+
+    def do_trial(self, boot: dict) -> None:
+        import time
+
+        self.token, self.trial, self.page_id = boot["token"], boot["trial"], boot["page_id"]
+        self.batch: list[dict] = []
+        self.clock = time.time() * 1000.0  # client time, ms since the epoch
+        self.elapsed = 0.0  # simulated seconds of this trial (independent of the wall clock)
+        index, condition = self.trial["index"], self.trial["condition"]
+        target = self.api("GET", f"/scenes/{self.trial['scene']}?which=target")
+        start = self.api("GET", f"/scenes/{self.trial['scene']}?which=start")
+        present = {o["id"] for o in start["objects"]}
+        self.scene = [dict(o) for o in start["objects"]]
+        self.event("trial_start", {"scene": self.trial["scene"], "condition": condition})
+        self.fixed = self.api("GET", "/models")["models"] if condition == "none" else []
+        for obj in [o for o in target["objects"] if o["id"] not in present]:
+            self.spend(M)  # find the next object in the target view
+            if self.place(obj, condition):
+                self.scene.append(dict(obj))
+            else:
+                self.result.missing_objects += 1
+        self.spend(M + P + B + P + B)  # "done", then confirm
+        self.event("trial_done", {"objects": len(self.scene) - len(present)})
+        self.flush()
+        self.api("POST", "/trial/done", {"trial": index, "scene": {"objects": self.scene}})
+        if self.trial["kind"] == "trial":
+            self.result.trials += 1
+            self.result.condition_seconds.setdefault(condition, []).append(self.elapsed)
+
+    def flush(self) -> None:
+        for i in range(0, len(self.batch), 200):
+            chunk = self.batch[i:i + 200]
+            acked = self.api("POST", "/events", {"page_id": self.page_id, "events": chunk})["acked_seq"]
+            if acked != chunk[-1]["seq"]:
+                raise FlowError(f"events up to {chunk[-1]['seq']} sent, {acked} acknowledged")
+        self.result.events += len(self.batch)
+        self.batch = []
+
+    def search(self, text: str) -> dict:
+        self.spend(M + P + B + K * len(text))
+        self.event("search", {"text": text})
+        found = self.api("GET", f"/search?q={text.replace(' ', '+')}")
+        self.event("list_shown", {"source": "search", "items": [h["id"] for h in found["hits"]],
+                                  "list_id": found["list_id"]})
+        return found
+
+    def find_by_search(self, obj: dict) -> tuple[int, str] | None:
+        for text in (words(obj["category"]), obj["model_id"].split(":")[-1].lower()):
+            found = self.search(text)
+            ids = [h["id"] for h in found["hits"]]
+            if obj["model_id"] in ids:
+                rank = ids.index(obj["model_id"]) + 1
+                self.spend(SCAN_PER_ITEM * rank + P + B)
+                return rank, found["list_id"]
+        return None
+
+    def place(self, obj: dict, condition: str) -> bool:
+        """Bring one target object into the scene; returns False when the bot could not find its model."""
+        pose = self.place_from_list(obj) if condition == "none" else self.place_from_suggestions(obj, condition)
+        if pose is None:
+            return False
+        position, heading = pose
+        self.adjust(obj, position, heading)
+        return True
+
+    def place_from_list(self, obj: dict):
+        ids = [m["id"] for m in self.fixed]
+        if obj["model_id"] in ids and ids.index(obj["model_id"]) < LIST_VISIBLE:
+            rank = ids.index(obj["model_id"]) + 1
+            self.spend(SCAN_PER_ITEM * rank + P + B)
+            source, list_id = "fixed", None
+        else:
+            self.spend(SCAN_PER_ITEM * LIST_VISIBLE)  # looked, did not see it
+            found = self.find_by_search(obj)
+            if found is None:
+                return None
+            (rank, list_id), source = found, "search"
+        self.spend(P + B)  # click the surface where it goes
+        self.event("insert", {"object": obj["id"], "model": obj["model_id"], "category": obj["category"],
+                              "rank": rank, "source": source, "list_id": list_id})
+        # canonical pose at the clicked contact point
+        return obj["contact_point"], 0.0
+
+    def place_from_suggestions(self, obj: dict, condition: str):
+        self.spend(P + K + B)  # shift-click the contact point
+        body = {"trial": self.trial["index"], "scene": {"objects": self.scene}, "parent": obj["parent"],
+                "point": obj["contact_point"], "normal": obj["contact_normal"]}
+        self.event("context_query", {"parent": obj["parent"], "point": obj["contact_point"],
+                                     "normal": obj["contact_normal"]})
+        found = self.api("POST", "/suggest", body)
+        items = found["suggestions"]
+        self.event("list_shown", {"source": "context", "items": [i["category"] for i in items],
+                                  "list_id": found["list_id"]})
+        if not items:
+            found = self.find_by_search(obj)
+            return None if found is None else self._chosen(obj, found[0], "search", found[1], None)
+        top = items[0]
+        placed = f"{obj['id']}~s"
+        self.event("insert", {"object": placed, "model": top["models"][0]["id"], "category": top["category"],
+                              "rank": 1, "source": "context", "list_id": found["list_id"]})
+        for item in items:
+            ids = [m["id"] for m in item["models"]]
+            if obj["model_id"] in ids:
+                rank = item["rank"]
+                self.spend(SCAN_PER_ITEM * rank)
+                if ids.index(obj["model_id"]) > 0:  # expand the category and pick the model
+                    self.spend(P + B + SCAN_PER_ITEM * (ids.index(obj["model_id"]) + 1))
+                matrix = item["placement"]
+                heading = heading_deg(matrix) if condition == "full" else 0.0
+                if rank == 1 and ids.index(obj["model_id"]) == 0:
+                    self._rename(placed, obj["id"])
+                else:
+                    self.spend(P + B)
+                    self.event("replace", {"object": obj["id"], "replaces": placed, "model": obj["model_id"],
+                                           "category": obj["category"], "rank": rank, "source": "context",
+                                           "list_id": found["list_id"]})
+                return matrix[12:15], heading
+        self.spend(SCAN_PER_ITEM * len(items))
+        searched = self.find_by_search(obj)
+        if searched is None:
+            self.spend(P + B)
+            self.event("delete", {"object": placed})
+            return None
+        return self._chosen(obj, searched[0], "search", searched[1], placed)
+
+    def _rename(self, placed: str, final: str) -> None:
+        for e in self.batch:
+            if e["payload"].get("object") == placed:
+                e["payload"]["object"] = final
+
+    def _chosen(self, obj, rank, source, list_id, replaces):
+        kind = "replace" if replaces else "insert"
+        payload = {"object": obj["id"], "model": obj["model_id"], "category": obj["category"], "rank": rank,
+                   "source": source, "list_id": list_id}
+        if replaces:
+            payload["replaces"] = replaces
+        self.event(kind, payload)
+        return obj["contact_point"], 0.0
+
+    def adjust(self, obj: dict, position, heading: float) -> None:
+        """Drag to the target position, then turn to the target heading (about the support normal)."""
+        target_heading = heading_deg(obj["transform"])
+        distance = float(np.linalg.norm(np.subtract(position, obj["transform"][12:15])))
+        if distance > POSE_TOLERANCE_M:
+            self.spend(M + P)
+            self.event("move_start", {"object": obj["id"]})
+            self.spend(B + FITTS_A + FITTS_B * math.log2(distance / TARGET_M + 1) + B)
+            self.event("move_end", {"object": obj["id"], "distance": distance, "parent": obj["parent"]})
+        turn = wrap_deg(target_heading - heading)
+        if abs(turn) > POSE_TOLERANCE_DEG:
+            coarse = round(abs(turn) / COARSE_DEG)
+            fine = abs(abs(turn) - coarse * COARSE_DEG)
+            self.spend(M + P + B)  # select it and think about the turn
+            self.event("rotate_start", {"object": obj["id"]})
+            self.spend(K * coarse + (M + K * round(fine) if fine > POSE_TOLERANCE_DEG else 0.0))
+            self.event("rotate_end", {"object": obj["id"], "angle": turn})

@@ -1,0 +1,43 @@
+"""``scenesuggest study simulate``: run simulated participants (:mod:`study_server.bots`) through a study, in
+process or against a running server, and summarise what they did."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from .bots import Bot, FlaskTransport, FlowError, HttpTransport
+
+
+def simulate(participants: int, seed: int = 0, *, url: str | None = None, study: str | None = None, app=None,
+             progress: Callable[[str], None] = lambda label: None) -> dict:
+    """Run ``participants`` bots one after another (bot i draws from the generator seeded ``[seed, i]``).
+
+    With ``url`` they talk HTTP to that server; otherwise to ``app`` (a Flask app) in process. Returns the
+    counts of completed participants, trials, events sent and objects the bots could not find, and the mean
+    simulated seconds per condition.
+    """
+    if url is None and app is None:
+        raise ValueError("give a server URL or an app")
+    if study is None:
+        if app is None:
+            raise ValueError("name the study when simulating against a URL")
+        study = next(iter(app.extensions["studies"]))
+    results, failures = [], []
+    for i in range(participants):
+        transport = HttpTransport(url) if url else FlaskTransport(app.test_client())
+        bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]))
+        try:
+            results.append(bot.run())
+        except FlowError as e:
+            failures.append({"participant": bot.pid, "error": str(e)})
+        progress(f"participant {i + 1}/{participants}")
+    seconds: dict[str, list[float]] = {}
+    for r in results:
+        for c, values in r.condition_seconds.items():
+            seconds.setdefault(c, []).extend(values)
+    return {"study": study, "participants": participants, "completed": sum(r.code is not None for r in results),
+            "trials": sum(r.trials for r in results), "events": sum(r.events for r in results),
+            "missing_objects": sum(r.missing_objects for r in results), "failures": failures,
+            "mean_seconds": {c: float(np.mean(v)) for c, v in seconds.items()}}

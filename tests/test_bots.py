@@ -1,0 +1,106 @@
+"""Simulated participants: the whole flow through the HTTP interface, in process and against gunicorn, and the
+analysis of what they did."""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import DEMO_STUDY, ROOT, gunicorn, make_app
+
+from analysis.load import read_database, read_export
+from analysis.measures import picks_table, trials_table
+from analysis.report import build_report
+from study_server.bots import Bot, FlaskTransport, heading_deg, words
+from study_server.simulate import simulate
+
+
+def test_helpers():
+    assert words("DeskLamp") == "desk lamp" and words("TV") == "tv"
+    turned = [0.0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, 0, 1]  # front +Z turned to +X
+    assert heading_deg(turned) == pytest.approx(90.0)
+
+
+def test_a_bot_completes_the_demo_and_everything_it_logged_is_stored(tmp_path, demo_resources):
+    app = make_app(tmp_path)
+    bot = Bot(FlaskTransport(app.test_client()), "demo", "bot-a", np.random.default_rng(1))
+    result = bot.run()
+    assert result.code and result.trials == 9 and result.missing_objects == 0
+    assert set(result.condition_seconds) == {"none", "basic", "full"}
+    data = read_database(app.config["SQLALCHEMY_DATABASE_URI"])
+    assert len(data.events) == result.events and data.events["seq"].tolist() == list(range(result.events))
+    trials = trials_table(data)
+    assert trials["complete"].all() and len(trials) == 9
+    # what the analysis measures is what the bot spent
+    for condition, seconds in result.condition_seconds.items():
+        measured = trials.loc[trials["condition"] == condition, "total_time"].tolist()
+        assert sorted(measured) == pytest.approx(sorted(seconds), abs=1e-3)
+    picks = picks_table(data, trials)
+    context = picks[(picks["source"] == "context") & picks["final"]]
+    # in basic/full the bot picks the target's model at the rank the engine gave its category
+    assert len(context) > 0 and context["rank"].ge(1).all()
+    shown = data.events[data.events["type"] == "list_shown"]
+    assert (shown["payload"].map(lambda p: p["source"]) == "context").sum() >= len(context)
+    survey = data.survey.set_index("question")["answer"]
+    assert survey["preference"] in {"The model list", "Suggestions", "Suggestions, oriented"}
+
+
+def test_simulated_study_over_real_http_feeds_the_report(tmp_path, demo_resources):
+    with gunicorn(tmp_path) as (base, database):
+        summary = simulate(3, seed=5, url=base, study="demo")
+    assert summary["completed"] == 3 and summary["trials"] == 27 and not summary["failures"]
+    with sqlite3.connect(database) as con:
+        stored = con.execute("SELECT COUNT(*), COUNT(DISTINCT participant_id || '-' || seq) FROM events").fetchone()
+        rows = [r[0] for r in con.execute("SELECT row FROM participants ORDER BY id")]
+    assert stored == (summary["events"], summary["events"])  # none lost, none twice
+    assert len(set(rows)) == 3  # three different schedule rows
+    data = read_database(f"sqlite:///{database}")
+    report = build_report(data, tmp_path / "report", resamples=100)
+    assert report["trials"]["completed"] == 27
+    assert all("error" not in t for t in report["tests"].values()), report["notes"]
+
+
+def test_simulation_is_reproducible_from_its_seed(tmp_path, demo_resources):
+    a = simulate(2, seed=3, app=make_app(tmp_path / "a"))
+    b = simulate(2, seed=3, app=make_app(tmp_path / "b"))
+    assert a == b and a["completed"] == 2
+
+
+def test_cli_simulate_then_export_then_report(tmp_path, demo_resources):
+    env = {**os.environ, "DATABASE_URL": f"sqlite:///{tmp_path / 's.sqlite3'}",
+           "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"), "SCENESUGGEST_STUDIES": str(DEMO_STUDY)}
+    cli = [sys.executable, "-m", "scenesuggest.cli"]
+    proc = subprocess.run([*cli, "study", "simulate", "--participants", "2", "--json"], capture_output=True,
+                          text=True, env=env, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["completed"] == 2 and "participant 2/2" in proc.stderr
+    subprocess.run([*cli, "study", "export", "--study", "demo", "--out", str(tmp_path / "export")], check=True,
+                   capture_output=True, env=env, cwd=ROOT)
+    trials = trials_table(read_export(tmp_path / "export"))
+    assert len(trials) == 18 and trials["complete"].all()
+    bad = subprocess.run([*cli, "study", "simulate", "--url", "http://127.0.0.1:9"], capture_output=True,
+                         text=True, env=env, cwd=ROOT)
+    assert bad.returncode == 2 and "--study" in bad.stderr
+
+
+def test_replaced_picks_are_not_final():
+    from analysis.load import StudyData
+
+    events = pd.DataFrame([
+        {"participant": "1", "seq": 0, "type": "insert", "trial": 0, "client_t_ms": 0.0,
+         "payload": {"object": "a", "rank": 1, "source": "context"}},
+        {"participant": "1", "seq": 1, "type": "replace", "trial": 0, "client_t_ms": 1.0,
+         "payload": {"object": "b", "replaces": "a", "rank": 3, "source": "context"}},
+        {"participant": "1", "seq": 2, "type": "insert", "trial": 0, "client_t_ms": 2.0,
+         "payload": {"object": "c", "rank": 2, "source": "search"}}])
+    trials = pd.DataFrame([{"participant": "1", "trial": 0, "condition": "full", "scene": "s", "complete": True}])
+    data = StudyData(pd.DataFrame(), trials, events, pd.DataFrame())
+    picks = picks_table(data, trials)
+    assert picks["final"].tolist() == [False, True, True]
+    assert picks.loc[picks["final"], "rank"].tolist() == [3, 2]
