@@ -136,3 +136,41 @@ def bootstrap_cmd(csv_file, value, by, unit, resamples, seed, as_json) -> None:
     human = "\n".join(f"{k:<{width}}  {v.text(4)}  (n = {v.n})" for k, v in result.items())
     _emit(out, as_json, f"mean of {value} by {by}, 95% interval from {resamples} resamples of {unit}s:\n{human}")
 
+
+
+def _sizes(ctx, param, value: str) -> list[int]:
+    try:
+        sizes = [int(v) for v in value.split(",") if v.strip()]
+    except ValueError:
+        raise click.BadParameter("expected numbers separated by commas, e.g. 10,20,40") from None
+    if not sizes or min(sizes) < 2:
+        raise click.BadParameter("each size must be at least 2")
+    return sizes
+
+
+@analyze.command("power")
+@click.option("--export", "export_dir", type=click.Path(file_okay=False), help="Pilot export folder.")
+@click.option("--db", "db_url", help="Pilot database URL.")
+@click.option("--study", default=None, help="Study id when the database holds several.")
+@click.option("--participants", "sizes", required=True, callback=_sizes, help="Study sizes, e.g. 10,20,40.")
+@click.option("--studies", default=100, show_default=True, type=click.IntRange(min=1),
+              help="Simulated studies per size.")
+@click.option("--alpha", default=0.05, show_default=True, type=click.FloatRange(0, 1, min_open=True,
+                                                                                    max_open=True))
+@click.option("--seed", default=0, show_default=True)
+@click.option("--json", "as_json", is_flag=True)
+def power_cmd(export_dir, db_url, study, sizes, studies, alpha, seed, as_json) -> None:
+    """Power of every LR test for each study size, from repeated studies that resample the pilot's
+    participants (a real pilot, or `scenesuggest study simulate` then `study export`)."""
+    from .load import read_study
+    from .power import power
+    from .report import select
+
+    trials, picks, _, conditions, _ = select(read_study(export_dir, db_url, study))
+    result = power(trials, picks, conditions, sizes, studies, seed, alpha,
+                   progress=lambda label: click.echo(label, err=True))
+    names = list(next(iter(result["power"].values())))
+    header = "N".rjust(5) + "".join(n[:14].rjust(16) for n in names)
+    rows = [str(n).rjust(5) + "".join(f"{v:16.2f}" for v in result["power"][str(n)].values()) for n in sizes]
+    _emit(result, as_json, f"power at alpha = {alpha} from {studies} studies per size "
+                           f"(pilot: {result['pilot_participants']} participants)\n" + "\n".join([header, *rows]))

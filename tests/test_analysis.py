@@ -228,3 +228,18 @@ def test_cli_report_shows_progress(synthetic, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "bootstrap intervals" in proc.stderr and "model of total_time" in proc.stderr
     assert json.loads(proc.stdout)["trials"]["completed"] == 12 * 9 - 1
+
+
+def test_power_resamples_pilot_participants(synthetic):
+    from analysis.power import power
+    from analysis.report import select
+
+    trials, picks, _, conditions, _ = select(read_export(synthetic))
+    a = power(trials, picks, conditions, [6, 12], studies=4, seed=2)
+    assert a == power(trials, picks, conditions, [6, 12], studies=4, seed=2)
+    assert set(a["power"]) == {"6", "12"} and a["pilot_participants"] == 12
+    assert a["power"]["12"]["total_time"] == 1.0  # the synthetic effect is large
+    assert all(0.0 <= v <= 1.0 for row in a["power"].values() for v in row.values())
+    one = trials[trials["participant"] == trials["participant"].iloc[0]]
+    with pytest.raises(AnalysisError, match="1 participant"):
+        power(one, picks, conditions, [6], studies=1)
