@@ -60,6 +60,7 @@ bench: demo
 	$(BIN)/python benchmarks/bench_suggest.py
 	$(BIN)/python benchmarks/bench_ingest.py
 	$(BIN)/python benchmarks/bench_analysis.py
+	$(BIN)/python benchmarks/bench_kill.py
 
 clean:
 	rm -rf $(VENV) node_modules .pytest_cache .ruff_cache var test-artifacts

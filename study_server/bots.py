@@ -62,26 +62,43 @@ class FlaskTransport:
 
 
 class HttpTransport:
-    """Real HTTP to a running server (urllib, a cookie jar per participant, redirects followed)."""
+    """Real HTTP to a running server (urllib, a cookie jar per participant, redirects followed).
 
-    def __init__(self, base_url: str, timeout: float = 30.0):
+    Like the browser's outbox, a request that finds no server (refused, reset, timed out, 502/503) is retried
+    with backoff for up to ``retry_for`` seconds; every request the bots make is safe to repeat (events are
+    idempotent by sequence number, flow steps by the participant's state)."""
+
+    def __init__(self, base_url: str, timeout: float = 30.0, retry_for: float = 0.0):
         import http.cookiejar
         import urllib.request
 
         self.base = base_url.rstrip("/")
-        self.timeout = timeout
+        self.timeout, self.retry_for = timeout, retry_for
+        self.retries = 0
         self.opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar()))
 
     def _send(self, method, path, data=None, headers=None) -> Response:
+        import http.client
+        import time
         import urllib.error
         import urllib.request
 
-        req = urllib.request.Request(self.base + path, data=data, method=method, headers=headers or {})
-        try:
-            with self.opener.open(req, timeout=self.timeout) as r:
-                return Response(r.status, r.read().decode())
-        except urllib.error.HTTPError as e:
-            return Response(e.code, e.read().decode(errors="replace"))
+        deadline, wait = time.monotonic() + self.retry_for, 0.1
+        while True:
+            req = urllib.request.Request(self.base + path, data=data, method=method, headers=headers or {})
+            try:
+                with self.opener.open(req, timeout=self.timeout) as r:
+                    return Response(r.status, r.read().decode())
+            except urllib.error.HTTPError as e:
+                response = Response(e.code, e.read().decode(errors="replace"))
+                if e.code not in (502, 503) or time.monotonic() > deadline:
+                    return response
+            except (urllib.error.URLError, http.client.HTTPException, ConnectionError, TimeoutError) as e:
+                if time.monotonic() > deadline:
+                    raise FlowError(f"{method} {path}: no server ({e})") from None
+            self.retries += 1
+            time.sleep(wait)
+            wait = min(wait * 2, 2.0)
 
     def get(self, path, headers=None) -> Response:
         return self._send("GET", path, headers=headers)

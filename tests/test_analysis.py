@@ -235,10 +235,10 @@ def test_power_resamples_pilot_participants(synthetic):
     from analysis.report import select
 
     trials, picks, _, conditions, _ = select(read_export(synthetic))
-    a = power(trials, picks, conditions, [6, 12], studies=4, seed=2)
-    assert a == power(trials, picks, conditions, [6, 12], studies=4, seed=2)
-    assert set(a["power"]) == {"6", "12"} and a["pilot_participants"] == 12
-    assert a["power"]["12"]["total_time"] == 1.0  # the synthetic effect is large
+    a = power(trials, picks, conditions, [4, 10], studies=2, seed=2)
+    assert a == power(trials, picks, conditions, [4, 10], studies=2, seed=2)
+    assert set(a["power"]) == {"4", "10"} and a["pilot_participants"] == 12
+    assert a["power"]["10"]["total_time"] == 1.0  # the synthetic effect is large
     assert all(0.0 <= v <= 1.0 for row in a["power"].values() for v in row.values())
     one = trials[trials["participant"] == trials["participant"].iloc[0]]
     with pytest.raises(AnalysisError, match="1 participant"):
