@@ -8,6 +8,8 @@
 | ``SCENESUGGEST_SECRET_KEY`` | signs cookies | generated once into the instance folder |
 | ``SCENESUGGEST_ADMIN_PASSWORD_HASH`` | werkzeug hash of the admin password | ``instance/admin.json`` |
 | ``SCENESUGGEST_FRAME_ANCESTORS`` | CSP frame-ancestors, for platforms that embed the study | ``'self'`` |
+| ``SCENESUGGEST_ENV`` | ``development`` or ``production`` (a secret key from the environment is then required, \
+cookies are ``Secure``) | ``development`` |
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ import json
 import os
 import secrets
 from pathlib import Path
+
+from scenesuggest.errors import SceneSuggestError
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_STUDY = ROOT / "experiments" / "demo" / "study.toml"
@@ -27,11 +31,31 @@ def instance_path() -> Path:
     return Path(os.environ.get("SCENESUGGEST_INSTANCE", ROOT / "var" / "instance")).resolve()
 
 
+class ConfigError(SceneSuggestError):
+    """A setting that stops the server from starting; the message names the variable."""
+
+
+ENVIRONMENTS = ("development", "production")
+MIN_SECRET = 32
+
+
 def from_environment(instance: Path) -> dict:
-    """The app's settings as a Flask config dict."""
+    """The app's settings as a Flask config dict. In production the secret key must come from the environment
+    (a generated one would differ between hosts and vanish with the instance folder) and cookies are Secure."""
     instance.mkdir(parents=True, exist_ok=True)
     studies = os.environ.get("SCENESUGGEST_STUDIES")
+    env = os.environ.get("SCENESUGGEST_ENV", "development")
+    if env not in ENVIRONMENTS:
+        raise ConfigError(f"must be one of {', '.join(ENVIRONMENTS)}", field="SCENESUGGEST_ENV")
+    production = env == "production"
+    if production and len(os.environ.get("SCENESUGGEST_SECRET_KEY", "")) < MIN_SECRET:
+        raise ConfigError(f"production needs a secret key of at least {MIN_SECRET} characters in the environment "
+                          "(e.g. python -c 'import secrets; print(secrets.token_hex(32))')",
+                          field="SCENESUGGEST_SECRET_KEY")
     return {
+        "ENV_NAME": env,
+        "DEBUG": False,
+        "SESSION_COOKIE_SECURE": production,
         "STUDY_FILES": [Path(p) for p in studies.split(":") if p] if studies else [DEFAULT_STUDY],
         "SQLALCHEMY_DATABASE_URI": os.environ.get("DATABASE_URL") or f"sqlite:///{instance / 'studies.sqlite3'}",
         "SECRET_KEY": os.environ.get("SCENESUGGEST_SECRET_KEY") or _secret_key(instance),

@@ -86,7 +86,10 @@ def caller() -> Participant | Preview:
 
 
 def body() -> dict:
-    data = request.get_json(silent=True)
+    try:
+        data = request.get_json(silent=True)
+    except RecursionError:  # json raises this, not a ValueError, for arrays nested thousands deep
+        raise ApiError(400, "the JSON is nested too deeply", "body") from None
     if not isinstance(data, dict):
         raise ApiError(400, "expected a JSON object body", "body")
     return data

@@ -1,0 +1,96 @@
+"""Attacks on the study server: path traversal, hostile JSON, SQL-looking input, embedding, production settings."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+
+import pytest
+from conftest import make_app
+from flowhelp import auth, to_trials
+
+from study_server import create_app
+from study_server.config import ConfigError
+
+
+@pytest.mark.parametrize("path", [
+    "/study/demo/assets/../../../../etc/passwd",
+    "/study/demo/assets/models/../../../../etc/passwd",
+    "/study/demo/assets/models/%2e%2e/%2e%2e/%2e%2e/etc/passwd",
+    "/study/demo/assets/models/..%2f..%2f..%2fstudy.toml",
+    "/study/demo/assets//etc/passwd",
+    "/study/demo/assets/models/%00.glb",
+    "/vendor/three/build/../../../../pyproject.toml",
+    "/vendor/three/build/%2e%2e/%2e%2e/package.json",
+    "/vendor/three/examples/jsm/../../../../../etc/passwd.js",
+])
+def test_asset_routes_do_not_leave_their_folders(client, path):
+    r = client.get(path, follow_redirects=True)  # Werkzeug merges double slashes with a redirect
+    assert r.status_code in (400, 404), (path, r.status_code)
+    assert b"root:" not in r.data and b"[project]" not in r.data and b"[study]" not in r.data
+
+
+def test_deeply_nested_json_gets_a_400_not_a_crash(client, app):
+    b = to_trials(client)
+    nested = "[" * 100_000 + "]" * 100_000
+    for path in ("/api/events", "/api/suggest", "/api/trial/done"):
+        r = client.post(path, data=nested, headers={**auth(b), "Content-Type": "application/json"})
+        assert r.status_code == 400, (path, r.status_code)
+        assert r.json["field"] == "body"
+    deep_payload = {"page_id": b["page_id"], "events": [{"seq": 0, "t": 1.0, "type": "search", "trial": 0,
+                                                          "payload": {"text": json.loads("[" * 50 + "]" * 50)}}]}
+    r = client.post("/api/events", json=deep_payload, headers=auth(b))
+    assert r.status_code == 422 and r.json["field"] == "events[0].payload.text"
+
+
+SQLISH = ["'; DROP TABLE events; --", "\" OR 1=1 --", "sofa') UNION SELECT token FROM participants --"]
+
+
+def test_sql_looking_input_is_data(client, app):
+    b = to_trials(client)
+    for i, text in enumerate(SQLISH):
+        r = client.get("/api/search", query_string={"q": text}, headers=auth(b))
+        assert r.status_code == 200 and r.json["query"] == text
+        event = {"seq": i, "t": 1.0 + i, "type": "search", "trial": b["trial"]["index"], "payload": {"text": text}}
+        assert client.post("/api/events", json={"page_id": b["page_id"], "events": [event]},
+                           headers=auth(b)).status_code == 200
+    r = client.get("/study/demo/start?pid=" + SQLISH[2])
+    assert r.status_code in (200, 302)
+    with sqlite3.connect(app.config["SQLALCHEMY_DATABASE_URI"].removeprefix("sqlite:///")) as con:
+        texts = [json.loads(p)["text"] for (p,) in con.execute("SELECT payload FROM events WHERE type = 'search'")]
+        assert texts == SQLISH
+        assert con.execute("SELECT COUNT(*) FROM participants").fetchone()[0] == 2
+
+
+def test_frame_ancestors_follow_the_setting(tmp_path, demo_resources, monkeypatch):
+    monkeypatch.setenv("SCENESUGGEST_FRAME_ANCESTORS", "https://app.prolific.com")
+    app = make_app(tmp_path)
+    csp = app.test_client().get("/study/demo/start?pid=x").headers["Content-Security-Policy"]
+    assert "frame-ancestors https://app.prolific.com" in csp and "script-src 'self'" in csp
+    assert "unsafe-inline" not in csp.split("script-src")[1].split(";")[0]
+
+
+def test_production_needs_a_secret_from_the_environment(tmp_path, demo_resources, monkeypatch):
+    monkeypatch.setenv("SCENESUGGEST_ENV", "production")
+    monkeypatch.delenv("SCENESUGGEST_SECRET_KEY", raising=False)
+    with pytest.raises(ConfigError, match="SCENESUGGEST_SECRET_KEY"):
+        create_app({"INSTANCE_PATH": str(tmp_path / "i"), "CHECK_RESOURCES": False})
+    monkeypatch.setenv("SCENESUGGEST_SECRET_KEY", "short")
+    with pytest.raises(ConfigError, match="at least 32"):
+        create_app({"INSTANCE_PATH": str(tmp_path / "i"), "CHECK_RESOURCES": False})
+    monkeypatch.setenv("SCENESUGGEST_SECRET_KEY", "k" * 40)
+    app = make_app(tmp_path)
+    assert app.config["SESSION_COOKIE_SECURE"] and not app.debug
+    cookie = app.test_client().get("/study/demo/start?pid=y").headers.get("Set-Cookie", "")
+    assert "Secure" in cookie and "HttpOnly" in cookie and "SameSite=Lax" in cookie
+    monkeypatch.setenv("SCENESUGGEST_ENV", "staging")
+    with pytest.raises(ConfigError, match="SCENESUGGEST_ENV"):
+        create_app({"INSTANCE_PATH": str(tmp_path / "i"), "CHECK_RESOURCES": False})
+
+
+def test_development_cookies_are_httponly_and_never_debug(client):
+    r = client.get("/study/demo/start?pid=z")
+    cookie = r.headers.get("Set-Cookie", "")
+    assert "HttpOnly" in cookie and "SameSite=Lax" in cookie
+    assert not client.application.debug
+
