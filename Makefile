@@ -10,7 +10,7 @@ NPM_STAMP := node_modules/.installed
 DEMO_LIBRARY := var/library/ai2thor/library.json
 DEMO_PRIORS := var/priors/ai2thor.npz
 
-.PHONY: setup demo demo-report test lint pytest serve bench clean
+.PHONY: setup demo demo-report test lint audit pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
@@ -40,10 +40,15 @@ $(NPM_STAMP): package.json package-lock.json
 lint: $(PIP_STAMP)
 	$(BIN)/ruff check .
 
+# Known vulnerabilities in the Python and npm dependencies (skipped, with the reason, where the registries do
+# not answer vulnerability queries).
+audit: $(PIP_STAMP) $(NPM_STAMP)
+	$(BIN)/python .ci/audit
+
 pytest: setup
 	$(BIN)/pytest
 
-test: demo lint pytest
+test: demo lint audit pytest
 
 # A study of the demo with 20 simulated participants, exported and analysed (var/demo-report/report/README.md).
 DEMO_REPORT := var/demo-report
