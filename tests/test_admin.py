@@ -109,3 +109,20 @@ def test_preview_and_export(admin_app):
             "manifest.json", "data_dictionary.md", "event_schema.json"} <= names
     picks = z.read("demo/picks.csv").decode().splitlines()
     assert picks[0].startswith("participant,seq,trial") and ",2,0.5,context," in picks[1]
+
+
+def test_search_text_and_worker_ids_are_escaped_on_admin_pages(admin_app):
+    payload = "<img src=x onerror=alert(1)>"
+    participant = admin_app.test_client()
+    b = to_trials(participant, query="pid=" + payload.replace(" ", "%20").replace("=", "%3D"))
+    event = {"seq": 0, "t": 1.0, "type": "search", "trial": b["trial"]["index"], "payload": {"text": payload}}
+    assert participant.post("/api/events", json={"page_id": b["page_id"], "events": [event]},
+                            headers=auth(b)).status_code == 200
+    c = admin_app.test_client()
+    login(c)
+    with admin_app.app_context():
+        pid = db.session.query(Participant).one().id
+    for path in ("/admin/", "/admin/demo/participants", f"/admin/demo/participants/{pid}"):
+        page = c.get(path).data
+        assert b"<img src=x" not in page, path
+    assert b"&lt;img src=x onerror=alert(1)&gt;" in c.get(f"/admin/demo/participants/{pid}").data
