@@ -19,7 +19,7 @@ from scenesuggest.errors import SceneSuggestError
 from scenesuggest.events import EventError, json_schema
 from scenesuggest.suggest import ContextQuery
 
-from .. import flow, ingest
+from .. import flow, ingest, storage
 from ..extensions import db
 from ..models import Participant, ShownList, Trial, utcnow
 from ..openapi import openapi_document
@@ -48,8 +48,11 @@ def _http_error(e: HTTPException):
 
 @bp.errorhandler(Exception)
 def _unexpected(e: Exception):  # never expected: logged, answered without a stack trace
-    current_app.logger.exception("API failure")
     db.session.rollback()
+    if storage.unavailable(e):
+        current_app.logger.error("database unavailable: %s", e)
+        return jsonify({"error": storage.MESSAGE, "field": None}), 503, {"Retry-After": str(storage.RETRY_AFTER_S)}
+    current_app.logger.exception("API failure")
     return jsonify({"error": "internal error; the request was not applied", "field": None}), 500
 
 

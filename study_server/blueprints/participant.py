@@ -10,7 +10,7 @@ from flask import Blueprint, current_app, redirect, render_template, request, se
 from sqlalchemy import select
 from werkzeug.exceptions import HTTPException, NotFound
 
-from .. import assignment, flow
+from .. import assignment, flow, storage
 from ..extensions import db
 from ..models import Participant, SessionLog, log, utcnow
 from ..runtime import runtime
@@ -28,6 +28,11 @@ def _friendly(e: Exception):
     if isinstance(e, HTTPException) and e.code and e.code < 500:
         status = e.code
         message = e.description if e.code == 400 else "This page does not exist. Please use the link you were given."
+    elif storage.unavailable(e):
+        current_app.logger.error("database unavailable: %s", e)
+        status = 503
+        message = ("We cannot save anything for a moment. Your work is kept in this browser; please wait a "
+                   "minute and reload this page.")
     else:
         current_app.logger.exception("participant page failure")
         status = 500
