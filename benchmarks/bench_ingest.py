@@ -4,7 +4,9 @@
 Two phases: *paced* — every participant flushes a batch once a second, as the client's outbox does (with 50
 participants and 100-event batches that offers 5,000 events/s) — and *saturated* — every participant posts
 back to back, which measures the most the server can take (latency then is queueing).
-Prints events/s stored, acknowledgement latency percentiles, and events sent vs rows stored (lost, duplicated).
+During the paced phase every participant also asks for suggestions (one context query every ~5 s, as a person
+placing objects would), so the latencies are those of ingestion and suggestion under each other's load.
+Prints events/s stored, acknowledgement and suggestion latency percentiles, and events sent vs rows stored.
 Budget on a 2-core machine: ≥ 5,000 events/s with p95 ≤ 100 ms, nothing lost or duplicated.
 Usage: .venv/bin/python benchmarks/bench_ingest.py [--participants 50] [--batches 40] [--batch-size 100]
 """
@@ -117,15 +119,51 @@ def participant(base: str, token: str, first_seq: int, batches: int, size: int, 
     return seq
 
 
-def run_phase(base: str, tokens: list[str], seqs: list[int], args, interval: float) -> dict:
+def suggester(base: str, token: str, every: float, rng: random.Random, stop: threading.Event, lat: list,
+              errors: list, lock: threading.Lock) -> None:
+    """Shift-clicks at the practice scene's objects, one context query every ``every`` seconds, until ``stop``."""
+    import requests
+
+    s = requests.Session()
+    headers = {"Authorization": f"Bearer {token}"}
+    state = s.get(f"{base}/api/session", headers=headers, timeout=30).json()
+    trial = state["trial"]
+    target = s.get(f"{base}/api/scenes/{trial['scene']}?which=target", headers=headers, timeout=30).json()
+    objects = target["objects"]
+    supported = [o for o in objects if o.get("parent")]
+    while not stop.wait(rng.uniform(0.5, 1.5) * every):
+        o = rng.choice(supported)
+        body = {"trial": trial["index"], "scene": {"objects": objects}, "parent": o["parent"],
+                "point": o["contact_point"], "normal": o["contact_normal"]}
+        t = time.perf_counter()
+        try:
+            r = s.post(f"{base}/api/suggest", json=body, headers=headers, timeout=60)
+            ok = r.status_code == 200 and r.json()["suggestions"]
+        except Exception as e:  # counted, not fatal
+            ok, r = False, e
+        with lock:
+            lat.append((time.perf_counter() - t) * 1000)
+            if not ok:
+                errors.append(str(getattr(r, "status_code", r)))
+
+
+def run_phase(base: str, tokens: list[str], seqs: list[int], args, interval: float, suggest_every: float = 0.0
+              ) -> dict:
     lat, errors, lock = [], [], threading.Lock()
+    suggest_lat, suggest_errors, stop = [], [], threading.Event()
     started = time.perf_counter()
-    with ThreadPoolExecutor(max_workers=len(tokens)) as pool:
+    with ThreadPoolExecutor(max_workers=2 * len(tokens)) as pool:
+        helpers = [pool.submit(suggester, base, tokens[k], suggest_every, random.Random(1000 + k), stop,
+                               suggest_lat, suggest_errors, lock) for k in range(len(tokens)) if suggest_every]
         futures = [pool.submit(participant, base, tokens[k], seqs[k], args.batches, args.batch_size, interval,
                                args.resend, random.Random(k), lat, errors, lock) for k in range(len(tokens))]
         ends = [f.result() for f in futures]
+        stop.set()
+        for h in helpers:
+            h.result()
     return {"seconds": time.perf_counter() - started, "lat": lat, "errors": errors, "ends": ends,
-            "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True))}
+            "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True)), "suggest_lat": suggest_lat,
+            "suggest_errors": suggest_errors}
 
 
 def percentile(values, q):
@@ -143,6 +181,9 @@ def main() -> int:
                              "its outbox about once a second)")
     parser.add_argument("--resend", type=float, default=0.05, help="fraction of batches sent twice")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--suggest-every", type=float, default=5.0,
+                        help="seconds between one participant's context queries during the paced phase "
+                             "(0: ingestion alone)")
     args = parser.parse_args()
     if not (ROOT / "var" / "priors" / "ai2thor.npz").is_file():
         print(json.dumps({"benchmark": "ingest", "error": "run `make demo` first (the demo study's resources)"}))
@@ -157,7 +198,8 @@ def main() -> int:
             phases = {}
             seqs = [0] * args.participants
             for name, interval in (("paced", args.interval), ("saturated", 0.0)):
-                phases[name] = run_phase(base, tokens, seqs, args, interval)
+                phases[name] = run_phase(base, tokens, seqs, args, interval,
+                                         args.suggest_every if name == "paced" else 0.0)
                 seqs = phases[name]["ends"]
         finally:
             os.killpg(proc.pid, signal.SIGTERM)
@@ -180,6 +222,11 @@ def main() -> int:
         "p50_ms": round(percentile(paced["lat"], 50), 1),
         "p95_ms": round(percentile(paced["lat"], 95), 1),
         "p99_ms": round(percentile(paced["lat"], 99), 1),
+        "suggest_every_s": args.suggest_every,
+        "suggest_requests": len(paced["suggest_lat"]),
+        "suggest_p50_ms": round(percentile(paced["suggest_lat"], 50), 1) if paced["suggest_lat"] else None,
+        "suggest_p95_ms": round(percentile(paced["suggest_lat"], 95), 1) if paced["suggest_lat"] else None,
+        "suggest_errors": len(paced["suggest_errors"]),
         "saturated_events_per_s": round(saturated["events"] / saturated["seconds"], 1),
         "saturated_p95_ms": round(percentile(saturated["lat"], 95), 1),
         "posts": len(paced["lat"]) + len(saturated["lat"]),
@@ -189,7 +236,7 @@ def main() -> int:
         "duplicates": stored - distinct,
         "errors": len(errors),
     }, indent=1))
-    return 0 if not errors and stored == sent_total else 1
+    return 0 if not errors and not paced["suggest_errors"] and stored == sent_total else 1
 
 
 if __name__ == "__main__":

@@ -347,11 +347,15 @@ def study_export_cmd(study_id: str, out: str, database_url: str | None, as_json:
 @click.option("--seed", default=0, show_default=True)
 @click.option("--url", default=None, help="A running server (default: in process, on DATABASE_URL).")
 @click.option("--study", "study_id", default=None, help="Study id (default: the only configured study).")
+@click.option("--mix", is_flag=True, help="Mix in reloads, second tabs, repeated arrivals, resent batches and "
+                                          "drop-outs.")
 @click.option("--json", "as_json", is_flag=True)
-def study_simulate_cmd(participants: int, seed: int, url: str | None, study_id: str | None, as_json: bool) -> None:
+def study_simulate_cmd(participants: int, seed: int, url: str | None, study_id: str | None, mix: bool,
+                       as_json: bool) -> None:
     """Simulated participants take the whole study through its HTTP interface; their operation times follow
     the keystroke-level model applied to what the engine returns."""
     from study_server import create_app, upgrade_database
+    from study_server.bots import Behaviours
     from study_server.simulate import simulate
 
     app = None
@@ -364,10 +368,12 @@ def study_simulate_cmd(participants: int, seed: int, url: str | None, study_id: 
     elif study_id is None:
         raise SceneSuggestError("name the study (--study) when simulating against --url", field="study")
     summary = simulate(participants, seed, url=url, study=study_id, app=app,
+                       behaviours=Behaviours.mixed() if mix else None,
                        progress=lambda label: click.echo(label, err=True))
     means = ", ".join(f"{c} {s:.0f} s" for c, s in summary["mean_seconds"].items())
     emit(summary, as_json, f"{summary['completed']}/{participants} participants completed {summary['trials']} "
-                           f"trials, {summary['events']} events; mean trial time {means}"
+                           f"trials, {summary['events']} events ({summary['dropped_out']} dropped out); "
+                           f"mean trial time {means}"
                            + "".join(f"\nfailed: {f['participant']}: {f['error']}" for f in summary["failures"]))
     if summary["failures"]:
         raise SceneSuggestError(f"{len(summary['failures'])} simulated participant(s) could not finish")

@@ -155,10 +155,32 @@ def words(category: str) -> str:
     return re.sub(r"(?<=[a-z])(?=[A-Z])", " ", category).lower()
 
 
+@dataclass(frozen=True)
+class Behaviours:
+    """How often a bot does what real participants do to a server (all off by default).
+
+    ``reload`` and ``second_tab``: per trial, the page is opened again midway (the trial resumes there);
+    ``duplicate_arrival``: per participant, the entry link is followed again after the first trial;
+    ``resend``: per batch, the events are posted twice (a lost acknowledgement); ``drop_out``: per participant,
+    the bot leaves after a random trial and never finishes."""
+
+    reload: float = 0.0
+    second_tab: float = 0.0
+    duplicate_arrival: float = 0.0
+    resend: float = 0.0
+    drop_out: float = 0.0
+
+    @classmethod
+    def mixed(cls) -> Behaviours:
+        return cls(reload=0.1, second_tab=0.05, duplicate_arrival=0.2, resend=0.1, drop_out=0.1)
+
+
 @dataclass
 class BotResult:
     pid: str
     code: str | None = None
+    dropped_out: bool = False
+    reloads: int = 0
     events: int = 0
     trials: int = 0
     missing_objects: int = 0
@@ -168,9 +190,11 @@ class BotResult:
 class Bot:
     """One simulated participant; ``speed`` scales every operator time (1 = the model's average person)."""
 
-    def __init__(self, transport, study: str, pid: str, rng: np.random.Generator, speed: float | None = None):
+    def __init__(self, transport, study: str, pid: str, rng: np.random.Generator, speed: float | None = None,
+                 behaviours: Behaviours | None = None):
         self.http, self.study, self.pid, self.rng = transport, study, pid, rng
         self.speed = speed if speed is not None else float(rng.lognormal(0.0, 0.25))
+        self.does = behaviours or Behaviours()
         self.seq = 0
         self.result = BotResult(pid)
 
@@ -179,6 +203,10 @@ class Bot:
         spent = seconds * self.speed * float(self.rng.lognormal(0.0, 0.15))
         self.clock += spent * 1000.0
         self.elapsed += spent
+
+    def chance(self, rate: float) -> bool:
+        """A behaviour happens (no random draw at all when it is off, so plain runs stay reproducible)."""
+        return bool(rate) and self.rng.random() < rate
 
     def event(self, kind: str, payload: dict) -> None:
         self.batch.append({"seq": self.seq, "t": self.clock, "type": kind, "trial": self.trial["index"],
@@ -203,11 +231,20 @@ class Bot:
         r = self.http.get(f"/study/{self.study}/start?pid={self.pid}")
         if r.status >= 400:
             raise FlowError(f"entry link → {r.status}")
+        leave_after = int(self.rng.integers(1, 9)) if self.chance(self.does.drop_out) else None
+        arrive_again = self.chance(self.does.duplicate_arrival)
         for _ in range(200):
             text = self.page().text
             boot = _boot(text)
             if boot is not None:
                 self.do_trial(boot)
+                if arrive_again and self.result.trials == 1:
+                    arrive_again = False
+                    if self.http.get(f"/study/{self.study}/start?pid={self.pid}").status >= 400:
+                        raise FlowError("entry link followed again → error")
+                if leave_after is not None and self.result.trials >= leave_after:
+                    self.result.dropped_out = True
+                    return self.result
             elif 'name="width"' in text:
                 self.post_form("device", {"width": "1440", "height": "900"})
             elif 'name="agree"' in text:
@@ -272,7 +309,11 @@ class Bot:
         self.scene = [dict(o) for o in start["objects"]]
         self.event("trial_start", {"scene": self.trial["scene"], "condition": condition})
         self.fixed = self.api("GET", "/models")["models"] if condition == "none" else []
-        for obj in [o for o in target["objects"] if o["id"] not in present]:
+        todo = [o for o in target["objects"] if o["id"] not in present]
+        reopen_at = len(todo) // 2 if (self.chance(self.does.reload) or self.chance(self.does.second_tab)) else None
+        for k, obj in enumerate(todo):
+            if k == reopen_at:
+                self.reopen()
             self.spend(M)  # find the next object in the target view
             if self.place(obj, condition):
                 self.scene.append(dict(obj))
@@ -286,9 +327,21 @@ class Bot:
             self.result.trials += 1
             self.result.condition_seconds.setdefault(condition, []).append(self.elapsed)
 
+    def reopen(self) -> None:
+        """The page is loaded again (reload or a second tab): what was logged is sent, the trial resumes."""
+        self.flush()
+        boot = _boot(self.page().text)
+        if boot is None or boot["trial"]["index"] != self.trial["index"]:
+            raise FlowError("the reopened page did not resume the trial")
+        self.page_id = boot["page_id"]
+        self.result.reloads += 1
+        self.event("resume", {"reason": "reload"})
+
     def flush(self) -> None:
         for i in range(0, len(self.batch), 200):
             chunk = self.batch[i:i + 200]
+            if self.chance(self.does.resend):
+                self.api("POST", "/events", {"page_id": self.page_id, "events": chunk})
             acked = self.api("POST", "/events", {"page_id": self.page_id, "events": chunk})["acked_seq"]
             if acked != chunk[-1]["seq"]:
                 raise FlowError(f"events up to {chunk[-1]['seq']} sent, {acked} acknowledged")

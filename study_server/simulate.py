@@ -7,11 +7,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .bots import Bot, FlaskTransport, FlowError, HttpTransport
+from .bots import Behaviours, Bot, FlaskTransport, FlowError, HttpTransport
 
 
 def simulate(participants: int, seed: int = 0, *, url: str | None = None, study: str | None = None, app=None,
-             progress: Callable[[str], None] = lambda label: None) -> dict:
+             behaviours: Behaviours | None = None, progress: Callable[[str], None] = lambda label: None) -> dict:
     """Run ``participants`` bots one after another (bot i draws from the generator seeded ``[seed, i]``).
 
     With ``url`` they talk HTTP to that server; otherwise to ``app`` (a Flask app) in process. Returns the
@@ -27,7 +27,7 @@ def simulate(participants: int, seed: int = 0, *, url: str | None = None, study:
     results, failures = [], []
     for i in range(participants):
         transport = HttpTransport(url) if url else FlaskTransport(app.test_client())
-        bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]))
+        bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]), behaviours=behaviours)
         try:
             results.append(bot.run())
         except FlowError as e:
@@ -38,6 +38,7 @@ def simulate(participants: int, seed: int = 0, *, url: str | None = None, study:
         for c, values in r.condition_seconds.items():
             seconds.setdefault(c, []).extend(values)
     return {"study": study, "participants": participants, "completed": sum(r.code is not None for r in results),
+            "dropped_out": sum(r.dropped_out for r in results), "reloads": sum(r.reloads for r in results),
             "trials": sum(r.trials for r in results), "events": sum(r.events for r in results),
             "missing_objects": sum(r.missing_objects for r in results), "failures": failures,
             "mean_seconds": {c: float(np.mean(v)) for c, v in seconds.items()}}

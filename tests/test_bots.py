@@ -104,3 +104,21 @@ def test_replaced_picks_are_not_final():
     picks = picks_table(data, trials)
     assert picks["final"].tolist() == [False, True, True]
     assert picks.loc[picks["final"], "rank"].tolist() == [3, 2]
+
+
+def test_mixed_behaviours_lose_nothing_and_duplicate_nothing(tmp_path, demo_resources):
+    from study_server.bots import Behaviours
+
+    app = make_app(tmp_path)
+    summary = simulate(8, seed=11, app=app, behaviours=Behaviours(reload=0.3, second_tab=0.2, duplicate_arrival=0.5,
+                                                                  resend=0.3, drop_out=0.25))
+    assert not summary["failures"] and summary["reloads"] > 0 and summary["dropped_out"] > 0
+    assert summary["completed"] + summary["dropped_out"] == 8
+    data = read_database(app.config["SQLALCHEMY_DATABASE_URI"])
+    assert len(data.participants) == 8  # following the entry link again resumes, never enrols twice
+    assert len(data.events) == summary["events"]
+    assert not data.events.duplicated(["participant", "seq"]).any()
+    for _, rows in data.events.groupby("participant"):
+        assert rows["seq"].tolist() == list(range(len(rows)))  # no gap anywhere
+    assert (data.events["type"] == "resume").sum() == summary["reloads"]
+    assert (data.participants["status"] == "completed").sum() == summary["completed"]
