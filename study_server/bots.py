@@ -195,6 +195,8 @@ class Bot:
         self.http, self.study, self.pid, self.rng = transport, study, pid, rng
         self.speed = speed if speed is not None else float(rng.lognormal(0.0, 0.25))
         self.does = behaviours or Behaviours()
+        # how often this person overlooks the wanted model in a list (mean 0.2): then they search instead
+        self.overlook = float(rng.beta(2.0, 8.0))
         self.seq = 0
         self.result = BotResult(pid)
 
@@ -203,6 +205,9 @@ class Bot:
         spent = seconds * self.speed * float(self.rng.lognormal(0.0, 0.15))
         self.clock += spent * 1000.0
         self.elapsed += spent
+
+    def overlooks(self) -> bool:
+        return self.rng.random() < self.overlook
 
     def chance(self, rate: float) -> bool:
         """A behaviour happens (no random draw at all when it is off, so plain runs stay reproducible)."""
@@ -377,7 +382,7 @@ class Bot:
 
     def place_from_list(self, obj: dict):
         ids = [m["id"] for m in self.fixed]
-        if obj["model_id"] in ids and ids.index(obj["model_id"]) < LIST_VISIBLE:
+        if obj["model_id"] in ids and ids.index(obj["model_id"]) < LIST_VISIBLE and not self.overlooks():
             rank = ids.index(obj["model_id"]) + 1
             self.spend(SCAN_PER_ITEM * rank + P + B)
             source, list_id = "fixed", None
@@ -412,7 +417,7 @@ class Bot:
                               "rank": 1, "source": "context", "list_id": found["list_id"]})
         for item in items:
             ids = [m["id"] for m in item["models"]]
-            if obj["model_id"] in ids:
+            if obj["model_id"] in ids and not self.overlooks():
                 rank = item["rank"]
                 self.spend(SCAN_PER_ITEM * rank)
                 if ids.index(obj["model_id"]) > 0:  # expand the category and pick the model
