@@ -7,7 +7,7 @@ import sqlite3
 
 import pytest
 from conftest import make_app
-from flowhelp import auth, to_trials
+from flowhelp import auth, boot, enter, to_trials
 
 from study_server import create_app
 from study_server.config import ConfigError
@@ -94,3 +94,22 @@ def test_development_cookies_are_httponly_and_never_debug(client):
     assert "HttpOnly" in cookie and "SameSite=Lax" in cookie
     assert not client.application.debug
 
+
+
+def test_a_planted_session_cookie_does_not_make_the_victim_the_attacker(app):
+    attacker, victim = app.test_client(), app.test_client()
+    attacker_boot = to_trials(attacker, query="pid=attacker")
+    cookie = attacker.get_cookie("session")
+    victim.set_cookie("session", cookie.value)  # fixation: the victim's browser carries the attacker's session
+    victim_boot = to_trials(victim, query="pid=victim")
+    assert victim_boot["token"] != attacker_boot["token"]
+    with app.app_context():
+        from study_server.extensions import db
+        from study_server.models import Participant
+
+        people = {p.platform_id: p.token for p in db.session.query(Participant)}
+    assert people == {"attacker": attacker_boot["token"], "victim": victim_boot["token"]}
+    # the attacker's copy of the cookie still belongs to the attacker alone
+    assert attacker.get("/api/session", headers={"Authorization": f"Bearer {attacker_boot['token']}"}).json[
+        "position"] >= 0
+    assert boot(enter(attacker, query="pid=attacker"))["token"] == attacker_boot["token"]
