@@ -126,3 +126,15 @@ def test_search_text_and_worker_ids_are_escaped_on_admin_pages(admin_app):
         page = c.get(path).data
         assert b"<img src=x" not in page, path
     assert b"&lt;img src=x onerror=alert(1)&gt;" in c.get(f"/admin/demo/participants/{pid}").data
+
+
+def test_every_admin_form_needs_its_csrf_token(admin_app):
+    c = admin_app.test_client()
+    login(c)
+    posts = [r for r in admin_app.url_map.iter_rules() if r.endpoint.startswith("admin.") and "POST" in r.methods]
+    assert {r.endpoint for r in posts} >= {"admin.login", "admin.logout", "admin.exclude"}
+    for rule in posts:
+        path = rule.rule.replace("<study_id>", "demo").replace("<int:pid>", "1")
+        r = c.post(path, data={"reason": "x", "password": PASSWORD})
+        assert r.status_code == 400, (path, r.status_code)
+    assert c.get("/admin/").status_code == 200  # still logged in: nothing was done without the token
