@@ -114,6 +114,35 @@ class HttpTransport:
         return self._send("POST", path, urlencode(form or {}).encode(), headers)
 
 
+class LossyTransport:
+    """A network that loses things: with probability ``loss`` a request never arrives, and with the same
+    probability its response is lost after the server acted on it (a timeout); either way the bot sends it
+    again, as a browser's retry or a participant's reload would. Every request must therefore be safe to repeat."""
+
+    def __init__(self, inner, rng: np.random.Generator, loss: float):
+        self.inner, self.rng, self.loss = inner, rng, loss
+        self.lost = 0
+
+    def _retry(self, send) -> Response:
+        while self.rng.random() < self.loss:  # the request is lost on the way
+            self.lost += 1
+        response = send()
+        while self.rng.random() < self.loss:  # the server acted, the answer is lost: send again
+            self.lost += 1
+            response = send()
+        return response
+
+    def get(self, path, headers=None) -> Response:
+        return self._retry(lambda: self.inner.get(path, headers))
+
+    def post(self, path, form=None, json_body=None, headers=None) -> Response:
+        return self._retry(lambda: self.inner.post(path, form=form, json_body=json_body, headers=headers))
+
+    @property
+    def retries(self) -> int:
+        return getattr(self.inner, "retries", 0) + self.lost
+
+
 class _Form(HTMLParser):
     """The fields of a survey page: radio groups with their values, number inputs, text areas, hidden inputs."""
 
@@ -162,17 +191,19 @@ class Behaviours:
     ``reload`` and ``second_tab``: per trial, the page is opened again midway (the trial resumes there);
     ``duplicate_arrival``: per participant, the entry link is followed again after the first trial;
     ``resend``: per batch, the events are posted twice (a lost acknowledgement); ``drop_out``: per participant,
-    the bot leaves after a random trial and never finishes."""
+    the bot leaves after a random trial and never finishes; ``lossy``: per request, lost on the way or its
+    answer lost after the server acted (see :class:`LossyTransport`)."""
 
     reload: float = 0.0
     second_tab: float = 0.0
     duplicate_arrival: float = 0.0
     resend: float = 0.0
     drop_out: float = 0.0
+    lossy: float = 0.0
 
     @classmethod
     def mixed(cls) -> Behaviours:
-        return cls(reload=0.1, second_tab=0.05, duplicate_arrival=0.2, resend=0.1, drop_out=0.1)
+        return cls(reload=0.1, second_tab=0.05, duplicate_arrival=0.2, resend=0.1, drop_out=0.1, lossy=0.05)
 
 
 @dataclass
@@ -195,6 +226,8 @@ class Bot:
         self.http, self.study, self.pid, self.rng = transport, study, pid, rng
         self.speed = speed if speed is not None else float(rng.lognormal(0.0, 0.25))
         self.does = behaviours or Behaviours()
+        if self.does.lossy:
+            self.http = LossyTransport(transport, rng, self.does.lossy)
         # how often this person overlooks the wanted model in a list (mean 0.2): then they search instead
         self.overlook = float(rng.beta(2.0, 8.0))
         self.seq = 0

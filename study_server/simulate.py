@@ -24,7 +24,7 @@ def simulate(participants: int, seed: int = 0, *, url: str | None = None, study:
         if app is None:
             raise ValueError("name the study when simulating against a URL")
         study = next(iter(app.extensions["studies"]))
-    results, failures = [], []
+    results, failures, retries = [], [], 0
     for i in range(participants):
         transport = HttpTransport(url) if url else FlaskTransport(app.test_client())
         bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]), behaviours=behaviours)
@@ -32,6 +32,7 @@ def simulate(participants: int, seed: int = 0, *, url: str | None = None, study:
             results.append(bot.run())
         except FlowError as e:
             failures.append({"participant": bot.pid, "error": str(e)})
+        retries += getattr(bot.http, "retries", 0)
         progress(f"participant {i + 1}/{participants}")
     seconds: dict[str, list[float]] = {}
     for r in results:
@@ -39,6 +40,7 @@ def simulate(participants: int, seed: int = 0, *, url: str | None = None, study:
             seconds.setdefault(c, []).extend(values)
     return {"study": study, "participants": participants, "completed": sum(r.code is not None for r in results),
             "dropped_out": sum(r.dropped_out for r in results), "reloads": sum(r.reloads for r in results),
+            "requests_repeated": retries,
             "trials": sum(r.trials for r in results), "events": sum(r.events for r in results),
             "missing_objects": sum(r.missing_objects for r in results), "failures": failures,
             "mean_seconds": {c: float(np.mean(v)) for c, v in seconds.items()}}
