@@ -329,6 +329,35 @@ def test_offline_for_a_while_then_every_event_arrives_once(page, server):
     assert not page.is_visible("#banner") or "Connection lost" not in page.inner_text("#banner")
 
 
+def test_while_the_server_cannot_store_the_outbox_keeps_every_event(page, server):
+    """The server answers 503 (its database full or read-only) for a while: the page keeps the events and sends
+    them once the server stores again."""
+    base, database = server
+    pid = "browser-503"
+    start(page, base, pid)
+    place_with_suggestions(page)
+    until(page, "window.sceneSuggestTest.pending() === 0")
+    refused = []
+
+    def full(route):
+        refused.append(route.request.url)
+        route.fulfill(status=503, content_type="application/json", headers={"Retry-After": "5"},
+                      body='{"error": "the study\'s database cannot store data right now", "field": null}')
+    page.route("**/api/events", full)
+    obj = [o for o in objects(page).values() if o["id"] != "room"][-1]
+    x, y = hook(page, f"grabPixel({obj['id']!r})")
+    page.mouse.click(x, y)
+    for _ in range(4):
+        page.keyboard.press("e")
+    until(page, "window.sceneSuggestTest.pending() > 0")
+    page.wait_for_timeout(3000)  # (a plain sleep would not let Playwright answer the routed requests)
+    assert refused and hook(page, "pending()") > 0
+    page.unroute("**/api/events", full)
+    until(page, "window.sceneSuggestTest.pending() === 0", timeout=60)
+    logged = sorted(tuple(e) for e in hook(page, "events.map(e => [e.seq, e.type])"))
+    assert [tuple(e) for e in db_events(database, pid)] == logged
+
+
 def test_a_model_that_fails_to_load_offers_a_retry(page, server):
     base, _ = server
     fail = {"on": True}
