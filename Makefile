@@ -10,7 +10,7 @@ NPM_STAMP := node_modules/.installed
 DEMO_LIBRARY := var/library/ai2thor/library.json
 DEMO_PRIORS := var/priors/ai2thor.npz
 
-.PHONY: setup demo demo-report test lint audit pytest serve bench clean
+.PHONY: setup demo demo-report demo-power test lint audit pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
@@ -59,6 +59,10 @@ demo-report: demo
 	SCENESUGGEST_INSTANCE=$(CURDIR)/$(DEMO_REPORT)/instance $(BIN)/scenesuggest study export --study demo \
 		--db sqlite:///$(CURDIR)/$(DEMO_REPORT)/study.sqlite3 --out $(DEMO_REPORT)/export
 	$(BIN)/scenesuggest analyze report --export $(DEMO_REPORT)/export --out $(DEMO_REPORT)/report
+
+# How many participants the demo needs: power of every test at N = 10, 20, 40 from the demo report's pilot.
+demo-power: demo-report
+	$(BIN)/scenesuggest analyze power --export $(DEMO_REPORT)/export --participants 10,20,40 --studies 100
 
 bench: demo
 	$(BIN)/python benchmarks/bench_corpus.py

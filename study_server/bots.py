@@ -115,15 +115,19 @@ class HttpTransport:
 
 
 class LossyTransport:
-    """A network that loses things: with probability ``loss`` a request never arrives, and with the same
+    """A slow network that loses things: with probability ``loss`` a request never arrives, and with the same
     probability its response is lost after the server acted on it (a timeout); either way the bot sends it
     again, as a browser's retry or a participant's reload would. Every request must therefore be safe to repeat."""
 
-    def __init__(self, inner, rng: np.random.Generator, loss: float):
-        self.inner, self.rng, self.loss = inner, rng, loss
+    def __init__(self, inner, rng: np.random.Generator, loss: float, latency_s: float = 0.0):
+        self.inner, self.rng, self.loss, self.latency_s = inner, rng, loss, latency_s
         self.lost = 0
 
     def _retry(self, send) -> Response:
+        if self.latency_s:  # a slow network: each round trip waits (real time)
+            import time
+
+            time.sleep(float(self.rng.exponential(self.latency_s)))
         while self.rng.random() < self.loss:  # the request is lost on the way
             self.lost += 1
         response = send()
@@ -192,7 +196,8 @@ class Behaviours:
     ``duplicate_arrival``: per participant, the entry link is followed again after the first trial;
     ``resend``: per batch, the events are posted twice (a lost acknowledgement); ``drop_out``: per participant,
     the bot leaves after a random trial and never finishes; ``lossy``: per request, lost on the way or its
-    answer lost after the server acted (see :class:`LossyTransport`)."""
+    answer lost after the server acted (see :class:`LossyTransport`); ``latency_s``: mean extra seconds per round
+    trip (a slow network, real waiting)."""
 
     reload: float = 0.0
     second_tab: float = 0.0
@@ -200,6 +205,7 @@ class Behaviours:
     resend: float = 0.0
     drop_out: float = 0.0
     lossy: float = 0.0
+    latency_s: float = 0.0
 
     @classmethod
     def mixed(cls) -> Behaviours:
@@ -226,8 +232,8 @@ class Bot:
         self.http, self.study, self.pid, self.rng = transport, study, pid, rng
         self.speed = speed if speed is not None else float(rng.lognormal(0.0, 0.25))
         self.does = behaviours or Behaviours()
-        if self.does.lossy:
-            self.http = LossyTransport(transport, rng, self.does.lossy)
+        if self.does.lossy or self.does.latency_s:
+            self.http = LossyTransport(transport, rng, self.does.lossy, self.does.latency_s)
         # how often this person overlooks the wanted model in a list (mean 0.2): then they search instead
         self.overlook = float(rng.beta(2.0, 8.0))
         self.seq = 0

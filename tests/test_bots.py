@@ -111,7 +111,8 @@ def test_mixed_behaviours_lose_nothing_and_duplicate_nothing(tmp_path, demo_reso
 
     app = make_app(tmp_path)
     summary = simulate(8, seed=11, app=app, behaviours=Behaviours(reload=0.3, second_tab=0.2, duplicate_arrival=0.5,
-                                                                  resend=0.3, drop_out=0.25, lossy=0.1))
+                                                                  resend=0.3, drop_out=0.25, lossy=0.1,
+                                                                  latency_s=0.002))
     assert not summary["failures"] and summary["reloads"] > 0 and summary["dropped_out"] > 0
     assert summary["requests_repeated"] > 20  # lost requests and lost answers, all sent again
     assert summary["completed"] + summary["dropped_out"] == 8

@@ -113,3 +113,22 @@ def test_a_planted_session_cookie_does_not_make_the_victim_the_attacker(app):
     assert attacker.get("/api/session", headers={"Authorization": f"Bearer {attacker_boot['token']}"}).json[
         "position"] >= 0
     assert boot(enter(attacker, query="pid=attacker"))["token"] == attacker_boot["token"]
+
+
+def test_no_secret_or_instance_data_is_tracked():
+    import re
+    import subprocess
+
+    from conftest import ROOT
+
+    files = subprocess.run(["git", "ls-files"], capture_output=True, text=True, cwd=ROOT).stdout.split()
+    if not files:
+        pytest.skip("not a git checkout")
+    assert not [f for f in files if f.startswith("var/") or f.endswith((".sqlite3", "secret_key", "admin.json",
+                                                                         "admin-password.txt", ".pem", ".env"))]
+    assigned = re.compile(r"""(SECRET_KEY|PASSWORD|TOKEN)\w*["']?\s*[:=]\s*["'][A-Za-z0-9+/_\-]{24,}["']""")
+    for name in files:
+        path = ROOT / name
+        if path.suffix in (".py", ".toml", ".json", ".md", ".js", ".html", ".cfg", ".ini", ".yml", ".yaml", ""):
+            text = path.read_text(errors="ignore") if path.is_file() else ""
+            assert not assigned.search(text), name
