@@ -39,11 +39,21 @@ def _clean(value):
     return value
 
 
-def select(data: StudyData) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, list[str], list[str]]:
-    """Trials, picks and participants to analyse, the conditions in order, and notes on what was left out."""
+def select(data: StudyData, completed_only: bool = False
+           ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, list[str], list[str]]:
+    """Trials, picks and participants to analyse, the conditions in order, and notes on what was left out.
+    By default every completed trial of every participant the experimenter did not exclude is analysed;
+    ``completed_only`` keeps only participants who finished the study."""
     notes = []
     trials = trials_table(data)
     people = participants_table(data)
+    if completed_only:
+        unfinished = people.loc[~people["status"].isin(["completed", "excluded"]), "participant"]
+        dropped = trials["participant"].isin(unfinished)
+        if dropped.any():
+            notes.append(f"{trials.loc[dropped, 'participant'].nunique()} participant(s) who did not finish the "
+                         f"study are left out ({int(dropped.sum())} scheduled trials; --completed-only)")
+        trials = trials[~dropped]
     excluded = people.loc[people["status"] == "excluded", "participant"]
     if len(excluded):
         reasons = data.participants.set_index("participant").reindex(excluded)
@@ -88,12 +98,13 @@ def _design_text(data: StudyData, conditions: list[str]) -> list[str]:
 
 
 def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, seed: int = 0, unit: str = "trial",
+                 completed_only: bool = False,
                  progress: Callable[[str], None] = lambda label: None) -> dict:
     """Write the report into ``out``; returns its machine-readable summary (also ``results.json``)."""
     out = Path(out)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     progress("measures")
-    trials, picks, people, conditions, notes = select(data)
+    trials, picks, people, conditions, notes = select(data, completed_only)
     done = trials[trials["complete"]]
     measures_dir = out / "measures"
     measures_dir.mkdir(exist_ok=True)

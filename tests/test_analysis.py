@@ -145,6 +145,9 @@ def test_report_from_an_export_holds_every_table_and_figure(synthetic, tmp_path)
     assert summary["tests"]["total_time"]["lrt"]["df"] == 2
     again = build_report(read_export(synthetic), tmp_path / "again", resamples=200, seed=4)
     assert again["table1"] == summary["table1"]
+    completers = build_report(read_export(synthetic), tmp_path / "completers", resamples=50, completed_only=True)
+    assert completers["trials"]["scheduled"] == 11 * 9 == completers["trials"]["completed"]
+    assert any("did not finish" in n for n in completers["notes"])
 
 
 def test_bad_exports_get_messages_and_the_report_keeps_what_it_can(synthetic, tmp_path):
