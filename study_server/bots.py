@@ -25,6 +25,8 @@ from html.parser import HTMLParser
 
 import numpy as np
 
+from scenesuggest.symmetry import glb_symmetry_period_deg, visible_turn_deg
+
 #: Keystroke-level model operators, seconds (Card, Moran & Newell 1980).
 K, P, B, M = 0.28, 1.1, 0.1, 1.35
 SCAN_PER_ITEM = 0.35  # looking at one thumbnail of a list, s
@@ -40,10 +42,14 @@ class FlowError(RuntimeError):
 @dataclass
 class Response:
     status: int
-    text: str
+    body: bytes
+
+    @property
+    def text(self) -> str:
+        return self.body.decode(errors="replace")
 
     def json(self):
-        return json.loads(self.text)
+        return json.loads(self.body)
 
 
 class FlaskTransport:
@@ -54,11 +60,11 @@ class FlaskTransport:
 
     def get(self, path, headers=None) -> Response:
         r = self.client.get(path, headers=headers or {}, follow_redirects=True)
-        return Response(r.status_code, r.get_data(as_text=True))
+        return Response(r.status_code, r.get_data())
 
     def post(self, path, form=None, json_body=None, headers=None) -> Response:
         r = self.client.post(path, data=form, json=json_body, headers=headers or {}, follow_redirects=True)
-        return Response(r.status_code, r.get_data(as_text=True))
+        return Response(r.status_code, r.get_data())
 
 
 class HttpTransport:
@@ -88,9 +94,9 @@ class HttpTransport:
             req = urllib.request.Request(self.base + path, data=data, method=method, headers=headers or {})
             try:
                 with self.opener.open(req, timeout=self.timeout) as r:
-                    return Response(r.status, r.read().decode())
+                    return Response(r.status, r.read())
             except urllib.error.HTTPError as e:
-                response = Response(e.code, e.read().decode(errors="replace"))
+                response = Response(e.code, e.read())
                 if e.code not in (502, 503) or time.monotonic() > deadline:
                     return response
             except (urllib.error.URLError, http.client.HTTPException, ConnectionError, TimeoutError) as e:
@@ -228,8 +234,11 @@ class Bot:
     """One simulated participant; ``speed`` scales every operator time (1 = the model's average person)."""
 
     def __init__(self, transport, study: str, pid: str, rng: np.random.Generator, speed: float | None = None,
-                 behaviours: Behaviours | None = None):
+                 behaviours: Behaviours | None = None, symmetry: dict[str, float] | None = None):
         self.http, self.study, self.pid, self.rng = transport, study, pid, rng
+        #: model id → symmetry period (deg), shared between bots: a person sees that a vase needs no turning
+        self.symmetry = symmetry if symmetry is not None else {}
+        self.library: dict[str, dict] = {}
         self.speed = speed if speed is not None else float(rng.lognormal(0.0, 0.25))
         self.does = behaviours or Behaviours()
         if self.does.lossy or self.does.latency_s:
@@ -352,7 +361,8 @@ class Bot:
         present = {o["id"] for o in start["objects"]}
         self.scene = [dict(o) for o in start["objects"]]
         self.event("trial_start", {"scene": self.trial["scene"], "condition": condition})
-        self.fixed = self.api("GET", "/models")["models"] if condition == "none" else []
+        self.fixed = self.api("GET", "/models")["models"]
+        self.library = {m["id"]: m for m in self.fixed}
         todo = [o for o in target["objects"] if o["id"] not in present]
         reopen_at = len(todo) // 2 if (self.chance(self.does.reload) or self.chance(self.does.second_tab)) else None
         for k, obj in enumerate(todo):
@@ -493,6 +503,14 @@ class Bot:
         self.event(kind, payload)
         return obj["contact_point"], 0.0
 
+    def period_of(self, model_id: str) -> float:
+        """How far the model can be turned before it looks different (from its mesh, as the browser shows it)."""
+        if model_id not in self.symmetry:
+            model = self.library.get(model_id)
+            r = self.http.get(model["asset"]) if model else None
+            self.symmetry[model_id] = glb_symmetry_period_deg(r.body) if r is not None and r.status == 200 else 360.0
+        return self.symmetry[model_id]
+
     def adjust(self, obj: dict, position, heading: float) -> None:
         """Drag to the target position, then turn to the target heading (about the support normal)."""
         target_heading = heading_deg(obj["transform"])
@@ -503,6 +521,8 @@ class Bot:
             self.spend(B + FITTS_A + FITTS_B * math.log2(distance / TARGET_M + 1) + B)
             self.event("move_end", {"object": obj["id"], "distance": distance, "parent": obj["parent"]})
         turn = wrap_deg(target_heading - heading)
+        if abs(obj["contact_normal"][1]) > 0.9:  # on a floor or a table: only a visible difference is turned
+            turn = visible_turn_deg(turn, self.period_of(obj["model_id"]))
         if abs(turn) > POSE_TOLERANCE_DEG:
             coarse = round(abs(turn) / COARSE_DEG)
             fine = abs(abs(turn) - coarse * COARSE_DEG)

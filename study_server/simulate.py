@@ -24,10 +24,11 @@ def simulate(participants: int, seed: int = 0, *, url: str | None = None, study:
         if app is None:
             raise ValueError("name the study when simulating against a URL")
         study = next(iter(app.extensions["studies"]))
-    results, failures, retries = [], [], 0
+    results, failures, retries, symmetry = [], [], 0, {}
     for i in range(participants):
         transport = HttpTransport(url) if url else FlaskTransport(app.test_client())
-        bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]), behaviours=behaviours)
+        bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]), behaviours=behaviours,
+                  symmetry=symmetry)
         try:
             results.append(bot.run())
         except FlowError as e:
