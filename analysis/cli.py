@@ -1,12 +1,11 @@
 """``scenesuggest analyze …``: the report, mixed models and bootstrap intervals from the command line.
 
-Errors in the input print ``Error: WHERE: message`` and exit with 2; ``--json`` prints one JSON document.
+Errors in the input (:class:`AnalysisError`) print ``Error: WHERE: message`` and exit with 2, through the main
+command's handler; ``--json`` prints one JSON document.
 """
 
 from __future__ import annotations
 
-import json
-import math
 import time
 from pathlib import Path
 
@@ -14,29 +13,11 @@ import click
 import pandas as pd
 
 from .errors import AnalysisError
-
-
-class _Group(click.Group):
-    def invoke(self, ctx: click.Context):
-        try:
-            return super().invoke(ctx)
-        except AnalysisError as e:
-            click.echo(f"Error: {e}", err=True)
-            ctx.exit(2)
-
-
-def _finite(value):
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_finite(v) for v in value]
-    return value
+from .jsonout import dumps
 
 
 def _emit(data: dict, as_json: bool, human: str) -> None:
-    click.echo(json.dumps(_finite(data), indent=1) if as_json else human)
+    click.echo(dumps(data) if as_json else human)
 
 
 def _read_csv(path: str) -> pd.DataFrame:
@@ -46,7 +27,7 @@ def _read_csv(path: str) -> pd.DataFrame:
         raise AnalysisError(f"cannot be read as CSV ({e})", path) from None
 
 
-@click.group(cls=_Group)
+@click.group()
 def analyze() -> None:
     """Analyse a study: the report, mixed models, bootstrap intervals."""
 

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from scenesuggest.errors import SceneSuggestError
 
-class AnalysisError(Exception):
+
+class AnalysisError(SceneSuggestError):
     """Bad input the analyst can act on; ``where`` names the file, table or column (``trials.csv: column
-    'condition'``)."""
+    'condition'``). A :class:`SceneSuggestError`, so the command line reports it like every other input error."""
 
     def __init__(self, message: str, where: str | None = None):
-        self.message = message
         self.where = where
-        super().__init__(f"{where}: {message}" if where else message)
+        super().__init__(message)
+
+    def __str__(self) -> str:
+        return f"{self.where}: {self.message}" if self.where else self.message

@@ -7,36 +7,17 @@ condition without data) leaves a note in the README and the rest of the report s
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from . import figures
+from .jsonout import dumps
 from .load import StudyData
 from .measures import TRIAL_MEASURES, participants_table, picks_table, trials_table
 from .tables import Table, condition_tests, contrasts_table, survey_table, table1, table2, tests_table
-
-
-def _json_default(value):
-    if isinstance(value, np.integer | np.bool_):
-        return value.item()
-    if isinstance(value, np.floating):
-        return None if not np.isfinite(value) else float(value)
-    raise TypeError(type(value).__name__)
-
-
-def _clean(value):
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_clean(v) for v in value]
-    return value
 
 
 def select(data: StudyData, completed_only: bool = False
@@ -146,7 +127,7 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
         "tests": {r.measure: (r.comparison.to_dict() | {"contrasts": [c.to_dict() for c in r.contrasts]}
                               if r.comparison else {"error": r.error}) for r in results},
     }
-    (out / "results.json").write_text(json.dumps(_clean(summary), indent=1, default=_json_default))
+    (out / "results.json").write_text(dumps(summary))
     progress("README")
     (out / "README.md").write_text(_readme(data, summary, tables, figure_files, out, conditions), encoding="utf-8")
     return summary

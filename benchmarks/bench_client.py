@@ -12,10 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -23,7 +20,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from bench_ingest import free_port, wait_ready  # noqa: E402
+from serverproc import StudyServer  # noqa: E402
 
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -59,63 +56,51 @@ def main() -> int:
         return 1
     from playwright.sync_api import sync_playwright
 
-    with tempfile.TemporaryDirectory() as tmp:
-        env = {**os.environ, "SCENESUGGEST_INSTANCE": f"{tmp}/instance", "DATABASE_URL": f"sqlite:///{tmp}/db.sqlite3",
-               "SCENESUGGEST_STUDIES": str(ROOT / "experiments" / "demo" / "study.toml")}
-        subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "migrate"], env=env, check=True,
-                       capture_output=True)
-        port = free_port()
-        proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "-w", "2", "-b", f"127.0.0.1:{port}",
-                                 "study_server:create_app()"], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL, start_new_session=True)
-        base = f"http://127.0.0.1:{port}"
-        try:
-            wait_ready(base)
-            with sync_playwright() as p:
-                browser = p.chromium.launch(executable_path=chromium, args=ARGS)
-                page = browser.new_page(viewport={"width": 1280, "height": 720})  # passes the device check
-                page.goto(f"{base}/study/demo/start?pid=bench-client")
-                page.click("text=I agree to take part")
-                page.fill("input[name=age]", "30")
-                page.check("input[name=experience_3d][value=Never]")
-                page.check("input[name=pointing_device][value=Mouse]")
-                page.click("button:has-text('Continue')")
-                while page.locator("button[name=go][value=next]").count():
-                    page.click("button[name=go][value=next]")
-                boot = json.loads(page.locator("#boot").inner_text())
-                models = page.evaluate("() => fetch('/api/models', {headers: {Authorization: 'Bearer ' + "
-                                       "JSON.parse(document.getElementById('boot').textContent).token}})"
-                                       ".then(r => r.json())")["models"]
-                key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
-                page.evaluate("([k, v]) => localStorage.setItem(k, v)", [key, json.dumps(scene_with(models,
-                                                                                                   args.objects))])
-                fresh = browser.new_context(viewport={"width": 800, "height": 600},
-                                            storage_state=page.context.storage_state())
-                measure = fresh.new_page()
-                measure.goto(f"{base}/study/demo/")
-                for _ in range(400):
-                    if measure.evaluate("() => !!(window.sceneSuggestTest && window.sceneSuggestTest.ready)"):
-                        break
-                    time.sleep(0.05)
-                measure.evaluate("() => window.sceneSuggestTest.loaded()")
-                first_frame = measure.evaluate("() => window.sceneSuggestTest.firstFrameAt()")
-                count = len(measure.evaluate("() => window.sceneSuggestTest.objects()")) - 1
-                time.sleep(0.5)
-                fps = measure.evaluate(f"() => window.sceneSuggestTest.orbit({args.seconds * 1000})")
-                transferred = measure.evaluate("""() => {
-                  const nav = performance.getEntriesByType('navigation')[0];
-                  const res = performance.getEntriesByType('resource');
-                  const sum = (k) => res.reduce((s, r) => s + (r[k] || 0), 0);
-                  return {page: (nav.transferSize || nav.encodedBodySize), transfer: sum('transferSize'),
-                          body: sum('encodedBodySize'),
-                          models: res.filter(r => r.name.endsWith('.glb')).reduce((s, r) => s + r.encodedBodySize, 0),
-                          js: res.filter(r => r.name.endsWith('.js')).reduce((s, r) => s + r.encodedBodySize, 0),
-                          count: res.length};
-                }""")
-                browser.close()
-        finally:
-            os.killpg(proc.pid, signal.SIGTERM)
-            proc.wait(timeout=20)
+    with tempfile.TemporaryDirectory() as tmp, \
+            StudyServer(Path(tmp) / "instance", f"sqlite:///{tmp}/db.sqlite3") as server:
+        base = server.base
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=chromium, args=ARGS)
+            page = browser.new_page(viewport={"width": 1280, "height": 720})  # passes the device check
+            page.goto(f"{base}/study/demo/start?pid=bench-client")
+            page.click("text=I agree to take part")
+            page.fill("input[name=age]", "30")
+            page.check("input[name=experience_3d][value=Never]")
+            page.check("input[name=pointing_device][value=Mouse]")
+            page.click("button:has-text('Continue')")
+            while page.locator("button[name=go][value=next]").count():
+                page.click("button[name=go][value=next]")
+            boot = json.loads(page.locator("#boot").inner_text())
+            models = page.evaluate("() => fetch('/api/models', {headers: {Authorization: 'Bearer ' + "
+                                   "JSON.parse(document.getElementById('boot').textContent).token}})"
+                                   ".then(r => r.json())")["models"]
+            key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
+            page.evaluate("([k, v]) => localStorage.setItem(k, v)", [key, json.dumps(scene_with(models,
+                                                                                               args.objects))])
+            fresh = browser.new_context(viewport={"width": 800, "height": 600},
+                                        storage_state=page.context.storage_state())
+            measure = fresh.new_page()
+            measure.goto(f"{base}/study/demo/")
+            for _ in range(400):
+                if measure.evaluate("() => !!(window.sceneSuggestTest && window.sceneSuggestTest.ready)"):
+                    break
+                time.sleep(0.05)
+            measure.evaluate("() => window.sceneSuggestTest.loaded()")
+            first_frame = measure.evaluate("() => window.sceneSuggestTest.firstFrameAt()")
+            count = len(measure.evaluate("() => window.sceneSuggestTest.objects()")) - 1
+            time.sleep(0.5)
+            fps = measure.evaluate(f"() => window.sceneSuggestTest.orbit({args.seconds * 1000})")
+            transferred = measure.evaluate("""() => {
+              const nav = performance.getEntriesByType('navigation')[0];
+              const res = performance.getEntriesByType('resource');
+              const sum = (k) => res.reduce((s, r) => s + (r[k] || 0), 0);
+              return {page: (nav.transferSize || nav.encodedBodySize), transfer: sum('transferSize'),
+                      body: sum('encodedBodySize'),
+                      models: res.filter(r => r.name.endsWith('.glb')).reduce((s, r) => s + r.encodedBodySize, 0),
+                      js: res.filter(r => r.name.endsWith('.js')).reduce((s, r) => s + r.encodedBodySize, 0),
+                      count: res.length};
+            }""")
+            browser.close()
     total = transferred["page"] + max(transferred["transfer"], transferred["body"])
     print(json.dumps({
         "benchmark": "client",

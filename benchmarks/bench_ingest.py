@@ -15,13 +15,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import random
 import re
-import signal
-import socket
 import sqlite3
-import subprocess
 import sys
 import tempfile
 import threading
@@ -30,39 +26,9 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-STUDY = ROOT / "experiments" / "demo" / "study.toml"
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
-
-def free_port() -> int:
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def start_server(instance: Path, database: Path, workers: int) -> tuple[subprocess.Popen, str]:
-    env = {**os.environ, "SCENESUGGEST_INSTANCE": str(instance), "DATABASE_URL": f"sqlite:///{database}",
-           "SCENESUGGEST_STUDIES": str(STUDY)}
-    subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "migrate"], env=env, check=True,
-                   capture_output=True)
-    port = free_port()
-    proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "--workers", str(workers), "--bind",
-                             f"127.0.0.1:{port}", "study_server:create_app()"], env=env, cwd=ROOT,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    return proc, f"http://127.0.0.1:{port}"
-
-
-def wait_ready(base: str) -> None:
-    import requests
-
-    for _ in range(200):
-        try:
-            requests.get(f"{base}/api/openapi.json", timeout=5)
-            return
-        except requests.RequestException:
-            time.sleep(0.1)
-    raise RuntimeError("server did not start")
+from serverproc import StudyServer  # noqa: E402
 
 
 def enrol(base: str, pid: str) -> str:
@@ -190,9 +156,8 @@ def main() -> int:
         return 1
     with tempfile.TemporaryDirectory() as tmp:
         database = Path(tmp) / "bench.sqlite3"
-        proc, base = start_server(Path(tmp) / "instance", database, args.workers)
-        try:
-            wait_ready(base)
+        with StudyServer(Path(tmp) / "instance", f"sqlite:///{database}", args.workers) as server:
+            base = server.base
             with ThreadPoolExecutor(max_workers=8) as pool:
                 tokens = list(pool.map(lambda i: enrol(base, f"bench-{i}"), range(args.participants)))
             phases = {}
@@ -201,9 +166,6 @@ def main() -> int:
                 phases[name] = run_phase(base, tokens, seqs, args, interval,
                                          args.suggest_every if name == "paced" else 0.0)
                 seqs = phases[name]["ends"]
-        finally:
-            os.killpg(proc.pid, signal.SIGTERM)
-            proc.wait(timeout=30)
         with sqlite3.connect(database) as conn:
             stored = conn.execute("SELECT count(*) FROM events").fetchone()[0]
             distinct = conn.execute("SELECT count(*) FROM (SELECT DISTINCT participant_id, seq FROM events)"

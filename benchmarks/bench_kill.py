@@ -11,11 +11,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import random
 import signal
 import sqlite3
-import subprocess
 import sys
 import tempfile
 import threading
@@ -29,41 +27,17 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import numpy as np  # noqa: E402
-from bench_ingest import STUDY, free_port, wait_ready  # noqa: E402
+from serverproc import StudyServer  # noqa: E402
 
 from study_server.bots import Bot, FlowError, HttpTransport  # noqa: E402
-
-
-class Server:
-    """gunicorn on a fixed port, killable with SIGKILL and restartable on the same database."""
-
-    def __init__(self, tmp: Path, workers: int):
-        self.database = tmp / "kill.sqlite3"
-        self.env = {**os.environ, "SCENESUGGEST_INSTANCE": str(tmp / "instance"),
-                    "DATABASE_URL": f"sqlite:///{self.database}", "SCENESUGGEST_STUDIES": str(STUDY),
-                    "SCENESUGGEST_SECRET_KEY": "kill-test"}
-        subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "migrate"], env=self.env, check=True,
-                       capture_output=True)
-        self.port, self.workers = free_port(), workers
-        self.base = f"http://127.0.0.1:{self.port}"
-        self.proc = None
-
-    def start(self) -> None:
-        self.proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "--workers", str(self.workers), "--bind",
-                                      f"127.0.0.1:{self.port}", "study_server:create_app()"], env=self.env, cwd=ROOT,
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-
-    def kill(self, sig=signal.SIGKILL) -> None:
-        os.killpg(self.proc.pid, sig)
-        self.proc.wait(timeout=30)
 
 
 def run(participants: int, kills: int, seed: int, workers: int) -> dict:
     rng = random.Random(seed)
     with tempfile.TemporaryDirectory() as tmp:
-        server = Server(Path(tmp), workers)
-        server.start()
-        wait_ready(server.base)
+        database = Path(tmp) / "kill.sqlite3"
+        server = StudyServer(Path(tmp) / "instance", f"sqlite:///{database}", workers)
+        server.start().wait_ready()
         done = threading.Event()
         killed = []
 
@@ -97,10 +71,10 @@ def run(participants: int, kills: int, seed: int, workers: int) -> dict:
             server.kill()
             killed.append(time.monotonic())
             server.start()
-        wait_ready(server.base)
+        server.wait_ready()
         server.kill(signal.SIGTERM)
         elapsed = time.perf_counter() - started
-        with sqlite3.connect(server.database) as con:
+        with sqlite3.connect(database) as con:
             stored, distinct = con.execute("SELECT COUNT(*), COUNT(DISTINCT CAST(participant_id AS TEXT) || '-' || "
                                            "CAST(seq AS TEXT)) FROM events").fetchone()
             rows = Counter(r for (r,) in con.execute("SELECT row FROM participants"))

@@ -273,8 +273,9 @@ class Bot:
             raise FlowError(f"GET /study/{self.study}/ → {r.status}")
         return r
 
-    def post_form(self, step: str, form: dict) -> Response:
-        token = re.search(r'name="csrf_token" value="([^"]+)"', self.page().text)
+    def post_form(self, step: str, form: dict, page: str) -> Response:
+        """Submit a form of ``page`` (the text of the page just shown, which carries the form's CSRF token)."""
+        token = re.search(r'name="csrf_token" value="([^"]+)"', page)
         r = self.http.post(f"/study/{self.study}/{step}", form={"csrf_token": token.group(1) if token else "", **form})
         if r.status >= 400:
             raise FlowError(f"POST {step} → {r.status}")
@@ -299,15 +300,15 @@ class Bot:
                     self.result.dropped_out = True
                     return self.result
             elif 'name="width"' in text:
-                self.post_form("device", {"width": "1440", "height": "900"})
+                self.post_form("device", {"width": "1440", "height": "900"}, text)
             elif 'name="agree"' in text:
-                self.post_form("consent", {"agree": "yes"})
+                self.post_form("consent", {"agree": "yes"}, text)
             elif 'id="exit-form"' in text:
                 self.survey("exit", text)
             elif 'class="survey"' in text:
                 self.survey("demographics", text)
             elif 'name="go"' in text:
-                self.post_form("instructions", {"go": "next"})
+                self.post_form("instructions", {"go": "next"}, text)
             else:
                 code = re.search(r'class="code">([^<]+)<', text)
                 self.result.code = code.group(1) if code else None
@@ -337,7 +338,7 @@ class Bot:
             answers[q] = ""
         if name == "exit":
             answers |= {"last_seq": str(self.seq - 1), "attempt": "0"}
-        self.post_form(name, answers)
+        self.post_form(name, answers, text)
 
     # -- a trial --------------------------------------------------------------------------------------------------
     def api(self, method: str, path: str, body=None) -> dict:
@@ -361,8 +362,9 @@ class Bot:
         present = {o["id"] for o in start["objects"]}
         self.scene = [dict(o) for o in start["objects"]]
         self.event("trial_start", {"scene": self.trial["scene"], "condition": condition})
-        self.fixed = self.api("GET", "/models")["models"]
-        self.library = {m["id"]: m for m in self.fixed}
+        if not self.library:  # the study's models, once per session
+            self.fixed = self.api("GET", "/models")["models"]
+            self.library = {m["id"]: m for m in self.fixed}
         todo = [o for o in target["objects"] if o["id"] not in present]
         reopen_at = len(todo) // 2 if (self.chance(self.does.reload) or self.chance(self.does.second_tab)) else None
         for k, obj in enumerate(todo):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("SCENESUGGEST_SHARED_DATA", ROOT.parent / "shared" / "data"))
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
+sys.path.insert(0, str(ROOT / "benchmarks"))  # serverproc: the server as a subprocess, shared with the benchmarks
 
 
 def require(path: Path, what: str) -> Path:
@@ -72,36 +74,12 @@ def demo_resources():
 def gunicorn(tmp: Path, workers: int = 2):
     """The study server as `make serve` runs it (gunicorn, the demo study) on a fresh SQLite database in ``tmp``
     and a free loopback port; yields (base URL, database path)."""
-    import signal
-    import socket
-    import subprocess
-    import sys
-    import time
-    import urllib.request
+    from serverproc import StudyServer
 
     database = tmp / "study.sqlite3"
-    make_app(tmp, f"sqlite:///{database}")
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    env = {**os.environ, "DATABASE_URL": f"sqlite:///{database}", "SCENESUGGEST_INSTANCE": str(tmp / "instance"),
-           "SCENESUGGEST_STUDIES": str(DEMO_STUDY), "SCENESUGGEST_SECRET_KEY": "test-server"}
-    proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "-w", str(workers), "-b", f"127.0.0.1:{port}",
-                             "study_server:create_app()"], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        for _ in range(300):
-            try:
-                urllib.request.urlopen(f"{base}/api/openapi.json", timeout=5).close()
-                break
-            except OSError:
-                time.sleep(0.1)
-        yield base, database
-    finally:
-        os.killpg(proc.pid, signal.SIGTERM)
-        proc.wait(timeout=20)
+    make_app(tmp, f"sqlite:///{database}")  # migrated here, before the workers start
+    with StudyServer(tmp / "instance", f"sqlite:///{database}", workers, migrate=False) as server:
+        yield server.base, database
 
 
 def make_app(tmp_path, database_url: str | None = None, studies=None, **config):

@@ -2,19 +2,14 @@
 gunicorn workers), on SQLite and on PostgreSQL; one session per platform id."""
 
 import multiprocessing
-import os
 import signal
-import socket
-import subprocess
-import sys
-import time
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
 
 import pytest
 import requests
-from conftest import DEMO_STUDY, ROOT, make_app
+from conftest import DEMO_STUDY, make_app
 
 from study_server.assignment import arrive, row_counts
 from study_server.extensions import db
@@ -95,34 +90,17 @@ def test_concurrent_arrivals_in_processes(tmp_path, request, backend, demo_resou
     check_balanced(app, results, 41)
 
 
-def free_port() -> int:
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
 @pytest.fixture
 def gunicorn_server(tmp_path, request, demo_resources):
     """`make serve`'s server (gunicorn, 3 workers) on a fresh database; yields (base URL, app for queries)."""
     def start(database_url):
+        from serverproc import StudyServer
+
         app = make_app(tmp_path, database_url)  # migrates before the workers start
-        port = free_port()
-        env = {**os.environ, "DATABASE_URL": database_url, "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"),
-               "SCENESUGGEST_STUDIES": str(DEMO_STUDY), "SCENESUGGEST_SECRET_KEY": "x"}
-        proc = subprocess.Popen([sys.executable, "-m", "gunicorn", "-w", "3", "-b", f"127.0.0.1:{port}",
-                                 "study_server:create_app()"], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL, start_new_session=True)
-        request.addfinalizer(lambda: os.killpg(proc.pid, signal.SIGTERM))
-        base = f"http://127.0.0.1:{port}"
-        for _ in range(100):
-            try:
-                requests.get(f"{base}/api/openapi.json", timeout=5)
-                return base, app
-            except requests.RequestException:
-                time.sleep(0.1)
-        raise RuntimeError("gunicorn did not start")
+        server = StudyServer(tmp_path / "instance", database_url, workers=3, migrate=False)
+        request.addfinalizer(lambda: server.kill(signal.SIGTERM))
+        server.start().wait_ready(timeout_s=10)
+        return server.base, app
     return start
 
 
