@@ -14,8 +14,9 @@ DEMO_PRIORS := var/priors/ai2thor.npz
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
-# The built-in demo study's model library (procedural meshes) and priors: built once, kept in var/.
-$(DEMO_LIBRARY): | $(PIP_STAMP)
+# The built-in demo study's model library (procedural meshes; rebuilt when the asset code changes) and priors,
+# kept in var/.
+$(DEMO_LIBRARY): $(wildcard scenesuggest/assets/*.py) | $(PIP_STAMP)
 	$(BIN)/scenesuggest assets build ai2thor --out var/library/ai2thor
 
 $(DEMO_PRIORS): | $(PIP_STAMP)

@@ -90,6 +90,7 @@ def main() -> int:
             count = len(measure.evaluate("() => window.sceneSuggestTest.objects()")) - 1
             time.sleep(0.5)
             fps = measure.evaluate(f"() => window.sceneSuggestTest.orbit({args.seconds * 1000})")
+            drawn = measure.evaluate("() => window.sceneSuggestTest.renderInfo()")
             transferred = measure.evaluate("""() => {
               const nav = performance.getEntriesByType('navigation')[0];
               const res = performance.getEntriesByType('resource');
@@ -107,6 +108,8 @@ def main() -> int:
         "viewport": "800x600",
         "objects": count,
         "fps": round(fps, 1),
+        "draw_calls": drawn["calls"],
+        "triangles": drawn["triangles"],
         "first_frame_ms": round(first_frame, 1),
         "page_mb": round(total / 2**20, 3),
         "js_mb": round(transferred["js"] / 2**20, 3),

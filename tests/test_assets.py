@@ -10,6 +10,7 @@ from PIL import Image
 
 from scenesuggest.assets.build import build_library, file_stem
 from scenesuggest.assets.convert import GLB_BUDGET_BYTES, convert_model
+from scenesuggest.assets.primitives import closed_volume
 from scenesuggest.assets.procedural import BUILDERS, procedural_model
 from scenesuggest.assets.render import render_thumbnail
 from scenesuggest.corpora.corpus import Corpus
@@ -65,6 +66,32 @@ def test_procedural_model_fits_its_box(object_type):
     assert hi - lo == pytest.approx(size, abs=1e-6)
     assert lo[1] == pytest.approx(0, abs=1e-9)
     assert all(isinstance(g.visual.material.baseColorFactor, np.ndarray) for g in scene.geometry.values())
+
+
+def test_closed_volume_tells_solids_from_sheets_and_inside_out_shells():
+    assert closed_volume(trimesh.creation.box())
+    assert closed_volume(trimesh.util.concatenate([trimesh.creation.box(), trimesh.creation.icosphere()]))
+    box = trimesh.creation.box()
+    assert not closed_volume(trimesh.Trimesh(box.vertices, box.faces[2:]))  # one side missing: open
+    inside_out = trimesh.creation.icosphere()
+    inside_out.invert()
+    assert not closed_volume(trimesh.util.concatenate([trimesh.creation.box(extents=[4, 4, 4]), inside_out]))
+    assert not closed_volume(trimesh.Trimesh(np.eye(3), [[0, 1, 2]]))
+
+
+def test_only_closed_parts_are_single_sided():
+    """A chair is all solids (back faces may be culled); a CD is a flat disc, seen from both sides."""
+    chair = procedural_model("Chair", (0.5, 0.9, 0.5))
+    assert all(not g.visual.material.doubleSided for g in chair.geometry.values())
+    disc = procedural_model("CD", (0.12, 0.002, 0.12))
+    assert any(g.visual.material.doubleSided for g in disc.geometry.values())
+
+
+def test_converted_parts_are_double_sided_unless_closed(stanford, tmp_path):
+    info = stanford.models[DESK]
+    scene = convert_model(info, info.mesh, tmp_path / "d.glb")
+    for g in scene.geometry.values():
+        assert g.visual.material.doubleSided == (not closed_volume(g))
 
 
 def test_procedural_models_are_composed_of_recognisable_parts(ai2thor):

@@ -4,7 +4,8 @@ Budget: at most :data:`FACE_BUDGET` triangles and :data:`GLB_BUDGET_BYTES` per G
 decimated (quadric error, ``fast-simplification``) in proportion to each part's share of the faces; a
 textured part that must be decimated loses its UVs and takes its texture's mean colour instead, and
 textures are downsized to :data:`TEXTURE_MAX_PX`. Materials are exported double-sided, because
-3D Warehouse models often have faces wound either way.
+3D Warehouse models often have faces wound either way — except a part that is a closed, consistently and
+outward-wound volume, whose back faces the viewer may cull.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from trimesh.visual.material import PBRMaterial
 
 from ..errors import SceneSuggestError
 from ..library import ModelInfo
+from .primitives import closed_volume
 
 FACE_BUDGET = 40000
 GLB_BUDGET_BYTES = 2 * 1024 * 1024
@@ -86,8 +88,9 @@ def canonical_meshes(source: trimesh.Scene, info: ModelInfo, face_budget: int = 
             flat = PBRMaterial(baseColorFactor=_mean_colour(material), metallicFactor=0.0, roughnessFactor=0.9,
                                doubleSided=True)
             visual = trimesh.visual.TextureVisuals(material=flat)
-        out.add_geometry(trimesh.Trimesh(mesh.vertices, mesh.faces, visual=visual, process=False),
-                         geom_name=f"part{i:03d}")
+        part = trimesh.Trimesh(mesh.vertices, mesh.faces, visual=visual, process=False)
+        visual.material.doubleSided = not closed_volume(part)
+        out.add_geometry(part, geom_name=f"part{i:03d}")
     return out
 
 

@@ -71,13 +71,25 @@ def turn(parts: list[Part], degrees: float) -> list[Part]:
     return out
 
 
-def _material(rgb) -> PBRMaterial:
+def closed_volume(mesh: trimesh.Trimesh) -> bool:
+    """True if every connected piece of ``mesh`` is watertight, consistently wound and faces outward, so a
+    viewer may cull its back faces (only its outside is ever seen)."""
+    welded = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
+    pieces = welded.split(only_watertight=False, repair=False)  # never fill holes here
+    with np.errstate(all="ignore"):  # degenerate slivers have no centre of mass: not a volume, no warning
+        return bool(len(pieces)) and all(p.is_volume for p in pieces)
+
+
+def _material(rgb, double_sided: bool) -> PBRMaterial:
     color = np.array([*(np.clip(np.asarray(rgb, dtype=float), 0, 1) * 255), 255], dtype=np.uint8)
-    return PBRMaterial(baseColorFactor=color, metallicFactor=0.0, roughnessFactor=0.8, doubleSided=True)
+    return PBRMaterial(baseColorFactor=color, metallicFactor=0.0, roughnessFactor=0.8, doubleSided=double_sided)
 
 
 def assemble(parts: list[Part], size) -> trimesh.Scene:
-    """Scale normalised parts to ``size`` (metres), fit the union exactly to the bbox and merge by colour."""
+    """Scale normalised parts to ``size`` (metres), fit the union exactly to the bbox and merge by colour.
+
+    A merged part that is a closed, outward-wound volume gets a single-sided material (the viewer culls its
+    back faces, half the shading work); open parts (a disc, a sheet) stay double-sided."""
     size = np.asarray(size, dtype=float)
     meshes = [(m.copy(), tuple(rgb)) for m, rgb in parts]
     lo = np.min([m.bounds[0] for m, _ in meshes], axis=0)
@@ -92,6 +104,6 @@ def assemble(parts: list[Part], size) -> trimesh.Scene:
     scene = trimesh.Scene()
     for i, (rgb, group) in enumerate(by_colour.items()):
         merged = trimesh.util.concatenate(group)
-        merged.visual = trimesh.visual.TextureVisuals(material=_material(rgb))
+        merged.visual = trimesh.visual.TextureVisuals(material=_material(rgb, not closed_volume(merged)))
         scene.add_geometry(merged, geom_name=f"part{i:02d}")
     return scene

@@ -6,9 +6,11 @@ import { mergeGeometries } from "three/addons/utils/BufferGeometryUtils.js";
 
 const loader = new GLTFLoader();
 
-/** One draw call per model: untextured parts are merged into a single mesh with vertex colours and matte
- * (Lambert) shading — several times cheaper than separate PBR parts on software WebGL, which is what many
- * participants' laptops fall back to. Textured models keep their parts, shaded matte. */
+/** At most two draw calls per model: untextured parts are merged, with vertex colours and matte (Lambert)
+ * shading, into one mesh of the closed parts (back faces culled: the asset pipeline marks a part single-sided
+ * only when it is a closed, outward-wound volume) and one of the open, double-sided parts. Several times cheaper
+ * than separate PBR parts on software WebGL, which is what many participants' laptops fall back to. Textured
+ * models keep their parts, shaded matte. */
 function simplify(scene) {
   scene.updateMatrixWorld(true);
   const parts = [];
@@ -26,25 +28,30 @@ function simplify(scene) {
     }
     return scene;
   }
-  const geometries = parts.map((node) => {
-    const g = new THREE.BufferGeometry();
-    const source = node.geometry.index ? node.geometry.toNonIndexed() : node.geometry;
-    g.setAttribute("position", source.getAttribute("position").clone());
-    if (source.getAttribute("normal")) g.setAttribute("normal", source.getAttribute("normal").clone());
-    else g.computeVertexNormals();
-    const n = g.getAttribute("position").count;
-    const colour = new THREE.Color(node.material.color);
-    const colours = new Float32Array(n * 3);
-    for (let i = 0; i < n; i += 1) colours.set([colour.r, colour.g, colour.b], i * 3);
-    g.setAttribute("color", new THREE.BufferAttribute(colours, 3));
-    g.applyMatrix4(node.matrixWorld);
-    return g;
-  });
-  const merged = new THREE.Mesh(mergeGeometries(geometries),
-    new THREE.MeshLambertMaterial({ vertexColors: true, side: THREE.DoubleSide }));
   const group = new THREE.Group();
-  group.add(merged);
+  for (const side of [THREE.FrontSide, THREE.DoubleSide]) {
+    const same = parts.filter((node) => (node.material.side === THREE.FrontSide) === (side === THREE.FrontSide));
+    if (!same.length) continue;
+    group.add(new THREE.Mesh(mergeGeometries(same.map(colouredGeometry)),
+      new THREE.MeshLambertMaterial({ vertexColors: true, side })));
+  }
   return group;
+}
+
+/** A part's triangles in model coordinates, non-indexed, with its material colour as a vertex colour. */
+function colouredGeometry(node) {
+  const g = new THREE.BufferGeometry();
+  const source = node.geometry.index ? node.geometry.toNonIndexed() : node.geometry;
+  g.setAttribute("position", source.getAttribute("position").clone());
+  if (source.getAttribute("normal")) g.setAttribute("normal", source.getAttribute("normal").clone());
+  else g.computeVertexNormals();
+  const n = g.getAttribute("position").count;
+  const colour = new THREE.Color(node.material.color);
+  const colours = new Float32Array(n * 3);
+  for (let i = 0; i < n; i += 1) colours.set([colour.r, colour.g, colour.b], i * 3);
+  g.setAttribute("color", new THREE.BufferAttribute(colours, 3));
+  g.applyMatrix4(node.matrixWorld);
+  return g;
 }
 
 export class ModelLibrary {

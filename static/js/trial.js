@@ -256,6 +256,8 @@ async function main() {
     lastSeq: () => outbox.lastSeq,
     pending: () => outbox.pendingCount,
     frames: () => viewer.frames,
+    /** What the last frame drew: draw calls and triangles (for the client benchmark). */
+    renderInfo: () => ({ calls: viewer.renderer.info.render.calls, triangles: viewer.renderer.info.render.triangles }),
     /** Orbit the camera round its target for ``ms`` milliseconds, one step per animation frame; resolves the
      * frame rate the view kept up (for the client benchmark). */
     orbit: (ms) => new Promise((resolve) => {
