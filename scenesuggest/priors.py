@@ -256,8 +256,8 @@ def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
     )
     meta = {"format": FORMAT, "version": VERSION, "categories": categories, "entities": entities,
             "scene_types": scene_types, "model_ids": model_ids, "taxonomy": tax.to_dict(),
-            "scenes": len(scenes), "supports": len(supports), "k_max": K_MAX, "bins": BINS,
-            "min_observations": MIN_OBSERVATIONS}
+            "scenes": len(scenes), "scene_ids": sorted(s.id for s in scenes), "supports": len(supports),
+            "k_max": K_MAX, "bins": BINS, "min_observations": MIN_OBSERVATIONS}
     return Priors(arrays, meta)
 
 

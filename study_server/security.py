@@ -27,7 +27,8 @@ def csrf_token() -> str:
 
 
 def check_csrf() -> None:
-    sent = request.form.get("csrf_token", "")
+    """The form's token (or, for the admin's JSON requests, the ``X-CSRF-Token`` header) must be this session's."""
+    sent = request.headers.get("X-CSRF-Token") or request.form.get("csrf_token", "")
     if not sent or not hmac.compare_digest(sent, session.get("csrf", "")):
         abort(400, "The form has expired; please go back and try again.")
 

@@ -7,6 +7,7 @@ export class SceneModel {
   constructor(doc) {
     this.id = doc.id || "editor";
     this.sceneType = doc.scene_type || "Room";
+    this.source = doc.source || "editor";
     this.objects = new Map();
     for (const o of doc.objects || []) this.objects.set(o.id, SceneModel.fromJSON(o));
     this.counter = 0;
@@ -25,7 +26,7 @@ export class SceneModel {
   }
 
   toJSON() {
-    return { format: "scenesuggest-scene", version: 1, id: this.id, scene_type: this.sceneType, source: "editor",
+    return { format: "scenesuggest-scene", version: 1, id: this.id, scene_type: this.sceneType, source: this.source,
       objects: [...this.objects.values()].map(SceneModel.toJSON) };
   }
 

@@ -7,7 +7,7 @@ import { ModelLibrary } from "./models.js";
 import { Outbox } from "./outbox.js";
 import { ModelListPanel, SuggestionPanel } from "./panels.js";
 import { SceneModel } from "./scene-model.js";
-import { Viewer } from "./viewer.js";
+import { renderImage, Viewer } from "./viewer.js";
 
 const boot = JSON.parse(document.getElementById("boot").textContent);
 const strings = JSON.parse(document.getElementById("strings").textContent);
@@ -122,7 +122,7 @@ async function main() {
     outbox.resumeFrom(state.acked_seq);
   }
   const [models, target, start] = await Promise.all([json("/models"), json(`/scenes/${trial.scene}?which=target`),
-    json(`/scenes/${trial.scene}?which=start`)]);
+    json(`/scenes/${trial.scene}?which=${boot.author ? "target" : "start"}`)]);  // authoring edits the target
   say("");
   const saved = localStorage.getItem(sceneKey);
   const scene = new SceneModel(saved ? JSON.parse(saved) : start);
@@ -214,10 +214,14 @@ async function main() {
   $("target").addEventListener("mouseenter", () => $("target").classList.add("large"));
   $("target").addEventListener("mouseleave", () => $("target").classList.remove("large"));
 
-  const dialog = $("confirm-done");
-  $("done-button").addEventListener("click", () => dialog.showModal());
-  $("confirm-no").addEventListener("click", () => dialog.close());
-  $("confirm-yes").addEventListener("click", () => { dialog.close(); finish(scene); });
+  if (boot.author) {
+    authoring(scene, library);
+  } else {
+    const dialog = $("confirm-done");
+    $("done-button").addEventListener("click", () => dialog.showModal());
+    $("confirm-no").addEventListener("click", () => dialog.close());
+    $("confirm-yes").addEventListener("click", () => { dialog.close(); finish(scene); });
+  }
 
   window.sceneSuggestTest = {
     ready: false, condition: trial.condition, trial: trial.index, lastSuggest: null, events: testLog,
@@ -281,6 +285,34 @@ async function main() {
   viewer.loop();
   setInterval(() => { if (!boot.preview) api("/heartbeat", { method: "POST" }).catch(() => {}); }, 30000);
   window.sceneSuggestTest.ready = true;
+}
+
+/** The admin's authoring mode: save the scene as the study's target, render its target image. */
+function authoring(scene, library) {
+  const post = async (url, body) => {
+    const r = await fetch(url, { method: "POST", credentials: "same-origin", body: JSON.stringify(body),
+      headers: { "Content-Type": "application/json", "X-CSRF-Token": boot.author.csrf } });
+    const data = await r.json().catch(() => ({ error: `HTTP ${r.status}` }));
+    if (!r.ok) throw new Error(data.field ? `${data.error} (${data.field})` : data.error);
+    return data;
+  };
+  const busy = async (button, work) => {
+    button.disabled = true;
+    try { say(await work()); } catch (e) { say(strings.saveFailed.replace("{error}", e.message)); }
+    finally { button.disabled = false; }
+  };
+  if (boot.author.frozen) say(strings.frozen);
+  $("save-button").addEventListener("click", (e) => busy(e.currentTarget, async () => {
+    const saved = await post(boot.author.save, { scene: scene.toJSON() });
+    window.sceneSuggestTest.saved = saved;
+    return strings.saved.replace("{file}", boot.author.file).replace("{n}", saved.objects);
+  }));
+  $("image-button").addEventListener("click", (e) => busy(e.currentTarget, async () => {
+    const png = await renderImage(scene, (o) => library.instance(o.modelId, o.size));
+    const saved = await post(boot.author.image, { png });
+    window.sceneSuggestTest.imageSaved = saved;
+    return strings.imageSaved.replace("{w}", saved.width).replace("{h}", saved.height);
+  }));
 }
 
 async function finish(scene) {

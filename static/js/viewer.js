@@ -204,6 +204,32 @@ export class Viewer {
   }
 }
 
+/** A scene's objects on their room with a camera that frames them from the front, a little above (the target
+ * inset and the target image); ``ready`` resolves when every model has loaded. */
+function framedScene(model, instances) {
+  const scene = new THREE.Scene();
+  lights(scene);
+  scene.add(roomMesh(model.worldBox(model.root), model.root.id));
+  const camera = new THREE.PerspectiveCamera(40, 1, 0.05, 100);
+  const box = new THREE.Box3();
+  const ready = [];
+  for (const o of model.objects.values()) {
+    if (o.parent === null) continue;
+    const mesh = instances(o);
+    mesh.matrixAutoUpdate = false;
+    mesh.matrix.copy(o.matrix);
+    scene.add(mesh);
+    box.union(model.worldBox(o));
+    ready.push(mesh.userData.ready);
+  }
+  if (box.isEmpty()) box.copy(model.worldBox(model.root));
+  const centre = box.getCenter(new THREE.Vector3());
+  const radius = Math.max(box.getSize(new THREE.Vector3()).length() / 2, 0.6);
+  camera.position.set(centre.x + radius * 1.1, centre.y + radius * 1.3, centre.z + radius * 2.1);
+  camera.lookAt(centre);
+  return { scene, camera, ready: Promise.all(ready) };
+}
+
 class TargetView {
   constructor(model, instances, element) {
     this.element = element;
@@ -211,27 +237,10 @@ class TargetView {
     this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
     this.renderer.setClearColor(0xffffff);
     element.append(this.renderer.domElement);
-    this.scene = new THREE.Scene();
-    lights(this.scene);
-    this.scene.add(roomMesh(model.worldBox(model.root), model.root.id));
-    this.camera = new THREE.PerspectiveCamera(40, 1, 0.05, 100);
-    const box = new THREE.Box3();
-    const ready = [];
-    for (const o of model.objects.values()) {
-      if (o.parent === null) continue;
-      const mesh = instances(o);
-      mesh.matrixAutoUpdate = false;
-      mesh.matrix.copy(o.matrix);
-      this.scene.add(mesh);
-      box.union(model.worldBox(o));
-      ready.push(mesh.userData.ready);
-    }
-    if (box.isEmpty()) box.copy(model.worldBox(model.root));
-    const centre = box.getCenter(new THREE.Vector3());
-    const radius = Math.max(box.getSize(new THREE.Vector3()).length() / 2, 0.6);
-    this.camera.position.set(centre.x + radius * 1.1, centre.y + radius * 1.3, centre.z + radius * 2.1);
-    this.camera.lookAt(centre);
-    this.ready = Promise.all(ready).then(() => this.render());
+    const { scene, camera, ready } = framedScene(model, instances);
+    this.scene = scene;
+    this.camera = camera;
+    this.ready = ready.then(() => this.render());
     new ResizeObserver(() => this.render()).observe(element);
     this.render();
   }
@@ -243,5 +252,24 @@ class TargetView {
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
     this.renderer.render(this.scene, this.camera);
+  }
+}
+
+/** A PNG data URL of ``model`` framed as the target inset frames it, ``width`` × ``height`` pixels, once every
+ * model has loaded (the target image of a study's scene). */
+export async function renderImage(model, instances, width = 1280, height = 960) {
+  const { scene, camera, ready } = framedScene(model, instances);
+  await ready;
+  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  try {
+    renderer.setPixelRatio(1);
+    renderer.setSize(width, height, false);
+    renderer.setClearColor(0xffffff);
+    camera.aspect = width / height;
+    camera.updateProjectionMatrix();
+    renderer.render(scene, camera);
+    return renderer.domElement.toDataURL("image/png");
+  } finally {
+    renderer.dispose();
   }
 }

@@ -7,14 +7,27 @@ import secrets
 from collections import Counter
 from datetime import timedelta
 
-from flask import Blueprint, Response, abort, current_app, redirect, render_template, request, session, url_for
+from flask import (
+    Blueprint,
+    Response,
+    abort,
+    current_app,
+    jsonify,
+    redirect,
+    render_template,
+    request,
+    send_file,
+    session,
+    url_for,
+)
 from sqlalchemy import func, select
 
+from ..authoring import AuthoringError, checked_png, checked_scene, image_path, write_atomically
 from ..export import export_zip
 from ..extensions import db
 from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
 from ..runtime import runtime
-from ..security import admin_required, attempt_login, check_csrf, client_ip, login_blocked
+from ..security import admin_required, attempt_login, check_csrf, client_ip, csrf_token, login_blocked
 from .api import preview_token
 
 bp = Blueprint("admin", __name__, url_prefix="/admin")
@@ -126,7 +139,8 @@ def exclude(study_id: str, pid: int):
 @admin_required
 def preview_grid(study_id: str):
     study = runtime(study_id).study
-    return render_template("admin/preview.html", study=study)
+    images = {sid: image_path(s.target).is_file() for sid, s in study.scenes.items()}
+    return render_template("admin/preview.html", study=study, images=images)
 
 
 @bp.get("/<study_id>/preview/<condition>/<scene_id>")
@@ -136,13 +150,96 @@ def preview(study_id: str, condition: str, scene_id: str):
     study = rt.study
     if condition not in [c.id for c in study.conditions] or scene_id not in study.scenes:
         abort(404)
-    boot = {"study": study_id, "token": preview_token(study_id, condition, scene_id), "preview": True,
-            "trial": {"index": 0, "kind": "preview", "condition": condition, "scene": scene_id, "block": 0,
-                      "number": 1, "of": 1}, "page_id": secrets.token_hex(8),
-            "api": url_for("api.session_state").rsplit("/", 1)[0],
-            "next": url_for(".preview_grid", study_id=study_id), "limits": {"trial_minutes": study.trial_minutes}}
+    boot = _preview_boot(study, condition, scene_id, url_for(".preview_grid", study_id=study_id))
     return render_template("trial.html", study=study, p=None, trial=None, condition=study.condition(condition),
                            boot=boot, scene_title=study.scenes[scene_id].title, preview=True)
+
+
+def _preview_boot(study, condition: str, scene_id: str, back: str) -> dict:
+    return {"study": study.id, "token": preview_token(study.id, condition, scene_id), "preview": True,
+            "trial": {"index": 0, "kind": "preview", "condition": condition, "scene": scene_id, "block": 0,
+                      "number": 1, "of": 1}, "page_id": secrets.token_hex(8),
+            "api": url_for("api.session_state").rsplit("/", 1)[0], "next": back,
+            "limits": {"trial_minutes": study.trial_minutes}}
+
+
+def _authoring_condition(study) -> str:
+    """Authoring composes with suggestions (oriented if the study has them) and search."""
+    ids = [c.id for c in study.conditions]
+    return next((c for c in ("full", "basic") if c in ids), ids[0])
+
+
+@bp.get("/<study_id>/author/<scene_id>")
+@admin_required
+def author(study_id: str, scene_id: str):
+    """The scene editor in authoring mode: opens the scene's target, saves it back, renders its image."""
+    rt = runtime(study_id)
+    study = rt.study
+    if scene_id not in study.scenes:
+        abort(404)
+    condition = _authoring_condition(study)
+    boot = _preview_boot(study, condition, scene_id, url_for(".preview_grid", study_id=study_id))
+    target = study.scenes[scene_id].target
+    boot["author"] = {"save": url_for(".author_save", study_id=study_id, scene_id=scene_id),
+                      "image": url_for(".author_image", study_id=study_id, scene_id=scene_id),
+                      "csrf": csrf_token(), "file": target.name, "frozen": _frozen(study_id)}
+    return render_template("trial.html", study=study, p=None, trial=None, condition=study.condition(condition),
+                           boot=boot, scene_title=study.scenes[scene_id].title, preview=True, author=True)
+
+
+def _frozen(study_id: str) -> int:
+    """How many participants have started the study (its targets are then frozen)."""
+    return db.session.scalar(select(func.count()).select_from(Participant)
+                             .where(Participant.study_id == study_id)) or 0
+
+
+def _authoring_request(study_id: str, scene_id: str, key: str):
+    rt = runtime(study_id)
+    if scene_id not in rt.study.scenes:
+        raise AuthoringError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
+    sent = request.headers.get("X-CSRF-Token", "")
+    if not sent or not secrets.compare_digest(sent, session.get("csrf", "")):
+        raise AuthoringError(400, "the page has expired; reload it and save again", "X-CSRF-Token")
+    started = _frozen(study_id)
+    if started:
+        raise AuthoringError(409, f"{started} participant(s) have started this study: its target scenes are frozen "
+                                  "(author on a copy of the study)", "scene_id")
+    doc = request.get_json(silent=True)
+    if not isinstance(doc, dict) or key not in doc:
+        raise AuthoringError(400, f"expected a JSON object with {key!r}", key)
+    return rt, doc[key]
+
+
+@bp.errorhandler(AuthoringError)
+def _authoring_error(e: AuthoringError):
+    return jsonify({"error": e.message, "field": e.field}), e.status
+
+
+@bp.post("/<study_id>/author/<scene_id>")
+@admin_required
+def author_save(study_id: str, scene_id: str):
+    rt, doc = _authoring_request(study_id, scene_id, "scene")
+    data = checked_scene(doc, scene_id, rt.library)
+    target = rt.study.scenes[scene_id].target
+    write_atomically(target, data)
+    current_app.logger.info("target scene %s of %s saved by the admin (%d bytes)", scene_id, study_id, len(data))
+    return jsonify({"saved": str(target), "objects": len(json.loads(data)["objects"]) - 1})
+
+
+@bp.route("/<study_id>/author/<scene_id>/image", methods=["GET", "POST"])
+@admin_required
+def author_image(study_id: str, scene_id: str):
+    """GET: the target's rendered image; POST {"png": data URL}: save it beside the target."""
+    if request.method == "GET":
+        study = runtime(study_id).study
+        if scene_id not in study.scenes or not image_path(study.scenes[scene_id].target).is_file():
+            abort(404)
+        return send_file(image_path(study.scenes[scene_id].target), mimetype="image/png", max_age=0)
+    rt, data_url = _authoring_request(study_id, scene_id, "png")
+    data, (width, height) = checked_png(data_url)
+    path = image_path(rt.study.scenes[scene_id].target)
+    write_atomically(path, data)
+    return jsonify({"saved": str(path), "width": width, "height": height})
 
 
 @bp.get("/<study_id>/export.zip")
