@@ -10,7 +10,7 @@ NPM_STAMP := node_modules/.installed
 DEMO_LIBRARY := var/library/ai2thor/library.json
 DEMO_PRIORS := var/priors/ai2thor.npz
 
-.PHONY: setup demo demo-report demo-power test lint audit pytest serve bench clean
+.PHONY: setup demo demo-report demo-power replication serve-replication test lint audit pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
@@ -64,6 +64,30 @@ demo-report: demo
 # How many participants the demo needs: power of every test at N = 10, 20, 40 from the demo report's pilot.
 demo-power: demo-report
 	$(BIN)/scenesuggest analyze power --export $(DEMO_REPORT)/export --participants 10,20,40 --studies 100
+
+# The SceneSuggest replication (experiments/scenesuggest-2015): prepare its library, priors and targets from your
+# copy of the Stanford Scene Database ($$SCENESUGGEST_STANFORD_DIR, default ../shared/data/stanford_scene_db),
+# run 20 simulated participants, export, analyse, and write the report and its comparison with the paper into
+# experiments/scenesuggest-2015/results/.
+REPLICATION := experiments/scenesuggest-2015
+REPLICATION_RUN := var/experiments/scenesuggest-2015/run
+SCENESUGGEST_STANFORD_DIR ?= $(CURDIR)/../shared/data/stanford_scene_db
+replication: setup
+	SCENESUGGEST_STANFORD_DIR=$(SCENESUGGEST_STANFORD_DIR) $(BIN)/python $(REPLICATION)/prepare.py
+	rm -rf $(REPLICATION_RUN) && mkdir -p $(REPLICATION_RUN)
+	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
+		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study simulate --participants 20 --seed 0
+	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml \
+		$(BIN)/scenesuggest study export --study scenesuggest-2015 --db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3 \
+		--out $(REPLICATION_RUN)/export
+	rm -rf $(REPLICATION)/results/report
+	$(BIN)/scenesuggest analyze report --export $(REPLICATION_RUN)/export --out $(REPLICATION)/results/report
+	$(BIN)/python $(REPLICATION)/compare.py
+
+# The replication study served for people (prepared first): http://127.0.0.1:5000/study/scenesuggest-2015/start?pid=…
+serve-replication: setup
+	SCENESUGGEST_STANFORD_DIR=$(SCENESUGGEST_STANFORD_DIR) $(BIN)/python $(REPLICATION)/prepare.py
+	SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study serve --host 127.0.0.1 --port 5000
 
 bench: demo
 	$(BIN)/python benchmarks/bench_corpus.py

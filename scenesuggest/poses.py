@@ -162,6 +162,18 @@ def reference_heading(point, normal, ref_transform: np.ndarray, radial: bool) ->
     return 0.0 if math.isnan(h) else h
 
 
+def turn_about(placed: np.ndarray, target: np.ndarray, normal) -> float:
+    """Signed turn (radians, about the unit ``normal``, counter-clockwise seen from its tip) that takes the
+    orientation ``placed`` to ``target`` (3×3 canonical → world rotations of one object on one surface): what
+    a person must turn by after placing it. Measured on the canonical axis that ``target`` holds most nearly
+    in the surface plane."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    placed, target = np.asarray(placed, dtype=float), np.asarray(target, dtype=float)
+    k = int(np.argmin(np.abs(target.T @ n)))
+    a, b = placed[:, k] - np.dot(placed[:, k], n) * n, target[:, k] - np.dot(target[:, k], n) * n
+    return math.atan2(float(np.dot(n, np.cross(a, b))), float(np.dot(a, b)))
+
+
 def wrap(angle):
     """Angles (radians) into [0, 2π)."""
     return np.mod(angle, 2 * math.pi)

@@ -25,6 +25,7 @@ from html.parser import HTMLParser
 
 import numpy as np
 
+from scenesuggest import poses
 from scenesuggest.symmetry import glb_symmetry_period_deg, visible_turn_deg
 
 #: Keystroke-level model operators, seconds (Card, Moran & Newell 1980).
@@ -185,8 +186,15 @@ def heading_deg(transform: list[float]) -> float:
     return math.degrees(math.atan2(transform[8], transform[10]))
 
 
-def wrap_deg(a: float) -> float:
-    return (a + 180.0) % 360.0 - 180.0
+def rotation_of(transform: list[float]) -> np.ndarray:
+    """The 3×3 rotation of a column-major 4×4 rigid transform."""
+    return np.asarray(transform, dtype=float).reshape(4, 4).T[:3, :3]
+
+
+def canonical_rotation(obj: dict) -> np.ndarray:
+    """How the list, search and the basic interface place an object: its attachment face on the surface, not
+    turned (α = 0)."""
+    return poses.attach_rotation(obj["attachment_face"], obj["contact_normal"])
 
 
 def words(category: str) -> str:
@@ -367,12 +375,17 @@ class Bot:
             self.library = {m["id"]: m for m in self.fixed}
         todo = [o for o in target["objects"] if o["id"] not in present]
         reopen_at = len(todo) // 2 if (self.chance(self.does.reload) or self.chance(self.does.second_tab)) else None
+        in_scene = {o["id"] for o in self.scene}
         for k, obj in enumerate(todo):
             if k == reopen_at:
                 self.reopen()
+            if obj["parent"] not in in_scene:  # its support could not be found: nothing to stand it on
+                self.result.missing_objects += 1
+                continue
             self.spend(M)  # find the next object in the target view
             if self.place(obj, condition):
                 self.scene.append(dict(obj))
+                in_scene.add(obj["id"])
             else:
                 self.result.missing_objects += 1
         self.spend(M + P + B + P + B)  # "done", then confirm
@@ -413,7 +426,9 @@ class Bot:
         return found
 
     def find_by_search(self, obj: dict) -> tuple[int, str] | None:
-        for text in (words(obj["category"]), obj["model_id"].split(":")[-1].lower()):
+        """Search for the category's words, then for the model's name (what a person reads in the list)."""
+        name = self.library.get(obj["model_id"], {}).get("name", "")
+        for text in dict.fromkeys(t for t in (words(obj["category"]), name.lower()) if t):
             found = self.search(text)
             ids = [h["id"] for h in found["hits"]]
             if obj["model_id"] in ids:
@@ -427,8 +442,8 @@ class Bot:
         pose = self.place_from_list(obj) if condition == "none" else self.place_from_suggestions(obj, condition)
         if pose is None:
             return False
-        position, heading = pose
-        self.adjust(obj, position, heading)
+        position, placed = pose
+        self.adjust(obj, position, placed)
         return True
 
     def place_from_list(self, obj: dict):
@@ -447,7 +462,7 @@ class Bot:
         self.event("insert", {"object": obj["id"], "model": obj["model_id"], "category": obj["category"],
                               "rank": rank, "source": source, "list_id": list_id})
         # canonical pose at the clicked contact point
-        return obj["contact_point"], 0.0
+        return obj["contact_point"], canonical_rotation(obj)
 
     def place_from_suggestions(self, obj: dict, condition: str):
         self.spend(P + K + B)  # shift-click the contact point
@@ -474,7 +489,7 @@ class Bot:
                 if ids.index(obj["model_id"]) > 0:  # expand the category and pick the model
                     self.spend(P + B + SCAN_PER_ITEM * (ids.index(obj["model_id"]) + 1))
                 matrix = item["placement"]
-                heading = heading_deg(matrix) if condition == "full" else 0.0
+                orientation = rotation_of(matrix) if condition == "full" else canonical_rotation(obj)
                 if rank == 1 and ids.index(obj["model_id"]) == 0:
                     self._rename(placed, obj["id"])
                 else:
@@ -482,7 +497,7 @@ class Bot:
                     self.event("replace", {"object": obj["id"], "replaces": placed, "model": obj["model_id"],
                                            "category": obj["category"], "rank": rank, "source": "context",
                                            "list_id": found["list_id"]})
-                return matrix[12:15], heading
+                return matrix[12:15], orientation
         self.spend(SCAN_PER_ITEM * len(items))
         searched = self.find_by_search(obj)
         if searched is None:
@@ -503,7 +518,7 @@ class Bot:
         if replaces:
             payload["replaces"] = replaces
         self.event(kind, payload)
-        return obj["contact_point"], 0.0
+        return obj["contact_point"], canonical_rotation(obj)
 
     def period_of(self, model_id: str) -> float:
         """How far the model can be turned before it looks different (from its mesh, as the browser shows it)."""
@@ -513,16 +528,16 @@ class Bot:
             self.symmetry[model_id] = glb_symmetry_period_deg(r.body) if r is not None and r.status == 200 else 360.0
         return self.symmetry[model_id]
 
-    def adjust(self, obj: dict, position, heading: float) -> None:
-        """Drag to the target position, then turn to the target heading (about the support normal)."""
-        target_heading = heading_deg(obj["transform"])
+    def adjust(self, obj: dict, position, placed: np.ndarray) -> None:
+        """Drag to the target position, then turn from the placed orientation (3×3) to the target's about the
+        support normal."""
         distance = float(np.linalg.norm(np.subtract(position, obj["transform"][12:15])))
         if distance > POSE_TOLERANCE_M:
             self.spend(M + P)
             self.event("move_start", {"object": obj["id"]})
             self.spend(B + FITTS_A + FITTS_B * math.log2(distance / TARGET_M + 1) + B)
             self.event("move_end", {"object": obj["id"], "distance": distance, "parent": obj["parent"]})
-        turn = wrap_deg(target_heading - heading)
+        turn = math.degrees(poses.turn_about(placed, rotation_of(obj["transform"]), obj["contact_normal"]))
         if abs(obj["contact_normal"][1]) > 0.9:  # on a floor or a table: only a visible difference is turned
             turn = visible_turn_deg(turn, self.period_of(obj["model_id"]))
         if abs(turn) > POSE_TOLERANCE_DEG:

@@ -49,6 +49,27 @@ def ai2thor():
     return load_corpus("ai2thor")
 
 
+REPLICATION = ROOT / "experiments" / "scenesuggest-2015"
+
+
+def replication_module(name: str):
+    """A module of experiments/scenesuggest-2015 (targets, prepare, compare), imported from its file."""
+    import importlib
+
+    if str(REPLICATION) not in sys.path:
+        sys.path.insert(0, str(REPLICATION))
+    return importlib.import_module(name)
+
+
+@pytest.fixture(scope="session")
+def replication(stanford_dir, stanford_meshes) -> Path:
+    """The replication study prepared from ../shared/data as `make replication` prepares it (library, priors,
+    targets under var/; steps whose inputs have not changed are skipped); yields its study file."""
+    prepare = replication_module("prepare")
+    prepare.prepare(stanford_dir, meshes=stanford_meshes, log=lambda *_: None)
+    return REPLICATION / "study.toml"
+
+
 # --- study server fixtures ------------------------------------------------------------------------------------
 DEMO_STUDY = ROOT / "experiments" / "demo" / "study.toml"
 

@@ -4,6 +4,7 @@ converts world points to pixels); the database is compared with what the page lo
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import shutil
@@ -11,8 +12,10 @@ import sqlite3
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
-from conftest import IN_CI, ROOT, gunicorn
+from conftest import IN_CI, ROOT, gunicorn, make_app
+from PIL import Image
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -89,8 +92,8 @@ def ready(page):
     page.evaluate("() => window.sceneSuggestTest.loaded()")
 
 
-def start(page, base: str, pid: str):
-    page.goto(f"{base}/study/demo/start?pid={pid}")
+def start(page, base: str, pid: str, study: str = "demo"):
+    page.goto(f"{base}/study/{study}/start?pid={pid}")
     page.click("text=I agree to take part")
     page.fill("input[name=age]", "29")
     page.check("input[name=experience_3d][value='A few times']")
@@ -402,3 +405,109 @@ def test_a_second_tab_takes_over_and_nothing_is_numbered_twice(page, server):
     logged = [e[0] for e in hook(page, "events.map(e => [e.seq])")] + \
         [e[0] for e in second.evaluate("() => window.sceneSuggestTest.events.map(e => [e.seq])")]
     assert len(logged) == len(set(s for s in logged if s >= 0))
+
+
+# --- the replication study and the admin's scene editor --------------------------------------------------------
+@pytest.fixture(scope="module")
+def replication_server(tmp_path_factory, replication):
+    """gunicorn serving the SceneSuggest replication (Stanford representatives) on a fresh SQLite database."""
+    from serverproc import StudyServer
+
+    _require_browser()
+    tmp = tmp_path_factory.mktemp("replication")
+    make_app(tmp, f"sqlite:///{tmp / 'study.sqlite3'}", studies=[replication])
+    with StudyServer(tmp / "instance", f"sqlite:///{tmp / 'study.sqlite3'}", migrate=False, study=replication) as s:
+        yield s.base
+
+
+def test_a_person_completes_the_replication(page, replication_server):
+    """Consent, practice and nine trials of the replication with the paper's models: in each, one object placed
+    (the top suggestion on a shift-click; a model from the list in `none`), then done; the survey; the code."""
+    start(page, replication_server, "replication-run", study="scenesuggest-2015")
+    conditions, scenes, shot = [], set(), set()
+    while True:
+        cond = hook(page, "condition")
+        conditions.append(cond)
+        target = page.evaluate("() => fetch('/api/scenes/' + JSON.parse(document.getElementById('boot').textContent)"
+                               ".trial.scene + '?which=target', {headers: {Authorization: 'Bearer ' + JSON.parse("
+                               "document.getElementById('boot').textContent).token}}).then(r => r.json())")
+        scenes.add(target["id"])
+        if cond == "none":
+            assert page.locator(".side-panel .tile").count() == 100
+            page.click(".side-panel .tile >> nth=0")
+            x, y = floor_pixel(page, 0.5, 0.5)
+            page.mouse.click(x, y)
+            until(page, "window.sceneSuggestTest.objects().length === 2")
+        else:
+            x, y = floor_pixel(page, 0.5, 0.5)
+            response = suggest_at(page, x, y)
+            assert response["suggestions"] and len(objects(page)) == 2
+        if cond not in shot and hook(page, "trial") >= 0:
+            page.evaluate("() => window.sceneSuggestTest.loaded()")
+            screenshot(page, f"replication-{cond}")
+            shot.add(cond)
+        done(page)
+        if "Almost done" in page.content():
+            break
+        ready(page)
+    assert conditions[0] == "full" and sorted(conditions[1:]) == sorted(["none", "basic", "full"] * 3)
+    assert len(scenes) == 4  # the practice scene and the three scenes of this participant's period
+    for q in ("enjoy_list", "competent_list", "enjoy_suggestions", "competent_suggestions"):
+        page.check(f"input[name={q}][value='3']")
+    page.check("input[name=preference][value='Suggestions']")
+    page.click("button:has-text('Continue')")
+    page.wait_for_selector(".code")
+    assert page.inner_text(".code") == "SS2015-DONE"
+    assert not page.console_problems, page.console_problems
+
+
+@pytest.fixture
+def authoring_server(tmp_path, demo_resources):
+    """gunicorn serving a copy of the demo study (its targets get written) with an admin password."""
+    from serverproc import StudyServer
+    from werkzeug.security import generate_password_hash
+
+    _require_browser()
+    folder = tmp_path / "demo"
+    shutil.copytree(ROOT / "experiments" / "demo", folder)
+    (folder / "study.toml").write_text((folder / "study.toml").read_text().replace('"../../var/', f'"{ROOT}/var/'))
+    make_app(tmp_path, f"sqlite:///{tmp_path / 'study.sqlite3'}", studies=[folder / "study.toml"])
+    server = StudyServer(tmp_path / "instance", f"sqlite:///{tmp_path / 'study.sqlite3'}", migrate=False,
+                         study=folder / "study.toml")
+    server.env["SCENESUGGEST_ADMIN_PASSWORD_HASH"] = generate_password_hash("author-password")
+    with server:
+        yield server.base, folder
+
+
+def test_an_experimenter_authors_a_target_scene(page, authoring_server):
+    """Log in, open a target in the editor, add an object with a suggestion, move nothing else, save it, render
+    its image: the scene file has the new object, the PNG shows the scene, and participants are served it."""
+    base, folder = authoring_server
+    page.goto(f"{base}/admin/login")
+    page.fill("input[name=password]", "author-password")
+    page.click("button[type=submit]")
+    page.goto(f"{base}/admin/demo/preview")
+    page.click("a[href='/admin/demo/author/bedside']")
+    ready(page)
+    assert "Editing target" in page.inner_text(".trial-title") and page.locator("#done-button").count() == 0
+    before = objects(page)
+    assert len(before) == 7  # the target itself is opened, not an empty room
+    x, y = floor_pixel(page, 1.6, 0.6)
+    response = suggest_at(page, x, y)
+    added = [o for o in objects(page).values() if o["id"] not in before]
+    assert len(added) == 1 and added[0]["category"] == response["suggestions"][0]["category"]
+    page.click(".suggestions button.close")
+    page.click("#save-button")
+    until(page, "window.sceneSuggestTest.saved")
+    assert "Saved bedside.json (7 objects)" in page.inner_text("#banner")
+    saved = json.loads((folder / "scenes" / "bedside.json").read_text())
+    assert {o["id"] for o in saved["objects"]} == set(before) | {added[0]["id"]}
+    assert saved["source"].startswith("authored")  # provenance kept
+    page.click("#image-button")
+    until(page, "window.sceneSuggestTest.imageSaved", timeout=60)
+    image = Image.open(folder / "scenes" / "bedside.png").convert("RGB")
+    assert image.size == (1280, 960)
+    pixels = np.asarray(image).reshape(-1, 3)
+    assert len(np.unique(pixels // 16, axis=0)) > 20  # a rendered scene, not a blank canvas
+    screenshot(page, "authoring")
+    assert not page.console_problems, page.console_problems

@@ -69,3 +69,14 @@ def test_plane_offsets_in_the_reference_frame():
     assert poses.reference_heading((2.5, 0, 1), (0, 1, 0), ref, radial=False) == pytest.approx(math.pi / 2)
     towards = poses.reference_heading((2.0, 0, 2.0), (0, 1, 0), ref, radial=True)
     assert poses.wrap(towards) == pytest.approx(math.pi)  # from the point, the reference lies towards −Z
+
+
+def test_turn_about_measures_the_turn_a_person_must_make_on_the_surface():
+    up, wall = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])  # floor; the left wall, facing +X
+    yaw = lambda deg: poses.axis_rotation(up, math.radians(deg)) @ poses.attach_rotation("bottom", up)  # noqa: E731
+    assert math.degrees(poses.turn_about(yaw(30), yaw(100), up)) == pytest.approx(70)
+    assert math.degrees(poses.turn_about(yaw(170), yaw(-170), up)) == pytest.approx(20)
+    hung = poses.attach_rotation("back", wall)
+    assert poses.turn_about(hung, hung, wall) == pytest.approx(0, abs=1e-12)  # canonical on a side wall: no turn
+    spun = poses.axis_rotation(wall, math.radians(-25)) @ hung
+    assert math.degrees(poses.turn_about(hung, spun, wall)) == pytest.approx(-25)

@@ -1,0 +1,175 @@
+"""The replication's results next to the paper's: writes ``results/comparison.md`` and ``results/comparison.json``.
+
+Reads the report (``results/report/``, from ``scenesuggest analyze report``) and checks the engine on the
+targets themselves (for each target object, a context query at its contact point in the target without it: the
+rank of its category and, in the full condition, how far the suggested heading is from the target's).
+Run by ``make replication`` after the report; by hand: ``.venv/bin/python experiments/scenesuggest-2015/compare.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+RESULTS = HERE / "results"
+PREPARED = ROOT / "var" / "experiments" / HERE.name
+sys.path.insert(0, str(HERE))
+
+from targets import PERIODS  # noqa: E402
+
+from analysis.bootstrap import bootstrap_by  # noqa: E402
+from scenesuggest import poses, scene_json  # noqa: E402
+from scenesuggest.priors import Priors  # noqa: E402
+from scenesuggest.suggest import ContextQuery, Engine  # noqa: E402
+
+CONDITIONS = ("none", "basic", "full")
+# Savva, Chang, Agrawala: SceneSuggest, Table 1 and Table 2 (means per trial; 20 participants, 102 models)
+PAPER = {
+    "total_time": (204.0, 170.0, 139.0),
+    "rotation_time": (23.6, 22.4, 17.2),
+    "translation_time": (40.5, 38.5, 39.8),
+    "n_text_queries": (5.2, 3.3, 2.5),
+    "mrr": (0.353, 0.785, 0.769),
+    "rank1_share": (0.296, 0.687, 0.675),
+}
+LABELS = {
+    "total_time": "Total time (s)", "rotation_time": "Rotation time (s)", "translation_time": "Translation time (s)",
+    "n_text_queries": "Keyword queries", "mrr": "MRR", "rank1_share": "Rank-1 picks",
+}
+TURN_TOLERANCE_DEG = 15.0
+
+
+def simulated(report: Path) -> dict[str, tuple[dict, ...]]:
+    """Per measure, per condition: mean and 95% bootstrap interval from the report's tables and measures."""
+    results = json.loads((report / "results.json").read_text())
+    trials = pd.read_csv(report / "measures" / "trials.csv")
+    trials = trials[trials["kind"] == "trial"]
+    seed, resamples = results.get("seed", 0), results.get("resamples", 1000)
+    out = {}
+    t1 = {row["condition"]: row for row in results["table1"]}
+    for key, column in (("total_time", "total_time"), ("rotation_time", "rotation_time"),
+                        ("translation_time", "translation_time"), ("mrr", "reciprocal_rank")):
+        out[key] = tuple({"mean": t1[c][f"{column}_mean"], "low": t1[c][f"{column}_low"],
+                          "high": t1[c][f"{column}_high"]} for c in CONDITIONS)
+    queries = bootstrap_by(trials, "n_text_queries", "condition", list(CONDITIONS), resamples=resamples, seed=seed)
+    out["n_text_queries"] = tuple({"mean": queries[c].mean, "low": queries[c].low, "high": queries[c].high}
+                                  for c in CONDITIONS)
+    t2 = {row["condition"]: row for row in results["table2"]}
+    out["rank1_share"] = tuple({"mean": t2[c]["share_1"], "low": None, "high": None} for c in CONDITIONS)
+    out["_lrt"] = {k: v["lrt"] for k, v in results["tests"].items() if v and "lrt" in v}
+    out["_n"] = {"participants": results["participants"], "trials": results["trials"], "picks": results["picks"]}
+    return out
+
+
+def engine_on_targets(prepared: Path) -> list[dict]:
+    """For every object of every target: the engine's rank of its category and its full-mode heading error."""
+    engine = Engine(Priors.load(prepared / "priors.npz"))
+    rows = []
+    for scene_id in [s for period in PERIODS for s in period]:
+        scene = scene_json.load(prepared / "scenes" / f"{scene_id}.json")
+        for o in scene:
+            if o.parent is None:
+                continue
+            rest = scene.without(o.id)
+            found = engine.suggest(ContextQuery(rest, o.parent, o.contact_point, o.contact_normal,
+                                                scene.scene_type), mode="full")
+            ranks = [s.rank for s in found if s.category == o.category]
+            target = o.transform[:3, :3]
+            canonical = poses.attach_rotation(o.attachment_face, o.contact_normal)
+            row = {"scene": scene_id, "object": o.id, "category": o.category, "rank": ranks[0] if ranks else None,
+                   "turn_basic_deg": _turn(canonical, target, o.contact_normal)}
+            if ranks:
+                row["turn_full_deg"] = _turn(found[ranks[0] - 1].placement[:3, :3], target, o.contact_normal)
+            rows.append(row)
+    return rows
+
+
+def _turn(placed, target, normal) -> float:
+    """The turn (degrees, unsigned) from ``placed`` to ``target`` about the support normal."""
+    return round(abs(math.degrees(poses.turn_about(placed, target, normal))), 1)
+
+
+def _fmt(key: str, v: float | None) -> str:
+    if v is None:
+        return "–"
+    if key == "rank1_share":
+        return f"{100 * v:.1f}%"
+    if key == "mrr":
+        return f"{v:.3f}"
+    return f"{v:.1f}"
+
+
+def _direction(values) -> str:
+    """The order of basic and full relative to none, and of full relative to basic: − lower, + higher."""
+    none, basic, full = values
+    return " ".join("−" if b < a else "+" if b > a else "=" for a, b in ((none, basic), (none, full), (basic, full)))
+
+
+def write(sim: dict, engine_rows: list[dict], out: Path) -> None:
+    lines = ["# The replication next to the paper (simulated participants)", "",
+             "Generated by `make replication` (experiments/scenesuggest-2015/compare.py). **Simulated participants**: "
+             f"{sim['_n']['participants']['completed']} keystroke-level-model bots, "
+             f"{sim['_n']['trials']['completed']} trials, {sim['_n']['picks']} picks — not people.", "",
+             "Means per trial (MRR and rank-1 share: per pick) with 95% bootstrap intervals. Direction: the sign of "
+             "basic − none, full − none and full − basic.", "",
+             "| Measure | Paper none | basic | full | Simulated none | basic | full | Direction paper | simulated |",
+             "|---|---:|---:|---:|---:|---:|---:|:---:|:---:|"]
+    for key, paper in PAPER.items():
+        ours = sim[key]
+        cells = [f"{_fmt(key, s['mean'])}" + (f" [{_fmt(key, s['low'])}, {_fmt(key, s['high'])}]"
+                                                if s["low"] is not None else "") for s in ours]
+        lines.append(f"| {LABELS[key]} | " + " | ".join(_fmt(key, p) for p in paper) + " | " + " | ".join(cells)
+                     + f" | {_direction(paper)} | {_direction([s['mean'] for s in ours])} |")
+    lines += ["", "Relative to `none` (ratio of means):", "",
+              "| Measure | Paper basic/none | full/none | Simulated basic/none | full/none |",
+              "|---|---:|---:|---:|---:|"]
+    for key, paper in PAPER.items():
+        ours = [s["mean"] for s in sim[key]]
+        lines.append(f"| {LABELS[key]} | {paper[1] / paper[0]:.2f} | {paper[2] / paper[0]:.2f} | "
+                     f"{ours[1] / ours[0]:.2f} | {ours[2] / ours[0]:.2f} |")
+    lines += ["", "Likelihood-ratio tests of condition (simulated; the report has the models):", "",
+              "| Measure | χ² | df | p |", "|---|---:|---:|---:|"]
+    for key, lrt in sim["_lrt"].items():
+        p = "< .001" if lrt["p"] < 0.001 else f"{lrt['p']:.3f}"
+        lines.append(f"| {key} | {lrt['chi2']:.2f} | {lrt['df']} | {p} |")
+    frame = pd.DataFrame(engine_rows)
+    ranked = frame["rank"].notna()
+    rr = np.where(ranked, 1.0 / frame["rank"].fillna(np.inf), 0.0)
+    lines += ["", "## The engine on the targets", "",
+              "For each target object, a context query at its contact point in the target scene without it (what a "
+              "participant's click asks): the rank of the object's category, and how far each interface leaves it "
+              f"from its target heading (basic: canonical pose; full: the suggested heading). Turns under "
+              f"{TURN_TOLERANCE_DEG:.0f}° count as none needed.", "",
+              "| Scene | Objects | MRR | Rank 1 | Need a turn in basic | Need a turn in full |",
+              "|---|---:|---:|---:|---:|---:|"]
+    for scene_id, g in frame.groupby("scene", sort=False):
+        g_rr = rr[g.index]
+        full_turn = (g["turn_full_deg"].fillna(0) > TURN_TOLERANCE_DEG).sum()
+        lines.append(f"| {scene_id} | {len(g)} | {g_rr.mean():.3f} | {(g['rank'] == 1).sum()} | "
+                     f"{(g['turn_basic_deg'] > TURN_TOLERANCE_DEG).sum()} | {full_turn} |")
+    lines.append(f"| all | {len(frame)} | {rr.mean():.3f} | {(frame['rank'] == 1).sum()} | "
+                 f"{(frame['turn_basic_deg'] > TURN_TOLERANCE_DEG).sum()} | "
+                 f"{(frame['turn_full_deg'].fillna(0) > TURN_TOLERANCE_DEG).sum()} |")
+    lines += ["", "Per object: `comparison.json`.", ""]
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "comparison.md").write_text("\n".join(lines))
+    doc = {"paper": PAPER, "simulated": {k: v for k, v in sim.items() if not k.startswith("_")},
+           "lr_tests": sim["_lrt"], "n": sim["_n"], "engine_on_targets": engine_rows}
+    (out / "comparison.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
+
+
+def main() -> int:
+    write(simulated(RESULTS / "report"), engine_on_targets(PREPARED), RESULTS)
+    print(f"wrote {RESULTS / 'comparison.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
