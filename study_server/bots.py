@@ -34,6 +34,9 @@ SCAN_PER_ITEM = 0.35  # looking at one thumbnail of a list, s
 LIST_VISIBLE = 24  # items a person scans before giving up on the list and searching
 FITTS_A, FITTS_B, TARGET_M = 0.2, 0.15, 0.05  # drag time = a + b log2(d / w + 1)
 COARSE_DEG, POSE_TOLERANCE_DEG, POSE_TOLERANCE_M = 15.0, 4.0, 0.03
+#: Where a click for a new object lands: the intended contact point plus a random error in the surface plane
+#: (standard deviation, m), at most a tenth of the support's smaller side; the object is then dragged into place.
+CLICK_ERROR_M = 0.15
 
 
 class FlowError(RuntimeError):
@@ -191,10 +194,11 @@ def rotation_of(transform: list[float]) -> np.ndarray:
     return np.asarray(transform, dtype=float).reshape(4, 4).T[:3, :3]
 
 
-def canonical_rotation(obj: dict) -> np.ndarray:
-    """How the list, search and the basic interface place an object: its attachment face on the surface, not
-    turned (α = 0)."""
-    return poses.attach_rotation(obj["attachment_face"], obj["contact_normal"])
+def canonical_pose(obj: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Where the list and search place an object at its click point: its attachment face on the surface, not
+    turned (α = 0); returns the origin (metres, world) and the 3×3 rotation."""
+    t = poses.placement(obj["click"], obj["contact_normal"], obj["attachment_face"], obj["size"], 0.0)
+    return t[:3, 3], t[:3, :3]
 
 
 def words(category: str) -> str:
@@ -437,9 +441,24 @@ class Bot:
                 return rank, found["list_id"]
         return None
 
+    def click_point(self, obj: dict) -> list[float]:
+        """Where the click that places ``obj`` lands: near its contact point, on the same support plane."""
+        n = np.asarray(obj["contact_normal"], dtype=float)
+        n /= np.linalg.norm(n)
+        u = np.cross(n, [0.0, 1.0, 0.0] if abs(n[1]) < 0.9 else [1.0, 0.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        parent = next(o for o in self.scene if o["id"] == obj["parent"])
+        linear = rotation_of(parent["transform"]) * np.asarray(parent["size"], dtype=float)  # columns: world edges
+        extent = np.abs(linear).sum(axis=1)  # the parent's world box size along x, y, z
+        side = min(float(np.abs(u) @ extent), float(np.abs(v) @ extent))
+        du, dv = self.rng.normal(0.0, min(CLICK_ERROR_M, side / 10), 2)
+        return (np.asarray(obj["contact_point"], dtype=float) + du * u + dv * v).tolist()
+
     def place(self, obj: dict, condition: str) -> bool:
         """Bring one target object into the scene; returns False when the bot could not find its model."""
-        pose = self.place_from_list(obj) if condition == "none" else self.place_from_suggestions(obj, condition)
+        obj = {**obj, "click": self.click_point(obj)}
+        pose = self.place_from_list(obj) if condition == "none" else self.place_from_suggestions(obj)
         if pose is None:
             return False
         position, placed = pose
@@ -461,14 +480,13 @@ class Bot:
         self.spend(P + B)  # click the surface where it goes
         self.event("insert", {"object": obj["id"], "model": obj["model_id"], "category": obj["category"],
                               "rank": rank, "source": source, "list_id": list_id})
-        # canonical pose at the clicked contact point
-        return obj["contact_point"], canonical_rotation(obj)
+        return canonical_pose(obj)
 
-    def place_from_suggestions(self, obj: dict, condition: str):
+    def place_from_suggestions(self, obj: dict):
         self.spend(P + K + B)  # shift-click the contact point
         body = {"trial": self.trial["index"], "scene": {"objects": self.scene}, "parent": obj["parent"],
-                "point": obj["contact_point"], "normal": obj["contact_normal"]}
-        self.event("context_query", {"parent": obj["parent"], "point": obj["contact_point"],
+                "point": obj["click"], "normal": obj["contact_normal"]}
+        self.event("context_query", {"parent": obj["parent"], "point": obj["click"],
                                      "normal": obj["contact_normal"]})
         found = self.api("POST", "/suggest", body)
         items = found["suggestions"]
@@ -489,7 +507,7 @@ class Bot:
                 if ids.index(obj["model_id"]) > 0:  # expand the category and pick the model
                     self.spend(P + B + SCAN_PER_ITEM * (ids.index(obj["model_id"]) + 1))
                 matrix = item["placement"]
-                orientation = rotation_of(matrix) if condition == "full" else canonical_rotation(obj)
+                orientation = rotation_of(matrix)  # the condition's pose: oriented in full, canonical in basic
                 if rank == 1 and ids.index(obj["model_id"]) == 0:
                     self._rename(placed, obj["id"])
                 else:
@@ -518,7 +536,7 @@ class Bot:
         if replaces:
             payload["replaces"] = replaces
         self.event(kind, payload)
-        return obj["contact_point"], canonical_rotation(obj)
+        return canonical_pose(obj)
 
     def period_of(self, model_id: str) -> float:
         """How far the model can be turned before it looks different (from its mesh, as the browser shows it)."""
