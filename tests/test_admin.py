@@ -134,7 +134,7 @@ def test_every_admin_form_needs_its_csrf_token(admin_app):
     posts = [r for r in admin_app.url_map.iter_rules() if r.endpoint.startswith("admin.") and "POST" in r.methods]
     assert {r.endpoint for r in posts} >= {"admin.login", "admin.logout", "admin.exclude"}
     for rule in posts:
-        path = rule.rule.replace("<study_id>", "demo").replace("<int:pid>", "1")
+        path = rule.rule.replace("<study_id>", "demo").replace("<int:pid>", "1").replace("<scene_id>", "bedside")
         r = c.post(path, data={"reason": "x", "password": PASSWORD})
         assert r.status_code == 400, (path, r.status_code)
     assert c.get("/admin/").status_code == 200  # still logged in: nothing was done without the token

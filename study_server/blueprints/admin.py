@@ -194,12 +194,12 @@ def _frozen(study_id: str) -> int:
 
 
 def _authoring_request(study_id: str, scene_id: str, key: str):
-    rt = runtime(study_id)
-    if scene_id not in rt.study.scenes:
-        raise AuthoringError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
     sent = request.headers.get("X-CSRF-Token", "")
     if not sent or not secrets.compare_digest(sent, session.get("csrf", "")):
         raise AuthoringError(400, "the page has expired; reload it and save again", "X-CSRF-Token")
+    rt = runtime(study_id)
+    if scene_id not in rt.study.scenes:
+        raise AuthoringError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
     started = _frozen(study_id)
     if started:
         raise AuthoringError(409, f"{started} participant(s) have started this study: its target scenes are frozen "
