@@ -288,6 +288,21 @@ def test_a_whole_participant_run(page, server):
     assert not page.console_problems, page.console_problems
 
 
+def test_a_moving_view_may_drop_resolution_and_is_sharp_again_when_still(page, server):
+    base, _ = server
+    start(page, base, "browser-resolution")
+    sharp = hook(page, "resolution()")
+    assert sharp["buffer"] == sharp["css"] and sharp["scale"] == 1
+    page.evaluate("() => window.sceneSuggestTest.setSlowFrameMs(0)")  # every moving frame counts as slow
+    result = page.evaluate("() => window.sceneSuggestTest.orbit(600)")
+    assert result["scale"] == pytest.approx(0.7) and result["fps"] > 0
+    page.wait_for_timeout(400)  # the camera has been still for longer than the settle time
+    after = hook(page, "resolution()")
+    assert after == sharp
+    x, y = floor_pixel(page)  # picking still maps pixels to the world at full resolution
+    assert hook(page, f"pickAt({x}, {y})")["room"]
+
+
 def test_reload_in_the_middle_of_a_trial_resumes_without_loss(page, server):
     base, database = server
     pid = "browser-reload"
@@ -442,6 +457,11 @@ def test_a_person_completes_the_replication(page, replication_server):
             x, y = floor_pixel(page, 0.5, 0.5)
             response = suggest_at(page, x, y)
             assert response["suggestions"] and len(objects(page)) == 2
+            assert page.evaluate("""() => {  // the panel and its tiles fit on screen, long names and all
+              const p = document.querySelector('.suggestions'), t = p.querySelector('.tiles');
+              const r = p.getBoundingClientRect();
+              return t.scrollWidth <= t.clientWidth + 1 && r.left >= 0 && r.right <= innerWidth
+                && r.bottom <= innerHeight; }""")
         if cond not in shot and hook(page, "trial") >= 0:
             page.evaluate("() => window.sceneSuggestTest.loaded()")
             screenshot(page, f"replication-{cond}")

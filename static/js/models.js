@@ -3,11 +3,12 @@
 import * as THREE from "three";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
 import { mergeGeometries } from "three/addons/utils/BufferGeometryUtils.js";
+import { matteMaterial } from "./shading.js";
 
 const loader = new GLTFLoader();
 
-/** At most two draw calls per model: untextured parts are merged, with vertex colours and matte (Lambert)
- * shading, into one mesh of the closed parts (back faces culled: the asset pipeline marks a part single-sided
+/** At most two draw calls per model: untextured parts are merged, with vertex colours and matte shading lit per
+ * vertex (shading.js), into one mesh of the closed parts (back faces culled: the asset pipeline marks a part single-sided
  * only when it is a closed, outward-wound volume) and one of the open, double-sided parts. Several times cheaper
  * than separate PBR parts on software WebGL, which is what many participants' laptops fall back to. Textured
  * models keep their parts, shaded matte. */
@@ -33,7 +34,7 @@ function simplify(scene) {
     const same = parts.filter((node) => (node.material.side === THREE.FrontSide) === (side === THREE.FrontSide));
     if (!same.length) continue;
     group.add(new THREE.Mesh(mergeGeometries(same.map(colouredGeometry)),
-      new THREE.MeshLambertMaterial({ vertexColors: true, side })));
+      matteMaterial({ vertexColors: true, side })));
   }
   return group;
 }

@@ -260,12 +260,19 @@ async function main() {
     lastSeq: () => outbox.lastSeq,
     pending: () => outbox.pendingCount,
     frames: () => viewer.frames,
+    /** The canvas's drawing-buffer and CSS sizes, and the frame time above which a moving view is drawn at a
+     * lower resolution (settable, to exercise the adaptation on a fast machine). */
+    resolution: () => ({ buffer: [viewer.renderer.domElement.width, viewer.renderer.domElement.height],
+      css: [viewer.renderer.domElement.clientWidth, viewer.renderer.domElement.clientHeight], scale: viewer.scale }),
+    setSlowFrameMs: (ms) => { viewer.slowFrameMs = ms; },
     /** What the last frame drew: draw calls and triangles (for the client benchmark). */
     renderInfo: () => ({ calls: viewer.renderer.info.render.calls, triangles: viewer.renderer.info.render.triangles }),
     /** Orbit the camera round its target for ``ms`` milliseconds, one step per animation frame; resolves the
-     * frame rate the view kept up (for the client benchmark). */
-    orbit: (ms) => new Promise((resolve) => {
+     * frame rate the view kept up and the lowest resolution scale it used (``adaptive: false`` keeps it sharp). */
+    orbit: (ms, { adaptive = true } = {}) => new Promise((resolve) => {
       const c = viewer.controls;
+      viewer.adaptive = adaptive;
+      viewer.lowestScale = 1;
       const offset = viewer.camera.position.clone().sub(c.target);
       const start = performance.now();
       const f0 = viewer.frames;
@@ -275,7 +282,7 @@ async function main() {
         viewer.camera.position.copy(c.target).add(turned);
         c.update();
         if (t < ms) requestAnimationFrame(step);
-        else resolve((viewer.frames - f0) / (t / 1000));
+        else { viewer.adaptive = true; resolve({ fps: (viewer.frames - f0) / (t / 1000), scale: viewer.lowestScale }); }
       };
       requestAnimationFrame(step);
     }),

@@ -2,8 +2,14 @@
 // (enlarged on hover), picking, and world → pixel conversion for tests.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { addLights, matteMaterial } from "./shading.js";
 
 const WALL_COLOUR = 0xe9e4dc;
+// Adaptive resolution: while the camera moves and frames come slower than SLOW_FRAME_MS (smoothed), the view is
+// drawn at MOTION_SCALE of its pixel ratio; it is drawn sharp again once the camera has been still SETTLE_MS.
+const SLOW_FRAME_MS = 30;
+const MOTION_SCALE = 0.7;
+const SETTLE_MS = 150;
 const FLOOR_COLOUR = 0xc9a77c;
 
 /** Floor and four walls of a room box, walls visible from inside only (so the camera sees in). */
@@ -11,13 +17,12 @@ function roomMesh(box, objectId) {
   const group = new THREE.Group();
   const size = box.getSize(new THREE.Vector3());
   const centre = box.getCenter(new THREE.Vector3());
-  const floor = new THREE.Mesh(new THREE.PlaneGeometry(size.x, size.z),
-    new THREE.MeshLambertMaterial({ color: FLOOR_COLOUR }));
+  const floor = new THREE.Mesh(new THREE.PlaneGeometry(size.x, size.z), matteMaterial({ colour: FLOOR_COLOUR }));
   floor.rotation.x = -Math.PI / 2;
   floor.position.set(centre.x, box.min.y, centre.z);
   floor.userData = { objectId, room: true };
   group.add(floor);
-  const wallMaterial = new THREE.MeshLambertMaterial({ color: WALL_COLOUR, side: THREE.FrontSide });
+  const wallMaterial = matteMaterial({ colour: WALL_COLOUR, side: THREE.FrontSide });
   const walls = [
     [size.x, [centre.x, box.min.z], 0], [size.x, [centre.x, box.max.z], Math.PI],
     [size.z, [box.min.x, centre.z], Math.PI / 2], [size.z, [box.max.x, centre.z], -Math.PI / 2],
@@ -32,23 +37,23 @@ function roomMesh(box, objectId) {
   return group;
 }
 
-function lights(scene) {
-  scene.add(new THREE.HemisphereLight(0xffffff, 0x8a7f70, 1.6));
-  const sun = new THREE.DirectionalLight(0xffffff, 1.4);
-  sun.position.set(3, 6, 4);
-  scene.add(sun);
-}
-
 export class Viewer {
   constructor(container, { onCameraChange = () => {} } = {}) {
     this.container = container;
     this.renderer = new THREE.WebGLRenderer({ antialias: false, preserveDrawingBuffer: false });
-    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+    this.pixelRatio = Math.min(window.devicePixelRatio || 1, 2);
+    this.renderer.setPixelRatio(this.pixelRatio);
+    this.adaptive = true;  // adaptive resolution while the camera moves (see SLOW_FRAME_MS)
+    this.slowFrameMs = SLOW_FRAME_MS;
+    this.scale = 1;
+    this.frameMs = 0;
+    this.movedAt = -Infinity;
+    this.lowestScale = 1;
     this.renderer.setClearColor(0xf4f6f9);
     this.renderer.domElement.className = "view";
     container.prepend(this.renderer.domElement);
     this.scene = new THREE.Scene();
-    lights(this.scene);
+    addLights(this.scene);
     this.camera = new THREE.PerspectiveCamera(50, 1, 0.05, 100);
     this.controls = null;  // created after the editor's own pointer handlers (they run first)
     this.onCameraChange = onCameraChange;
@@ -69,7 +74,7 @@ export class Viewer {
     this.controls.minDistance = 0.5;
     this.controls.maxDistance = 25;
     this.controls.screenSpacePanning = true;
-    this.controls.addEventListener("change", () => this.invalidate());
+    this.controls.addEventListener("change", () => { this.movedAt = performance.now(); this.invalidate(); });
     this.controls.addEventListener("start", () => {
       this.gestureStart = this.camera.position.distanceTo(this.controls.target);
       this.gestureFrom = this.camera.position.clone();
@@ -191,10 +196,31 @@ export class Viewer {
     this.frames += 1;
   }
 
+  /** Draw at ``scale`` × the device pixel ratio (1: sharp). */
+  setScale(scale) {
+    if (scale === this.scale) return;
+    this.scale = scale;
+    this.lowestScale = Math.min(this.lowestScale, scale);
+    this.renderer.setPixelRatio(this.pixelRatio * scale);
+    this.invalidate();
+  }
+
   loop(beforeFrame = () => {}) {
-    const tick = () => {
+    let last = null;  // when the previous frame was drawn while the camera moved
+    const tick = (now) => {
+      const moving = now - this.movedAt < SETTLE_MS;
+      if (!moving) {
+        last = null;
+        this.frameMs = 0;
+        this.setScale(1);
+      }
       if (this.dirty) {
         this.dirty = false;
+        if (moving) {
+          if (last !== null) this.frameMs = this.frameMs ? 0.8 * this.frameMs + 0.2 * (now - last) : now - last;
+          if (this.adaptive && this.frameMs > this.slowFrameMs) this.setScale(MOTION_SCALE);
+          last = now;
+        }
         beforeFrame();
         this.render();
       }
@@ -208,7 +234,7 @@ export class Viewer {
  * inset and the target image); ``ready`` resolves when every model has loaded. */
 function framedScene(model, instances) {
   const scene = new THREE.Scene();
-  lights(scene);
+  addLights(scene);
   scene.add(roomMesh(model.worldBox(model.root), model.root.id));
   const camera = new THREE.PerspectiveCamera(40, 1, 0.05, 100);
   const box = new THREE.Box3();
