@@ -518,8 +518,10 @@ def test_an_experimenter_authors_a_target_scene(page, authoring_server):
     assert len(added) == 1 and added[0]["category"] == response["suggestions"][0]["category"]
     page.click(".suggestions button.close")
     page.click("#save-button")
+    assert hook(page, "targetObjects()") == 6
     until(page, "window.sceneSuggestTest.saved")
     assert "Saved bedside.json (7 objects)" in page.inner_text("#banner")
+    assert hook(page, "targetObjects()") == 7 and page.locator("#target canvas").count() == 1  # the inset shows it
     saved = json.loads((folder / "scenes" / "bedside.json").read_text())
     assert {o["id"] for o in saved["objects"]} == set(before) | {added[0]["id"]}
     assert saved["source"].startswith("authored")  # provenance kept

@@ -215,7 +215,7 @@ async function main() {
   $("target").addEventListener("mouseleave", () => $("target").classList.remove("large"));
 
   if (boot.author) {
-    authoring(scene, library);
+    authoring(scene, library, viewer);
   } else {
     const dialog = $("confirm-done");
     $("done-button").addEventListener("click", () => dialog.showModal());
@@ -287,6 +287,7 @@ async function main() {
       requestAnimationFrame(step);
     }),
     firstFrameAt: () => viewer.firstFrameAt ?? null,
+    targetObjects: () => viewer.target.objects,
     loaded: () => Promise.all([...viewer.meshes.values()].map((m) => m.userData.ready).concat([viewer.target.ready])),
   };
   viewer.loop();
@@ -295,7 +296,7 @@ async function main() {
 }
 
 /** The admin's authoring mode: save the scene as the study's target, render its target image. */
-function authoring(scene, library) {
+function authoring(scene, library, viewer) {
   const post = async (url, body) => {
     const r = await fetch(url, { method: "POST", credentials: "same-origin", body: JSON.stringify(body),
       headers: { "Content-Type": "application/json", "X-CSRF-Token": boot.author.csrf } });
@@ -311,6 +312,7 @@ function authoring(scene, library) {
   if (boot.author.frozen) say(strings.frozen);
   $("save-button").addEventListener("click", (e) => busy(e.currentTarget, async () => {
     const saved = await post(boot.author.save, { scene: scene.toJSON() });
+    viewer.setTarget(new SceneModel(scene.toJSON()), (o) => library.instance(o.modelId, o.size), $("target"));
     window.sceneSuggestTest.saved = saved;
     return strings.saved.replace("{file}", boot.author.file).replace("{n}", saved.objects);
   }));

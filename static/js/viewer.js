@@ -178,6 +178,7 @@ export class Viewer {
 
   /** The target scene, in its own small view (rendered when it changes, not every frame). */
   setTarget(model, instances, element) {
+    if (this.target) this.target.dispose();
     this.target = new TargetView(model, instances, element);
   }
 
@@ -266,9 +267,17 @@ class TargetView {
     const { scene, camera, ready } = framedScene(model, instances);
     this.scene = scene;
     this.camera = camera;
+    this.objects = model.objects.size - 1;
     this.ready = ready.then(() => this.render());
-    new ResizeObserver(() => this.render()).observe(element);
+    this.observer = new ResizeObserver(() => this.render());
+    this.observer.observe(element);
     this.render();
+  }
+
+  dispose() {
+    this.observer.disconnect();
+    this.renderer.domElement.remove();
+    this.renderer.dispose();
   }
 
   render() {
