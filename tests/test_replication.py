@@ -102,6 +102,18 @@ def test_prepare_builds_library_priors_and_targets(replication, targets):
         assert {o.model_id for o in scene if o.parent is not None} <= built
 
 
+def test_extra_models_join_the_library_only_with_a_mesh(stanford):
+    prepare = replication_module("prepare")
+    reps = read_representatives(REPRESENTATIVES)
+    assert len(prepare.library_models(stanford, reps, [])) == 100
+    assert "room01" in prepare.library_models(stanford, reps, ["room01"])  # a room shell has a mesh here
+    without_mesh = next(m for m in stanford.models.values() if m.mesh is None)
+    with pytest.raises(SceneSuggestError, match="no mesh"):
+        prepare.library_models(stanford, reps, [without_mesh.id])
+    with pytest.raises(SceneSuggestError, match="no model 'nope'"):
+        prepare.library_models(stanford, reps, ["nope"])
+
+
 def test_prepare_names_a_missing_corpus(tmp_path, monkeypatch):
     monkeypatch.delenv("SCENESUGGEST_STANFORD_DIR", raising=False)
     run = subprocess.run([sys.executable, str(REPLICATION / "prepare.py"), "--out", str(tmp_path)],

@@ -2,7 +2,8 @@
 
 Writes, under ``var/experiments/scenesuggest-2015/`` (never committed):
 
-    library/            the study's model library: one representative per top-100 category (GLB + thumbnails)
+    library/            the study's model library: one representative per top-100 category (GLB + thumbnails),
+                        plus any --extra-models
     priors.npz          priors trained on the corpus without the targets' source scenes
     scenes/<id>.json    the practice scene and the six target scenes (native scene JSON)
     manifest.json       what went in: corpus, representatives, held-out scenes, counts
@@ -71,17 +72,28 @@ def representatives(corpus, option: str | None, meshes: Path | None) -> tuple[li
     return top_representatives(corpus, 100), "chosen from the corpus (top 100 categories)"
 
 
+def library_models(corpus, reps: list[tuple[str, str]], extra: list[str]) -> list[str]:
+    """The study library's model ids: the representatives plus ``extra`` models (ids with a mesh), as the paper
+    added the extra chairs and tables its targets needed."""
+    for model_id in extra:
+        if model_id not in corpus.models:
+            raise SceneSuggestError(f"no model {model_id!r} in the corpus", field="extra_models")
+        if corpus.models[model_id].mesh is None:
+            raise SceneSuggestError(f"model {model_id!r} has no mesh to build from", field="extra_models")
+    return sorted({m for _, m in reps} | set(extra))
+
+
 def digest(value) -> str:
     return hashlib.sha256(json.dumps(value, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def prepare(stanford: Path, out: Path = OUT, representatives_file: str | None = None, meshes: str | None = None,
-            log=print) -> dict:
+            extra_models: list[str] = (), log=print) -> dict:
     started = time.perf_counter()
     corpus = load_corpus(f"stanford:{stanford}", meshes=meshes)
     mesh_dir = find_mesh_dir(stanford, meshes)
     reps, reps_from = representatives(corpus, representatives_file, mesh_dir)
-    model_ids = sorted({m for _, m in reps})
+    model_ids = library_models(corpus, reps, list(extra_models))
     out.mkdir(parents=True, exist_ok=True)
     manifest_path = out / "manifest.json"
     old = json.loads(manifest_path.read_text()) if manifest_path.is_file() else {}
@@ -127,10 +139,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--stanford-dir", help=f"the Stanford Scene Database folder (default: ${ENV})")
     parser.add_argument("--meshes", help="folder of the OBJ meshes (default: as for every Stanford command)")
     parser.add_argument("--representatives", help=f"a {FILE_NAME} file (default: beside the mesh folder)")
+    parser.add_argument("--extra-models", default="", help="comma-separated model ids to add to the library "
+                        "(models with a mesh; the targets here need none)")
     parser.add_argument("--out", default=str(OUT), help="output folder (default: %(default)s)")
     args = parser.parse_args(argv)
     try:
-        prepare(stanford_dir(args.stanford_dir), Path(args.out), args.representatives, args.meshes)
+        extra = [m for m in args.extra_models.split(",") if m.strip()]
+        prepare(stanford_dir(args.stanford_dir), Path(args.out), args.representatives, args.meshes, extra)
     except SceneSuggestError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
