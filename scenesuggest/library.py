@@ -8,14 +8,13 @@ is the one every scene and asset uses: metres, +Y up, +Z front, bbox bottom cent
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import frames
+from .atomic import write_atomically
 from .errors import SceneSuggestError
 
 INDEX_FILE = "library.json"
@@ -87,13 +86,7 @@ def save_index(models: dict[str, ModelInfo], directory: str | Path, extra: dict 
     directory.mkdir(parents=True, exist_ok=True)
     doc = {"format": INDEX_FORMAT, "version": INDEX_VERSION, **(extra or {}),
            "models": [m.to_dict() for m in sorted(models.values(), key=lambda m: m.id)]}
-    path = directory / INDEX_FILE
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=".library-", suffix=".json")
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        json.dump(doc, f, indent=1)
-        f.write("\n")
-    os.replace(tmp, path)
-    return path
+    return write_atomically(directory / INDEX_FILE, (json.dumps(doc, indent=1) + "\n").encode("utf-8"))
 
 
 def load_index(directory: str | Path) -> dict[str, ModelInfo]:

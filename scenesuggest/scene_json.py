@@ -19,6 +19,7 @@ import math
 from pathlib import Path
 
 from . import frames
+from .atomic import write_atomically
 from .errors import SceneSuggestError
 from .jsonpos import LineIndex, loads_with_lines
 from .scene import SURFACE_TYPES, ObjectInstance, Scene
@@ -64,7 +65,8 @@ def dumps(scene: Scene) -> str:
 
 
 def save(scene: Scene, path: str | Path) -> None:
-    Path(path).write_text(dumps(scene), encoding="utf-8")
+    """Write ``scene`` as native JSON, atomically (a server reading the file never sees half a scene)."""
+    write_atomically(path, dumps(scene).encode("utf-8"))
 
 
 class _Reader:

@@ -1,8 +1,8 @@
 """Saving a target scene, and its image, from the admin's scene editor.
 
 A target is written where the study file says it lives (``[[scenes]] target``), its image beside it with the
-extension ``.png``. Both are checked in full before anything is written, and written atomically (a temporary
-file renamed over the old one), so a bad request never leaves a half-written scene. Once participants have
+extension ``.png``. Both are checked in full before anything is written, and written atomically
+(:mod:`scenesuggest.atomic`), so a bad request never leaves a half-written scene. Once participants have
 started a study its targets are frozen: what they were shown must stay what the export describes.
 """
 
@@ -11,61 +11,43 @@ from __future__ import annotations
 import base64
 import binascii
 import io
-import os
-import tempfile
 from pathlib import Path
 
 from scenesuggest import scene_json
 from scenesuggest.errors import SceneSuggestError
+from scenesuggest.scene import Scene
+
+from .blueprints.api import ApiError
 
 MAX_IMAGE_BYTES = 8 * 1024 * 1024
 MAX_IMAGE_PX = 4096
 PNG_PREFIX = "data:image/png;base64,"
 
 
-class AuthoringError(Exception):
-    def __init__(self, status: int, message: str, field: str | None = None):
-        super().__init__(message)
-        self.status, self.message, self.field = status, message, field
-
-
 def image_path(target: Path) -> Path:
     return target.with_suffix(".png")
 
 
-def write_atomically(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}-")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def checked_scene(doc, scene_id: str, library: dict) -> bytes:
-    """The native JSON of a posted scene, after checking it parses, has a room and objects, and uses only
-    models of the study's library."""
+def checked_scene(doc, scene_id: str, library: dict) -> Scene:
+    """A posted scene (native JSON) as ``scene_id``, after checking it parses, has a room and objects, and uses
+    only models of the study's library."""
     if not isinstance(doc, dict):
-        raise AuthoringError(400, "expected a scene object (the native scene JSON)", "scene")
+        raise ApiError(400, "expected a scene object (the native scene JSON)", "scene")
     doc = {**doc, "id": scene_id}
     try:
         scene = scene_json.from_dict(doc, file="scene")
     except SceneSuggestError as e:
-        raise AuthoringError(400, e.message, f"scene.{e.field}" if e.field else "scene") from None
+        raise ApiError(400, e.message, f"scene.{e.field}" if e.field else "scene") from None
     objects = [o for o in scene if o.parent is not None]
     if not scene.roots():
-        raise AuthoringError(400, "the scene has no room (an object without a parent)", "scene.objects")
+        raise ApiError(400, "the scene has no room (an object without a parent)", "scene.objects")
     if not objects:
-        raise AuthoringError(400, "a target scene needs at least one object besides the room", "scene.objects")
+        raise ApiError(400, "a target scene needs at least one object besides the room", "scene.objects")
     for i, o in enumerate(doc.get("objects", [])):
         if o.get("parent") is not None and o.get("model_id") not in library:
-            raise AuthoringError(400, f"model {o.get('model_id')!r} is not in the study's model library",
+            raise ApiError(400, f"model {o.get('model_id')!r} is not in the study's model library",
                                  f"scene.objects[{i}].model_id")
-    return scene_json.dumps(scene).encode("utf-8")
+    return scene
 
 
 def checked_png(data_url) -> tuple[bytes, tuple[int, int]]:
@@ -73,20 +55,20 @@ def checked_png(data_url) -> tuple[bytes, tuple[int, int]]:
     from PIL import Image, UnidentifiedImageError
 
     if not isinstance(data_url, str) or not data_url.startswith(PNG_PREFIX):
-        raise AuthoringError(400, f"expected a PNG data URL ({PNG_PREFIX}…)", "png")
+        raise ApiError(400, f"expected a PNG data URL ({PNG_PREFIX}…)", "png")
     if len(data_url) > MAX_IMAGE_BYTES * 4 // 3 + len(PNG_PREFIX) + 4:
-        raise AuthoringError(413, f"the image is larger than {MAX_IMAGE_BYTES // 2**20} MB", "png")
+        raise ApiError(413, f"the image is larger than {MAX_IMAGE_BYTES // 2**20} MB", "png")
     try:
         data = base64.b64decode(data_url[len(PNG_PREFIX):], validate=True)
         with Image.open(io.BytesIO(data)) as image:
             if image.format != "PNG":
-                raise AuthoringError(400, "not a PNG image", "png")
+                raise ApiError(400, "not a PNG image", "png")
             size = image.size
             image.verify()
     except (binascii.Error, ValueError):
-        raise AuthoringError(400, "the image is not valid base64", "png") from None
+        raise ApiError(400, "the image is not valid base64", "png") from None
     except (UnidentifiedImageError, OSError, SyntaxError):
-        raise AuthoringError(400, "not a readable PNG image", "png") from None
+        raise ApiError(400, "not a readable PNG image", "png") from None
     if max(size) > MAX_IMAGE_PX:
-        raise AuthoringError(400, f"the image is larger than {MAX_IMAGE_PX} px on a side", "png")
+        raise ApiError(400, f"the image is larger than {MAX_IMAGE_PX} px on a side", "png")
     return data, size

@@ -26,10 +26,14 @@ def csrf_token() -> str:
     return session["csrf"]
 
 
+def csrf_ok(sent: str | None) -> bool:
+    """Whether ``sent`` is this browser session's form token."""
+    return bool(sent) and hmac.compare_digest(sent, session.get("csrf", ""))
+
+
 def check_csrf() -> None:
-    """The form's token (or, for the admin's JSON requests, the ``X-CSRF-Token`` header) must be this session's."""
-    sent = request.headers.get("X-CSRF-Token") or request.form.get("csrf_token", "")
-    if not sent or not hmac.compare_digest(sent, session.get("csrf", "")):
+    """A state-changing form must carry this session's token."""
+    if not csrf_ok(request.form.get("csrf_token", "")):
         abort(400, "The form has expired; please go back and try again.")
 
 

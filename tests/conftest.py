@@ -49,6 +49,18 @@ def ai2thor():
     return load_corpus("ai2thor")
 
 
+def copy_demo_study(tmp: Path) -> Path:
+    """The demo study copied into ``tmp``/demo (its targets may then be written), its resources still those
+    `make demo` built in var/; returns the copy's study file."""
+    import shutil
+
+    folder = tmp / "demo"
+    shutil.copytree(DEMO_STUDY.parent, folder)
+    study = folder / "study.toml"
+    study.write_text(study.read_text().replace('"../../var/', f'"{ROOT}/var/'))
+    return study
+
+
 REPLICATION = ROOT / "experiments" / "scenesuggest-2015"
 
 

@@ -4,10 +4,9 @@ is a 4xx JSON error naming the field, and nothing is written unless the whole re
 import base64
 import io
 import json
-import shutil
 
 import pytest
-from conftest import ROOT, make_app
+from conftest import copy_demo_study, make_app
 from flowhelp import auth, boot, csrf, to_trials
 from PIL import Image
 from werkzeug.security import generate_password_hash
@@ -20,11 +19,7 @@ PASSWORD = "correct horse battery staple"
 @pytest.fixture
 def study_copy(tmp_path, demo_resources):
     """The demo study in a temporary folder (its targets are written by these tests), resources pointing at var/."""
-    folder = tmp_path / "demo"
-    shutil.copytree(ROOT / "experiments" / "demo", folder)
-    text = (folder / "study.toml").read_text().replace('"../../var/', f'"{ROOT}/var/')
-    (folder / "study.toml").write_text(text)
-    return folder
+    return copy_demo_study(tmp_path).parent
 
 
 @pytest.fixture

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import IN_CI, ROOT, gunicorn, make_app
+from conftest import IN_CI, ROOT, copy_demo_study, gunicorn, make_app
 from PIL import Image
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
@@ -135,6 +135,16 @@ def done(page):
     page.click("#done-button")
     with page.expect_navigation(timeout=30000):
         page.click("#confirm-yes")
+
+
+def exit_survey(page, likert: str, preference: str) -> str:
+    """Answer every Likert item with ``likert``, choose ``preference``, submit; returns the completion code."""
+    for q in ("enjoy_list", "competent_list", "enjoy_suggestions", "competent_suggestions"):
+        page.check(f"input[name={q}][value='{likert}']")
+    page.check(f"input[name=preference][value='{preference}']")
+    page.click("button:has-text('Continue')")
+    page.wait_for_selector(".code")
+    return page.inner_text(".code")
 
 
 def db_events(database: Path, pid: str) -> list[tuple[int, str]]:
@@ -273,12 +283,7 @@ def test_a_whole_participant_run(page, server):
         ready(page)
     assert sorted(conditions[1:]) == sorted(["none", "basic", "full"] * 3) and conditions[0] == "full"
     page.fill("textarea[name=comments]", "The suggestions were handy.")
-    for q in ("enjoy_list", "competent_list", "enjoy_suggestions", "competent_suggestions"):
-        page.check(f"input[name={q}][value='4']")
-    page.check("input[name=preference][value='Suggestions, oriented']")
-    page.click("button:has-text('Continue')")
-    page.wait_for_selector(".code")
-    assert page.inner_text(".code") == "DEMO-DONE-7F3A"
+    assert exit_survey(page, "4", "Suggestions, oriented") == "DEMO-DONE-7F3A"
     events = db_events(database, pid)
     seqs = [s for s, _ in events]
     assert seqs == list(range(len(seqs)))  # every event stored once, none missing
@@ -472,12 +477,7 @@ def test_a_person_completes_the_replication(page, replication_server):
         ready(page)
     assert conditions[0] == "full" and sorted(conditions[1:]) == sorted(["none", "basic", "full"] * 3)
     assert len(scenes) == 4  # the practice scene and the three scenes of this participant's period
-    for q in ("enjoy_list", "competent_list", "enjoy_suggestions", "competent_suggestions"):
-        page.check(f"input[name={q}][value='3']")
-    page.check("input[name=preference][value='Suggestions']")
-    page.click("button:has-text('Continue')")
-    page.wait_for_selector(".code")
-    assert page.inner_text(".code") == "SS2015-DONE"
+    assert exit_survey(page, "3", "Suggestions") == "SS2015-DONE"
     assert not page.console_problems, page.console_problems
 
 
@@ -488,9 +488,7 @@ def authoring_server(tmp_path, demo_resources):
     from werkzeug.security import generate_password_hash
 
     _require_browser()
-    folder = tmp_path / "demo"
-    shutil.copytree(ROOT / "experiments" / "demo", folder)
-    (folder / "study.toml").write_text((folder / "study.toml").read_text().replace('"../../var/', f'"{ROOT}/var/'))
+    folder = copy_demo_study(tmp_path).parent
     make_app(tmp_path, f"sqlite:///{tmp_path / 'study.sqlite3'}", studies=[folder / "study.toml"])
     server = StudyServer(tmp_path / "instance", f"sqlite:///{tmp_path / 'study.sqlite3'}", migrate=False,
                          study=folder / "study.toml")

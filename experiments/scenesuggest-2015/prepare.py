@@ -60,16 +60,15 @@ def stanford_dir(option: str | None) -> Path:
 
 
 def representatives(corpus, option: str | None, meshes: Path | None) -> tuple[list[tuple[str, str]], str]:
-    candidates = [Path(option)] if option else ([meshes.parent / FILE_NAME] if meshes else [])
-    for path in candidates:
-        if path.is_file() or option:
-            rows = read_representatives(path)
-            missing = [m for _, m in rows if m not in corpus.models or corpus.models[m].mesh is None]
-            if missing:
-                raise SceneSuggestError(f"{len(missing)} representative model(s) have no mesh, e.g. {missing[0]}",
-                                        file=str(path))
-            return rows, str(path)
-    return top_representatives(corpus, 100), "chosen from the corpus (top 100 categories)"
+    path = Path(option) if option else meshes.parent / FILE_NAME if meshes else None
+    if path is None or not (option or path.is_file()):
+        return top_representatives(corpus, 100), "chosen from the corpus (top 100 categories)"
+    rows = read_representatives(path)
+    missing = [m for _, m in rows if m not in corpus.models or corpus.models[m].mesh is None]
+    if missing:
+        raise SceneSuggestError(f"{len(missing)} representative model(s) have no mesh, e.g. {missing[0]}",
+                                file=str(path))
+    return rows, str(path)
 
 
 def library_models(corpus, reps: list[tuple[str, str]], extra: list[str]) -> list[str]:

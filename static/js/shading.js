@@ -45,9 +45,18 @@ void main() {
   #include <colorspace_fragment>
 }`;
 
+const materials = new Map();  // one material per (colour, vertexColors, side), shared by every mesh using it
+
 /** A matte material lit per vertex by :data:`SKY` and :data:`SUN`: ``colour`` (hex, sRGB) times the vertex
- * colours when ``vertexColors``; a double-sided one lights back faces by their own side. */
+ * colours when ``vertexColors``; a double-sided one lights back faces by their own side. Materials are shared:
+ * consecutive draws with one material skip the uniform uploads. */
 export function matteMaterial({ colour = 0xffffff, vertexColors = false, side = THREE.FrontSide } = {}) {
+  const key = `${colour}/${vertexColors}/${side}`;
+  if (!materials.has(key)) materials.set(key, createMatte(colour, vertexColors, side));
+  return materials.get(key);
+}
+
+function createMatte(colour, vertexColors, side) {
   const scaled = (hex, k) => new THREE.Color(hex).multiplyScalar(k);  // linear working space, as three.js lights
   return new THREE.ShaderMaterial({
     vertexColors, side, vertexShader, fragmentShader,

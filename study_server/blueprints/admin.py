@@ -22,13 +22,16 @@ from flask import (
 )
 from sqlalchemy import func, select
 
-from ..authoring import AuthoringError, checked_png, checked_scene, image_path, write_atomically
+from scenesuggest import scene_json
+from scenesuggest.atomic import write_atomically
+
+from ..authoring import checked_png, checked_scene, image_path
 from ..export import export_zip
 from ..extensions import db
 from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
 from ..runtime import runtime
-from ..security import admin_required, attempt_login, check_csrf, client_ip, csrf_token, login_blocked
-from .api import preview_token
+from ..security import admin_required, attempt_login, check_csrf, client_ip, csrf_ok, csrf_token, login_blocked
+from .api import ApiError, preview_token
 
 bp = Blueprint("admin", __name__, url_prefix="/admin")
 
@@ -194,24 +197,23 @@ def _frozen(study_id: str) -> int:
 
 
 def _authoring_request(study_id: str, scene_id: str, key: str):
-    sent = request.headers.get("X-CSRF-Token", "")
-    if not sent or not secrets.compare_digest(sent, session.get("csrf", "")):
-        raise AuthoringError(400, "the page has expired; reload it and save again", "X-CSRF-Token")
+    if not csrf_ok(request.headers.get("X-CSRF-Token")):
+        raise ApiError(400, "the page has expired; reload it and save again", "X-CSRF-Token")
     rt = runtime(study_id)
     if scene_id not in rt.study.scenes:
-        raise AuthoringError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
+        raise ApiError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
     started = _frozen(study_id)
     if started:
-        raise AuthoringError(409, f"{started} participant(s) have started this study: its target scenes are frozen "
+        raise ApiError(409, f"{started} participant(s) have started this study: its target scenes are frozen "
                                   "(author on a copy of the study)", "scene_id")
     doc = request.get_json(silent=True)
     if not isinstance(doc, dict) or key not in doc:
-        raise AuthoringError(400, f"expected a JSON object with {key!r}", key)
+        raise ApiError(400, f"expected a JSON object with {key!r}", key)
     return rt, doc[key]
 
 
-@bp.errorhandler(AuthoringError)
-def _authoring_error(e: AuthoringError):
+@bp.errorhandler(ApiError)
+def _authoring_error(e: ApiError):
     return jsonify({"error": e.message, "field": e.field}), e.status
 
 
@@ -219,11 +221,11 @@ def _authoring_error(e: AuthoringError):
 @admin_required
 def author_save(study_id: str, scene_id: str):
     rt, doc = _authoring_request(study_id, scene_id, "scene")
-    data = checked_scene(doc, scene_id, rt.library)
+    scene = checked_scene(doc, scene_id, rt.library)
     target = rt.study.scenes[scene_id].target
-    write_atomically(target, data)
-    current_app.logger.info("target scene %s of %s saved by the admin (%d bytes)", scene_id, study_id, len(data))
-    return jsonify({"saved": str(target), "objects": len(json.loads(data)["objects"]) - 1})
+    scene_json.save(scene, target)
+    current_app.logger.info("target scene %s of %s saved by the admin", scene_id, study_id)
+    return jsonify({"saved": str(target), "objects": len(scene) - 1})
 
 
 @bp.route("/<study_id>/author/<scene_id>/image", methods=["GET", "POST"])
@@ -231,14 +233,14 @@ def author_save(study_id: str, scene_id: str):
 def author_image(study_id: str, scene_id: str):
     """GET: the target's rendered image; POST {"png": data URL}: save it beside the target."""
     if request.method == "GET":
-        study = runtime(study_id).study
-        if scene_id not in study.scenes or not image_path(study.scenes[scene_id].target).is_file():
+        scenes = runtime(study_id).study.scenes
+        path = image_path(scenes[scene_id].target) if scene_id in scenes else None
+        if path is None or not path.is_file():
             abort(404)
-        return send_file(image_path(study.scenes[scene_id].target), mimetype="image/png", max_age=0)
+        return send_file(path, mimetype="image/png", max_age=0)
     rt, data_url = _authoring_request(study_id, scene_id, "png")
     data, (width, height) = checked_png(data_url)
-    path = image_path(rt.study.scenes[scene_id].target)
-    write_atomically(path, data)
+    path = write_atomically(image_path(rt.study.scenes[scene_id].target), data)
     return jsonify({"saved": str(path), "width": width, "height": height})
 
 
