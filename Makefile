@@ -19,7 +19,10 @@ setup: $(PIP_STAMP) $(NPM_STAMP)
 $(DEMO_LIBRARY): $(wildcard scenesuggest/assets/*.py) | $(PIP_STAMP)
 	$(BIN)/scenesuggest assets build ai2thor --out var/library/ai2thor
 
-$(DEMO_PRIORS): | $(PIP_STAMP)
+# Priors are retrained when the code that learns them changes (a new priors file version would not load).
+PRIORS_CODE := scenesuggest/priors.py scenesuggest/pair_priors.py scenesuggest/orientation.py \
+	scenesuggest/observations.py scenesuggest/walls.py scenesuggest/folds.py scenesuggest/corpora/ai2thor.py
+$(DEMO_PRIORS): $(PRIORS_CODE) | $(PIP_STAMP)
 	mkdir -p var/priors
 	$(BIN)/scenesuggest priors train ai2thor -o $@
 

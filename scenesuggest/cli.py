@@ -234,17 +234,21 @@ def suggest_cmd(priors_file, scene_file, parent_id, point, normal, mode, top, sc
 @click.argument("source")
 @click.option("--folds", default=5, show_default=True, type=click.IntRange(min=2))
 @click.option("--seed", default=0, show_default=True)
+@click.option("--group-similar/--no-group-similar", default=True, show_default=True,
+              help="Keep near-copies of a scene in one fold (and report plain k-fold figures beside).")
+@click.option("--by-category", is_flag=True, help="Also print orientation accuracy per category.")
 @meshes_option
 @click.option("--json", "as_json", is_flag=True)
-def evaluate_cmd(source: str, folds: int, seed: int, meshes: str | None, as_json: bool) -> None:
+def evaluate_cmd(source: str, folds: int, seed: int, group_similar: bool, by_category: bool, meshes: str | None,
+                 as_json: bool) -> None:
     """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines."""
     from .evaluate import evaluate, format_evaluation
 
     c = _load(source, meshes)
     if len(c.scenes) < folds:
         raise SceneSuggestError(f"{len(c.scenes)} scenes cannot make {folds} folds", field="folds")
-    result = evaluate(c, folds=folds, seed=seed, progress=progress)
-    emit(result, as_json, format_evaluation(result))
+    result = evaluate(c, folds=folds, seed=seed, progress=progress, group_similar=group_similar)
+    emit(result, as_json, format_evaluation(result, by_category=by_category))
 
 
 @main.group()

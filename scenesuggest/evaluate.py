@@ -6,15 +6,25 @@ the rank of its true category is recorded (edges whose contact lies far from the
 data, skipped and counted). A category never seen in training has no rank (reciprocal
 rank 0). Ties count half: rank = 1 + (#scored higher) + (#scored equal)/2.
 
-``full`` mode also places the true category; the angle between the predicted and the true front is
-reported as the fractions within 15° and 45°. Baselines rank by: global category frequency
-(``frequency``); P(|C on p| > k) alone (``parent_only``); the full score without back-off
-(``no_backoff``); the score without the position term (``no_position``).
+Folds keep near-copies of a scene together (:mod:`.folds`; ``group_similar``, the default); the figures of
+plain k-fold by scene are reported beside them under ``"ungrouped"``.
+
+Orientation: the true category is also placed, in ``full`` mode and in the canonical pose that ``basic`` uses
+(the geometric attachment face, no turn). Reported for each (:func:`orientation_summary`): the fractions within
+15° and 45° of the angle between the predicted and the true front (``orient_within_*``, the unfolded figure),
+the same for the rotation error folded by the model's rotational symmetry about its up axis
+(``orient_folded_within_*``, :func:`~scenesuggest.pose_error.pose_error_deg`; periods from meshes, see
+:mod:`.symmetry`) and the median folded error. Per category under ``"categories"``; chairs standing beside a
+table or desk under ``"chairs_at_tables"`` (also: how often the suggested chair faces the nearest one).
+
+Baselines rank by: global category frequency (``frequency``); P(|C on p| > k) alone (``parent_only``); the
+full score without back-off (``no_backoff``); the score without the position term (``no_position``).
 """
 
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Callable, Iterable
 
 import numpy as np
@@ -22,10 +32,20 @@ import numpy as np
 from . import poses
 from .corpora.corpus import Corpus
 from .errors import SceneSuggestError
+from .folds import folds_of, grouped_folds, similar_groups
+from .pose_error import front_angle_deg, pose_error_deg
 from .priors import Priors
+from .scene import ObjectInstance, Scene
 from .suggest import ContextQuery, Engine, EngineOptions
+from .symmetry import ModelPeriods, corpus_periods
 
 BASELINES = ("frequency", "parent_only", "no_backoff", "no_position")
+#: Poses whose orientation is measured: the engine's full mode, full mode with the paper's orientation rule, and
+#: the canonical pose of basic mode.
+POSES = ("full", "paper", "canonical")
+TOLERANCES_DEG = (15, 45)
+
+__all__ = ["evaluate", "format_evaluation", "folds_of", "rank_of", "summary", "orientation_summary"]
 
 
 def rank_of(scores: np.ndarray, index: int | None) -> float:
@@ -44,31 +64,71 @@ def summary(ranks: list[float]) -> dict:
             "n": int(len(r))}
 
 
-def folds_of(n_scenes: int, k: int, seed: int) -> list[np.ndarray]:
-    order = np.random.default_rng(seed).permutation(n_scenes)
-    return [np.sort(f) for f in np.array_split(order, k)]
+def orientation_summary(front: list[float], folded: list[float]) -> dict:
+    """Fractions (0..1) within 15° and 45°, unfolded (angle between fronts) and folded by symmetry, and the
+    median folded error in degrees."""
+    f, g = np.asarray(front, dtype=float), np.asarray(folded, dtype=float)
+    out = {}
+    for tol in TOLERANCES_DEG:
+        out[f"orient_within_{tol}"] = float(np.mean(f <= tol)) if len(f) else 0.0
+    for tol in TOLERANCES_DEG:
+        out[f"orient_folded_within_{tol}"] = float(np.mean(g <= tol)) if len(g) else 0.0
+    out["orient_median_deg"] = float(np.median(g)) if len(g) else 0.0
+    out["orient_n"] = int(len(g))
+    return out
 
 
-def front_angle_deg(predicted: np.ndarray, truth: np.ndarray) -> float:
-    a, b = poses.rotation_of(predicted)[:, 2], poses.rotation_of(truth)[:, 2]
-    return float(np.degrees(np.arccos(np.clip(np.dot(a, b), -1.0, 1.0))))
+def _is_chair(category: str, corpus: Corpus) -> bool:
+    return any(c.endswith("Chair") for c in [category, *corpus.taxonomy.ancestors(category)])
 
 
-def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptions | None = None,
-             progress: Callable[[Iterable, str], Iterable] | None = None) -> dict:
-    """Run the k-fold evaluation; returns the JSON-ready summary (see the CLI's ``evaluate --json``)."""
-    progress = progress or (lambda items, label="": items)
-    options = options or EngineOptions()
+def _is_table(category: str, corpus: Corpus) -> bool:
+    return any(c in ("Table", "Desk") for c in [category, *corpus.taxonomy.ancestors(category)])
+
+
+def _centre(o: ObjectInstance) -> np.ndarray:
+    lo, hi = o.world_bbox()
+    return (lo + hi) / 2
+
+
+def _nearest_table(scene: Scene, o: ObjectInstance, corpus: Corpus) -> ObjectInstance | None:
+    """For a chair: the table or desk on the same parent whose centre is nearest (None if there is none)."""
+    if not _is_chair(o.category, corpus):
+        return None
+    tables = [q for q in scene.children(o.parent) if q.id != o.id and _is_table(q.category, corpus)]
+    if not tables:
+        return None
+    return min(tables, key=lambda q: float(np.linalg.norm((_centre(q) - _centre(o))[[0, 2]])))
+
+
+def _facing_error_deg(placement: np.ndarray, size, target: ObjectInstance, normal) -> float:
+    """Angle (degrees) between a placed object's front and the direction from it to ``target``'s centre, both
+    in the support plane."""
+    position = poses.rotation_of(placement) @ (np.asarray(size, dtype=float) * [0, 0.5, 0]) + placement[:3, 3]
+    front = poses.heading(poses.rotation_of(placement)[:, 2], normal)
+    towards = poses.heading(_centre(target) - position, normal)
+    if math.isnan(front) or math.isnan(towards):
+        return 180.0
+    return abs(math.degrees(float(poses.wrap(front - towards + math.pi)) - math.pi))
+
+
+def _footprint(o: ObjectInstance) -> tuple[float, float]:
+    scale = np.linalg.norm(o.transform[:3, :3], axis=0)
+    return float(o.size[0] * scale[0]), float(o.size[2] * scale[2])
+
+
+def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
+         progress) -> tuple[dict[str, list[float]], list[dict], int]:
+    """Ranks per ranking, one orientation record per placed query, and the number of skipped edges."""
     ranks: dict[str, list[float]] = {m: [] for m in ("basic", "full", *BASELINES)}
-    angles: list[float] = []
+    records: list[dict] = []
     skipped = 0
-    for held in progress(folds_of(len(corpus.scenes), folds, seed), "folds"):
+    for held in progress(folds, "folds"):
         held_set = set(held.tolist())
         train = [s for i, s in enumerate(corpus.scenes) if i not in held_set]
-        priors = Priors.fit(train, corpus.taxonomy)
-        engine = Engine(priors, options)
+        engine = Engine(Priors.fit(train, corpus.taxonomy), options)
         plain = engine.with_options(backoff=False)
-        total_freq = engine.base_rate
+        paper = engine.with_options(orientation="paper")
         for i in held:
             scene = corpus.scenes[i]
             for o in scene:
@@ -85,38 +145,147 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
                 r = rank_of(scores.total, index)
                 ranks["basic"].append(r)
                 ranks["full"].append(r)
-                ranks["frequency"].append(rank_of(total_freq, index))
+                ranks["frequency"].append(rank_of(engine.base_rate, index))
                 ranks["parent_only"].append(rank_of(scores.occurrence, index))
                 ranks["no_position"].append(rank_of(options.lambda1 * scores.occurrence * scores.surface, index))
                 ranks["no_backoff"].append(rank_of(plain.score(query).total, plain.index.get(o.category)))
                 if index is not None:
-                    faces, alphas, _ = engine.choose_poses(scores, "full")
-                    predicted = poses.placement(scores.prepared.point, scores.prepared.normal, faces[index],
-                                                engine.size[index], float(alphas[index]))
-                    angles.append(front_angle_deg(predicted, o.transform))
+                    records.append(_orientation_record(engine, paper, scores, index, scene, o, corpus, periods))
+    return ranks, records, skipped
+
+
+def _orientation_record(engine: Engine, paper: Engine, scores, index: int, scene: Scene, o: ObjectInstance,
+                        corpus: Corpus, periods: ModelPeriods) -> dict:
+    prep = scores.prepared
+    period, source = periods.of(o.model_id, o.category, _footprint(o))
+    table = _nearest_table(scene, o, corpus)
+    record = {"category": o.category, "period": period, "period_source": source, "chair_at_table": table is not None}
+    for pose, by, mode in (("full", engine, "full"), ("paper", paper, "full"), ("canonical", engine, "basic")):
+        faces, alphas, _ = by.choose_poses(scores, mode, [index])
+        placed = poses.placement(prep.point, prep.normal, faces[0], engine.size[index], float(alphas[0]))
+        record[f"{pose}_front"] = front_angle_deg(placed, o.transform)
+        record[f"{pose}_face"] = faces[0] == o.attachment_face
+        record[f"{pose}_folded"] = pose_error_deg(placed, o.transform, period)
+        if table is not None:
+            record[f"{pose}_facing"] = _facing_error_deg(placed, engine.size[index], table, prep.normal)
+    return record
+
+
+def _orientation(records: list[dict], pose: str) -> dict:
+    out = orientation_summary([r[f"{pose}_front"] for r in records], [r[f"{pose}_folded"] for r in records])
+    out["face_correct"] = float(np.mean([r[f"{pose}_face"] for r in records])) if records else 0.0
+    return out
+
+
+def _modes(ranks: dict[str, list[float]], records: list[dict]) -> dict:
     full = summary(ranks["full"])
-    a = np.array(angles)
-    full["orient_within_15"] = float(np.mean(a <= 15)) if len(a) else 0.0
-    full["orient_within_45"] = float(np.mean(a <= 45)) if len(a) else 0.0
-    full["orient_n"] = int(len(a))
-    return {
+    full.update(_orientation(records, "full"))
+    full["paper"] = _orientation(records, "paper")
+    full["canonical"] = _orientation(records, "canonical")
+    return {"modes": {"basic": summary(ranks["basic"]), "full": full},
+            "baselines": {b: summary(ranks[b]) for b in BASELINES}}
+
+
+def _categories(records: list[dict]) -> dict:
+    by: dict[str, list[dict]] = {}
+    for r in records:
+        by.setdefault(r["category"], []).append(r)
+    out = {}
+    for category, rs in sorted(by.items(), key=lambda kv: (-len(kv[1]), kv[0])):
+        out[category] = {"n": len(rs), "period": float(Counter(r["period"] for r in rs).most_common(1)[0][0])}
+        for pose in POSES:
+            folded = np.array([r[f"{pose}_folded"] for r in rs])
+            out[category][f"{pose}_folded_within_45"] = float(np.mean(folded <= 45))
+            out[category][f"{pose}_median_deg"] = float(np.median(folded))
+    return out
+
+
+def _chairs(records: list[dict]) -> dict:
+    rs = [r for r in records if r["chair_at_table"]]
+    out: dict = {"n": len(rs)}
+    for pose in POSES:
+        out[f"{pose}_facing_within_45"] = float(np.mean([r[f"{pose}_facing"] <= 45 for r in rs])) if rs else 0.0
+        out[f"{pose}_folded_within_45"] = float(np.mean([r[f"{pose}_folded"] <= 45 for r in rs])) if rs else 0.0
+    return out
+
+
+def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptions | None = None,
+             progress: Callable[[Iterable, str], Iterable] | None = None, group_similar: bool = True,
+             periods: ModelPeriods | None = None) -> dict:
+    """Run the k-fold evaluation; returns the JSON-ready summary (see the CLI's ``evaluate --json``).
+
+    With ``group_similar`` the main figures come from folds that keep near-copies together and the plain
+    k-fold figures are added under ``"ungrouped"``; without it only plain k-fold by scene is run."""
+    progress = progress or (lambda items, label="": items)
+    options = options or EngineOptions()
+    if periods is None:
+        periods = corpus_periods(corpus.models.values(), progress)
+    groups = similar_groups(corpus.scenes) if group_similar else list(range(len(corpus.scenes)))
+    plain_folds = folds_of(len(corpus.scenes), folds, seed)
+    main_folds = grouped_folds(groups, folds, seed) if group_similar else plain_folds
+    ranks, records, skipped = _run(corpus, main_folds, options, periods, progress)
+    result = {
         "source": corpus.source, "folds": folds, "seed": seed, "queries": len(ranks["full"]),
         "skipped": skipped,
-        "modes": {"basic": summary(ranks["basic"]), "full": full},
-        "baselines": {b: summary(ranks[b]) for b in BASELINES},
+        **_modes(ranks, records),
+        "grouping": {"group_similar": group_similar, "groups": len(set(groups)),
+                     "scenes_with_near_copies": int(sum(n for n in Counter(groups).values() if n > 1))},
+        "period_sources": dict(Counter(r["period_source"] for r in records)),
+        "categories": _categories(records),
+        "chairs_at_tables": _chairs(records),
     }
+    if group_similar:
+        plain_ranks, plain_records, _ = _run(corpus, plain_folds, options, periods, progress)
+        result["ungrouped"] = {"queries": len(plain_ranks["full"]), **_modes(plain_ranks, plain_records),
+                               "chairs_at_tables": _chairs(plain_records)}
+    return result
 
 
-def format_evaluation(result: dict) -> str:
-    """A human table of :func:`evaluate`'s result."""
-    lines = [f"{result['source']}: {result['queries']} queries ({result['skipped']} skipped), "
-             f"{result['folds']}-fold by scene, seed {result['seed']}",
-             "", f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]
-    rows = [("basic", result["modes"]["basic"]), ("full", result["modes"]["full"])]
-    rows += [(f"- {b}", result["baselines"][b]) for b in BASELINES]
-    for name, m in rows:
-        lines.append(f"{name:<14}{m['mrr']:>8.3f}{m['top1']:>8.3f}{m['top5']:>8.3f}")
+def _ranking_rows(block: dict) -> list[str]:
+    rows = [("basic", block["modes"]["basic"]), ("full", block["modes"]["full"])]
+    rows += [(f"- {b}", block["baselines"][b]) for b in BASELINES]
+    return [f"{name:<14}{m['mrr']:>8.3f}{m['top1']:>8.3f}{m['top5']:>8.3f}" for name, m in rows]
+
+
+def _orientation_rows(full: dict) -> list[str]:
+    lines = [f"{'orientation':<14}{'≤15°':>8}{'≤45°':>8}{'folded ≤15°':>13}{'≤45°':>8}{'median':>9}"]
+    for name, m in (("full", full), ("paper's rule", full["paper"]), ("canonical", full["canonical"])):
+        lines.append(f"{name:<14}{100 * m['orient_within_15']:>7.1f}%{100 * m['orient_within_45']:>7.1f}%"
+                     f"{100 * m['orient_folded_within_15']:>12.1f}%{100 * m['orient_folded_within_45']:>7.1f}%"
+                     f"{m['orient_median_deg']:>8.1f}°")
+    return lines
+
+
+def format_evaluation(result: dict, by_category: bool = False, top: int = 30) -> str:
+    """A human table of :func:`evaluate`'s result (``by_category``: also the per-category orientation table)."""
+    grouping = result["grouping"]
+    how = (f"{result['folds']}-fold by scene, near-copies kept together ({grouping['groups']} groups; "
+           f"{grouping['scenes_with_near_copies']} scenes have near-copies)" if grouping["group_similar"]
+           else f"{result['folds']}-fold by scene")
+    lines = [f"{result['source']}: {result['queries']} queries ({result['skipped']} skipped), {how}, "
+             f"seed {result['seed']}", "", f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]
+    lines += _ranking_rows(result)
     full = result["modes"]["full"]
-    lines += ["", f"full-mode orientation of the true category ({full['orient_n']} placements): "
-                  f"{100 * full['orient_within_15']:.1f}% within 15°, {100 * full['orient_within_45']:.1f}% within 45°"]
+    sources = ", ".join(f"{n} from {s}" for s, n in sorted(result["period_sources"].items()))
+    lines += ["", f"orientation of the true category ({full['orient_n']} placements; symmetry periods: {sources})"]
+    lines += _orientation_rows(full)
+    chairs = result["chairs_at_tables"]
+    if chairs["n"]:
+        lines += ["", f"chairs beside a table or desk ({chairs['n']}): facing it within 45° — full "
+                      f"{100 * chairs['full_facing_within_45']:.1f}%, paper's rule "
+                      f"{100 * chairs['paper_facing_within_45']:.1f}%, canonical "
+                      f"{100 * chairs['canonical_facing_within_45']:.1f}%"]
+    if "ungrouped" in result:
+        plain = result["ungrouped"]
+        lines += ["", f"plain {result['folds']}-fold by scene (near-copies may straddle folds; {plain['queries']} "
+                      "queries)", f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]
+        lines += _ranking_rows(plain)
+        lines += [""] + _orientation_rows(plain["modes"]["full"])
+    if by_category:
+        lines += ["", f"{'folded ≤45°':<24}{'n':>6}{'period':>8}{'full':>8}{'paper':>8}{'canonical':>11}"]
+        for name, c in list(result["categories"].items())[:top]:
+            lines.append(f"{name:<24}{c['n']:>6}{c['period']:>7.0f}°{100 * c['full_folded_within_45']:>7.1f}%"
+                         f"{100 * c['paper_folded_within_45']:>7.1f}%{100 * c['canonical_folded_within_45']:>10.1f}%")
+        if len(result["categories"]) > top:
+            lines.append(f"… {len(result['categories']) - top} more categories (use --json for all)")
     return "\n".join(lines)

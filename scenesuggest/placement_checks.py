@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import poses
-from .priors import BINS
+from .priors import BINS, FACES
 
 #: Boxes may touch or overlap by this much (metres) without counting as a collision or an overhang.
 TOLERANCE_M = 0.02
@@ -66,7 +66,8 @@ def check_fit(engine, scores, faces, alphas, headings, points, total, notes, mod
     zero = headings - alphas
     tries = [np.zeros(n, dtype=int)]  # offsets from the chosen heading, best orientation score first
     if mode == "full":
-        order = np.argsort(-scores.orientation, axis=1, kind="stable")
+        face_index = np.array([FACES.index(f) for f in faces])
+        order = np.argsort(-engine.heading_scores(scores, np.arange(n), face_index), axis=1, kind="stable")
         chosen = np.round(poses.wrap(headings) / (2 * np.pi / BINS)).astype(int) % BINS
         tries = [order[:, j] - chosen for j in range(BINS)]
     fixed = np.zeros(n, dtype=bool)

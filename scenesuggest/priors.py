@@ -3,13 +3,14 @@
 * occurrence — per (parent, scene type): for each child category C the histogram of how many children of
   C each parent instance carries, giving ``P(|C on p| > k)``;
 * support surface ``P_sup(t | C)`` and attachment face ``P_att(f | C, t)`` — counts;
-* relative position — 2-D Gaussian KDEs of the offsets δ (metres, :mod:`.observations`) per
-  (C, C_ref, scene type, relation, surface type), bandwidth by Scott's rule (at least 5 cm);
-* relative orientation — wrapped 36-bin (10°) histograms of θ for the same keys, smoothed with a
-  (1, 2, 1) kernel.
+* relative position and orientation — per (C, C_ref, scene type, relation, surface type): a KDE of offsets
+  and counts of θ and φ (:mod:`.pair_priors`); walls are references too (:mod:`.observations`);
+* the canonical orientation prior — counts of the turn from the canonical pose per (C, surface type, face);
+* how far ``full`` mode trusts each kind of orientation evidence — weights per category (:mod:`.orientation`).
 
-Both position densities and orientation histograms are divided by their peak, so each is a relative
-likelihood in [0, 1] and comparable with the probabilities of the occurrence term.
+Position densities are divided by their peak, so each is a relative likelihood in [0, 1] and comparable
+with the probabilities of the occurrence term. The paper's orientation rule reads ``seg_hist``: the θ counts
+smoothed with a (1, 2, 1) kernel and divided by their peak.
 
 Back-off, as in the paper, is by category: statistics are kept for *entities* — a category itself
 (``Chair``) and, for categories with subcategories, its whole subtree (``Chair/*``). A category with
@@ -18,14 +19,13 @@ stat_entity`). Statistics keyed by scene type climb the taxonomy within the quer
 (a chest of drawers in a bedroom reads the bedroom statistics of all chests of drawers) and only then
 use all scene types (``*``) (:meth:`Priors.keyed_entity`); what is borrowed from other scene types only
 counts for categories seen in the query's scene type at least once, so that what never happens in
-bedrooms is not brought in from kitchens (:mod:`.suggest`). When nothing is observed the engine falls
-back to geometry.
+bedrooms is not brought in from kitchens (:meth:`Priors.borrowed`). When nothing is observed the engine
+falls back to geometry.
 """
 
 from __future__ import annotations
 
 import json
-import math
 from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -34,21 +34,58 @@ import numpy as np
 
 from . import frames
 from .errors import SceneSuggestError
-from .observations import RELATIONS, corpus_observations
+from .folds import similar_groups
+from .observations import RELATIONS, WALL, corpus_observations
+from .orientation import BINS, learn_orientation, smooth
+from .pair_priors import angle_bins, expand_pairs, pair_arrays
 from .scene import SURFACE_TYPES, Scene
 from .taxonomy import MIN_OBSERVATIONS, Taxonomy
 
 FORMAT = "scenesuggest-priors"
-VERSION = 1
+VERSION = 2
 ANY = "*"
 K_MAX = 8
-BINS = 36
-MIN_BANDWIDTH_M = 0.05
-#: Peak normalisers are evaluated at up to this many sample points per KDE; KDEs of up to SMALL_SEGMENT
-#: samples are normalised together, exactly.
-PEAK_POINTS = 512
-SMALL_SEGMENT = 24
 FACES = frames.FACES
+
+#: Learned arrays, by name: (shape, meaning). Saved and loaded as they are; everything else is derived.
+ARRAYS = {
+    "occ_parent_n": ("(entities, scene types)", "parent instances per parent entity and scene type (last: *)"),
+    "occ_key": ("(rows,)", "occurrence rows: parent entity × scene types + scene type, sorted"),
+    "occ_child": ("(rows,)", "occurrence rows: child entity"),
+    "occ_pgt": ("(rows, K_MAX + 1)", "P(count of the child on the parent > k), k = 0..K_MAX"),
+    "sup_counts": ("(entities, surface types)", "supported instances per surface type"),
+    "att_counts": ("(entities, surface types, faces)", "supported instances per surface type and face"),
+    "alpha_n": ("(entities, surface types, faces, BINS)", "turns from the canonical pose, counts per 10° bin"),
+    "group_keys": ("(groups, 4)", "pair groups: reference entity, scene index, relation, surface type"),
+    "seg_group": ("(segments,)", "each segment's group (segments sorted by group, then child)"),
+    "seg_child": ("(segments,)", "each segment's child entity"),
+    "seg_start": ("(segments,)", "first sample of the segment in pair_xy"),
+    "seg_count": ("(segments,)", "samples of the segment"),
+    "seg_bandwidth": ("(segments, 2)", "KDE bandwidth per axis, metres"),
+    "seg_weight": ("(segments,)", "1 / the KDE's peak value"),
+    "seg_theta_n": ("(segments, BINS)", "counts of θ per 10° bin"),
+    "seg_phi_n": ("(segments, BINS)", "counts of φ per 10° bin"),
+    "pair_xy": ("(samples, 2)", "offsets δ, metres, in the reference's frame"),
+    "orient_weights": ("(entities, kinds)", "trust in each kind of orientation evidence (orientation.KINDS)"),
+    "model_category": ("(models,)", "category index of each model"),
+    "model_size": ("(models, 3)", "canonical box size, metres"),
+    "model_count": ("(models,)", "supported instances of the model"),
+    "candidate_categories": ("(candidates,)", "category indices that have models, sorted"),
+}
+
+
+#: The modules whose code decides what a priors file holds (see :func:`code_digest`).
+LEARNING_MODULES = ("priors.py", "pair_priors.py", "orientation.py", "observations.py", "walls.py", "folds.py")
+
+
+def code_digest() -> str:
+    """A short hash of the code that learns priors: prepared priors files are retrained when it changes."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for name in LEARNING_MODULES:
+        digest.update((Path(__file__).parent / name).read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def _subtree(category: str) -> str:
@@ -56,11 +93,18 @@ def _subtree(category: str) -> str:
 
 
 class Priors:
-    """Learned state (arrays) plus the lookups the engine needs. Build with :meth:`fit` or :meth:`load`."""
+    """Learned state (the arrays of :data:`ARRAYS`, each an attribute of the same name) plus the lookups the
+    engine needs. Build with :meth:`fit` or :meth:`load`.
+
+    Derived on construction: ``seg_hist`` (segments, BINS), the paper's peak-normalised smoothed θ histograms.
+    """
 
     def __init__(self, arrays: dict[str, np.ndarray], meta: dict):
+        missing = set(ARRAYS) - set(arrays)
+        if missing:
+            raise SceneSuggestError(f"priors lack {', '.join(sorted(missing))}", field="arrays")
         self.meta = meta
-        self.arrays = arrays
+        self.arrays = {name: arrays[name] for name in ARRAYS}
         self.categories: list[str] = meta["categories"]
         self.entities: list[str] = meta["entities"]
         self.scene_types: list[str] = meta["scene_types"]
@@ -69,8 +113,18 @@ class Priors:
         self.category_index = {c: i for i, c in enumerate(self.categories)}
         self.entity_index = {e: i for i, e in enumerate(self.entities)}
         self.scene_index = {s: i for i, s in enumerate(self.scene_types)}
-        for name, value in arrays.items():
-            setattr(self, name, value)
+        a = self.arrays
+        self.occ_parent_n, self.occ_key, self.occ_child, self.occ_pgt = (
+            a["occ_parent_n"], a["occ_key"], a["occ_child"], a["occ_pgt"])
+        self.sup_counts, self.att_counts, self.alpha_n = a["sup_counts"], a["att_counts"], a["alpha_n"]
+        self.group_keys, self.seg_group, self.seg_child = a["group_keys"], a["seg_group"], a["seg_child"]
+        self.seg_start, self.seg_count, self.seg_bandwidth = a["seg_start"], a["seg_count"], a["seg_bandwidth"]
+        self.seg_weight, self.seg_theta_n, self.seg_phi_n = a["seg_weight"], a["seg_theta_n"], a["seg_phi_n"]
+        self.pair_xy, self.orient_weights = a["pair_xy"], a["orient_weights"]
+        self.model_category, self.model_size, self.model_count = (
+            a["model_category"], a["model_size"], a["model_count"])
+        self.candidate_categories = a["candidate_categories"]
+        self.seg_hist = peak_normalised(self.seg_theta_n)
         self._groups = {tuple(int(v) for v in key): g for g, key in enumerate(self.group_keys)}
         self._occ_starts = np.searchsorted(self.occ_key, np.arange(len(self.entities) * len(self.scene_types) + 1))
         self._group_seg_starts = np.searchsorted(self.seg_group, np.arange(len(self.group_keys) + 1))
@@ -184,6 +238,31 @@ class Priors:
         a, b = self._group_seg_starts[group], self._group_seg_starts[group + 1]
         return self.seg_child[a:b], np.arange(a, b)
 
+    def borrowed(self, entities: np.ndarray, scene_index: int, scene_type: str | None) -> np.ndarray | bool:
+        """Whether statistics read under ``scene_index`` count for ``entities`` in a ``scene_type`` query: always
+        when they come from the query's own type; from all types (``*``) only for entities seen in it."""
+        s = self.scene_index.get(scene_type) if scene_type is not None else None
+        if scene_index != len(self.scene_types) - 1 or s is None or s == scene_index:
+            return True
+        return self.occ_parent_n[entities, s] > 0
+
+    def pair_segments(self, entities: np.ndarray, ref_category: str, scene_type: str | None, relation: str,
+                      surface_type: str, backoff: bool = True) -> np.ndarray:
+        """For each of ``entities`` (the statistics entities of candidate categories): the segment that holds
+        its statistics next to a reference of ``ref_category`` (−1 where there is none)."""
+        entities = np.asarray(entities, dtype=np.int64)
+        seg = np.full(len(entities), -1, dtype=np.int64)
+        g = self.group_for(ref_category, scene_type, relation, surface_type, backoff)
+        if g is None:
+            return seg
+        children, segs = self.segments(g)
+        if not len(children):
+            return seg
+        pos = np.minimum(np.searchsorted(children, entities), len(children) - 1)
+        found = (children[pos] == entities) & self.borrowed(entities, int(self.group_keys[g][1]), scene_type)
+        seg[found] = segs[pos[found]]
+        return seg
+
     def describe(self) -> dict:
         return {"scenes": self.meta["scenes"], "supports": self.meta["supports"], "pairs": int(len(self.pair_xy)),
                 "categories": len(self.categories), "candidates": int(len(self.candidate_categories)),
@@ -192,8 +271,24 @@ class Priors:
 
 
 # --- fitting -----------------------------------------------------------------------------------------------
-def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
-    present = sorted({o.category for s in scenes for o in s})
+def peak_normalised(counts: np.ndarray) -> np.ndarray:
+    """Histogram counts (…, BINS) smoothed with the (1, 2, 1)/4 kernel and divided by their peak; flat (all
+    ones) where nothing was counted."""
+    h = smooth(np.asarray(counts, dtype=np.float64))
+    peak = h.max(axis=-1, keepdims=True)
+    return np.where(peak > 0, h / np.where(peak > 0, peak, 1.0), 1.0).astype(np.float32)
+
+
+def orientation_histogram(theta: np.ndarray) -> np.ndarray:
+    """Wrapped 36-bin histogram of angles (radians), bins centred on multiples of 10°, smoothed with a
+    (1, 2, 1)/4 kernel and divided by its peak; flat (all ones) when no angle is defined."""
+    bins = angle_bins(theta)
+    return peak_normalised(np.bincount(bins[bins >= 0], minlength=BINS))
+
+
+def _vocabulary(scenes: list[Scene], taxonomy: Taxonomy) -> tuple[list[str], Taxonomy, list[str], dict]:
+    """(categories, taxonomy restricted to them, entities, category → its entities, specific first)."""
+    present = sorted({o.category for s in scenes for o in s} | {WALL})
     categories = sorted(set(present) | {a for c in present for a in taxonomy.ancestors(c)})
     parents = {c: taxonomy.parent(c) for c in categories if taxonomy.parent(c) in set(categories)}
     tax = Taxonomy(parents)
@@ -202,11 +297,13 @@ def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
     entity_index = {e: i for i, e in enumerate(entities)}
     expand = {c: [entity_index[c]] + [entity_index[_subtree(x)] for x in [c, *tax.ancestors(c)]
                                       if _subtree(x) in entity_index] for c in categories}
-    scene_types = sorted({s.scene_type for s in scenes} - {ANY}) + [ANY]
-    s_index = {s: i for i, s in enumerate(scene_types)}
-    n_e, n_s, any_s = len(entities), len(scene_types), len(scene_types) - 1
+    return categories, tax, entities, expand
 
-    # occurrence: child counts per parent instance
+
+def _occurrence(scenes: list[Scene], expand: dict, s_index: dict, n_e: int, progress) -> dict[str, np.ndarray]:
+    """Child-count histograms per (parent entity, scene type) → P(|C on p| > k)."""
+    n_s = len(s_index)
+    any_s = n_s - 1
     parent_n = np.zeros((n_e, n_s), dtype=np.float64)
     hist: dict[tuple[int, int], np.ndarray] = {}
     for scene in progress(scenes, "counting children"):
@@ -222,149 +319,56 @@ def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
                     h = hist.setdefault((e * n_s + s, child), np.zeros(K_MAX + 1))
                     h[min(count, K_MAX)] += 1
     occ_items = sorted(hist.items())
-    occ_key = np.array([k for (k, _), _ in occ_items], dtype=np.int32)
-    occ_child = np.array([c for (_, c), _ in occ_items], dtype=np.int32)
     occ_pgt = np.zeros((len(occ_items), K_MAX + 1), dtype=np.float32)
     for i, ((key, _), h) in enumerate(occ_items):
         n = parent_n[key // n_s, key % n_s]
         occ_pgt[i] = (h[::-1].cumsum()[::-1] - h) / n  # P(count > k) for k = 0..K_MAX
+    return {"occ_parent_n": parent_n.astype(np.float32),
+            "occ_key": np.array([k for (k, _), _ in occ_items], dtype=np.int32),
+            "occ_child": np.array([c for (_, c), _ in occ_items], dtype=np.int32), "occ_pgt": occ_pgt}
+
+
+def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
+    categories, tax, entities, expand = _vocabulary(scenes, taxonomy)
+    scene_types = sorted({s.scene_type for s in scenes} - {ANY}) + [ANY]
+    s_index = {s: i for i, s in enumerate(scene_types)}
+    n_e = len(entities)
+    arrays = _occurrence(scenes, expand, s_index, n_e, progress)
 
     supports, pairs = corpus_observations(scenes)
     sup_counts = np.zeros((n_e, len(SURFACE_TYPES)), dtype=np.float32)
     att_counts = np.zeros((n_e, len(SURFACE_TYPES), len(FACES)), dtype=np.float32)
+    alpha_n = np.zeros((n_e, len(SURFACE_TYPES), len(FACES), BINS), dtype=np.float32)
     model_counts: Counter = Counter()
     model_info: dict[str, tuple[str, tuple]] = {}
-    for sup in supports:
+    alpha_bins = angle_bins(np.array([sup.alpha for sup in supports]))
+    for sup, b in zip(supports, alpha_bins, strict=True):
         t, f = SURFACE_TYPES.index(sup.surface_type), FACES.index(sup.face)
         for e in expand[sup.category]:
             sup_counts[e, t] += 1
             att_counts[e, t, f] += 1
+            if b >= 0:
+                alpha_n[e, t, f, b] += 1
         model_counts[sup.model_id] += 1
         model_info[sup.model_id] = (sup.category, sup.size)
 
-    arrays = _pair_arrays(pairs, expand, s_index, any_s, progress)
+    expanded = expand_pairs(pairs, expand, s_index, len(scene_types) - 1)
+    arrays.update(pair_arrays(expanded, progress))
     model_ids = sorted(model_counts, key=lambda m: (model_info[m][0], -model_counts[m], m))
     c_index = {c: i for i, c in enumerate(categories)}
-    candidate_categories = np.array(sorted({c_index[model_info[m][0]] for m in model_ids}), dtype=np.int32)
     arrays.update(
-        occ_parent_n=parent_n.astype(np.float32), occ_key=occ_key, occ_child=occ_child, occ_pgt=occ_pgt,
-        sup_counts=sup_counts, att_counts=att_counts,
+        sup_counts=sup_counts, att_counts=att_counts, alpha_n=alpha_n,
         model_category=np.array([c_index[model_info[m][0]] for m in model_ids], dtype=np.int32),
-        model_size=np.array([model_info[m][1] for m in model_ids], dtype=np.float32),
+        model_size=np.array([model_info[m][1] for m in model_ids], dtype=np.float32).reshape(-1, 3),
         model_count=np.array([model_counts[m] for m in model_ids], dtype=np.int32),
-        candidate_categories=candidate_categories,
+        candidate_categories=np.array(sorted({c_index[model_info[m][0]] for m in model_ids}), dtype=np.int32),
+        orient_weights=np.ones((n_e, 1), dtype=np.float32),
     )
     meta = {"format": FORMAT, "version": VERSION, "categories": categories, "entities": entities,
             "scene_types": scene_types, "model_ids": model_ids, "taxonomy": tax.to_dict(),
             "scenes": len(scenes), "scene_ids": sorted(s.id for s in scenes), "supports": len(supports),
             "k_max": K_MAX, "bins": BINS, "min_observations": MIN_OBSERVATIONS}
+    untrusted = Priors(arrays, meta)
+    arrays["orient_weights"] = learn_orientation(untrusted, supports, pairs, expanded, similar_groups(scenes),
+                                                 expand)
     return Priors(arrays, meta)
-
-
-def _pair_arrays(pairs, expand, s_index, any_s, progress) -> dict[str, np.ndarray]:
-    """Expand pair observations over entities and scene keys, group them and fit KDEs and histograms."""
-    group_of: dict[tuple[int, int, int, int], int] = {}
-    rows_group, rows_child, rows_xy, rows_theta = [], [], [], []
-    for p in progress(pairs, "expanding pairs"):
-        r, t = RELATIONS.index(p.relation), SURFACE_TYPES.index(p.surface_type)
-        for e_ref in expand[p.ref_category]:
-            for s in {s_index[p.scene_type], any_s}:
-                g = group_of.setdefault((e_ref, s, r, t), len(group_of))
-                for e_child in expand[p.category]:
-                    rows_group.append(g)
-                    rows_child.append(e_child)
-                    rows_xy.append(p.offset)
-                    rows_theta.append(p.theta)
-    keys = sorted(group_of)  # renumber groups in key order so files are deterministic
-    renumber = np.empty(len(keys), dtype=np.int32)
-    for new, key in enumerate(keys):
-        renumber[group_of[key]] = new
-    group = renumber[np.array(rows_group, dtype=np.int64)] if rows_group else np.zeros(0, np.int32)
-    child = np.array(rows_child, dtype=np.int32)
-    xy = np.array(rows_xy, dtype=np.float32).reshape(-1, 2)
-    theta = np.array(rows_theta, dtype=np.float32)
-    order = np.lexsort((theta, xy[:, 1], xy[:, 0], child, group))
-    group, child, xy, theta = group[order], child[order], xy[order], theta[order]
-    seg_id = np.r_[0, np.cumsum((np.diff(group) != 0) | (np.diff(child) != 0))] if len(group) else group
-    starts = np.flatnonzero(np.r_[True, np.diff(seg_id) != 0]) if len(group) else np.zeros(0, np.int64)
-    counts = np.diff(np.r_[starts, len(group)])
-    bandwidth = _bandwidths(xy.astype(np.float64), starts, counts)
-    peaks = np.zeros(len(starts))
-    small = counts <= SMALL_SEGMENT
-    peaks[small] = _small_peaks(xy, starts[small], counts[small], bandwidth[small])
-    for i in progress(np.flatnonzero(~small), "fitting densities"):
-        peaks[i] = _peak(xy[starts[i]:starts[i] + counts[i]].astype(np.float64), bandwidth[i])
-    return {
-        "group_keys": np.array(keys, dtype=np.int32).reshape(-1, 4),
-        "seg_group": group[starts].astype(np.int32), "seg_child": child[starts].astype(np.int32),
-        "seg_start": starts.astype(np.int64), "seg_count": counts.astype(np.int32),
-        "seg_bandwidth": bandwidth.astype(np.float32), "seg_weight": (1.0 / peaks).astype(np.float32),
-        "seg_hist": orientation_histograms(theta, seg_id, len(starts)), "pair_xy": xy,
-    }
-
-
-def _bandwidths(xy: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Scott's rule per segment (σ · n^(−1/6) per axis), at least MIN_BANDWIDTH_M."""
-    if not len(starts):
-        return np.zeros((0, 2))
-    n = counts[:, None].astype(np.float64)
-    mean = np.add.reduceat(xy, starts, axis=0) / n
-    var = np.maximum(np.add.reduceat(xy ** 2, starts, axis=0) / n - mean ** 2, 0.0)
-    return np.maximum(np.sqrt(var) * n ** (-1 / 6), MIN_BANDWIDTH_M)
-
-
-def _small_peaks(xy: np.ndarray, starts: np.ndarray, counts: np.ndarray, bandwidth: np.ndarray) -> np.ndarray:
-    """Peaks of many small KDEs at once: samples padded to SMALL_SEGMENT, all pairs evaluated together."""
-    out = np.zeros(len(starts))
-    for lo in range(0, len(starts), 4096):
-        st, ct, bw = starts[lo:lo + 4096], counts[lo:lo + 4096], bandwidth[lo:lo + 4096]
-        offsets = np.arange(SMALL_SEGMENT)
-        valid = offsets[None, :] < ct[:, None]
-        idx = np.where(valid, st[:, None] + offsets[None, :], st[:, None])
-        pts = xy[idx].astype(np.float64) / bw[:, None, :]
-        d2 = ((pts[:, :, None, :] - pts[:, None, :, :]) ** 2).sum(axis=3)
-        k = np.exp(-0.5 * d2) * valid[:, None, :]
-        out[lo:lo + 4096] = np.where(valid, k.sum(axis=2), 0.0).max(axis=1)
-    return out
-
-
-def _peak(points: np.ndarray, bandwidth: np.ndarray) -> float:
-    """The largest value of Σ exp(−q/2) over the sample points (all of them for small samples; for large ones
-    the most repeated points and an even spread of the rest, which is where a KDE's peak lies)."""
-    unique, weight = np.unique(points, axis=0, return_counts=True)
-    if len(unique) <= PEAK_POINTS:
-        probe = unique
-    else:
-        busiest = unique[np.argsort(-weight, kind="stable")[: PEAK_POINTS // 2]]
-        spread = unique[:: max(1, len(unique) // (PEAK_POINTS // 2))]
-        probe = np.vstack([busiest, spread])
-    best = 0.0
-    for chunk in np.array_split(probe, max(1, len(probe) // 128)):
-        d = (chunk[:, None, :] - unique[None, :, :]) / bandwidth
-        best = max(best, float((np.exp(-0.5 * (d ** 2).sum(axis=2)) @ weight).max()))
-    return best
-
-
-def orientation_histograms(theta: np.ndarray, segment: np.ndarray, n_segments: int) -> np.ndarray:
-    """:func:`orientation_histogram` of every segment at once (``segment`` gives each angle's segment)."""
-    theta = np.asarray(theta, dtype=np.float64)
-    ok = np.isfinite(theta)
-    bins = np.round(theta[ok] / (2 * math.pi / BINS)).astype(np.int64) % BINS
-    h = np.bincount(segment[ok] * BINS + bins, minlength=n_segments * BINS).reshape(n_segments, BINS).astype(float)
-    h = (np.roll(h, 1, axis=1) + 2 * h + np.roll(h, -1, axis=1)) / 4
-    peak = h.max(axis=1, keepdims=True)
-    return np.where(peak > 0, h / np.where(peak > 0, peak, 1.0), 1.0).astype(np.float32)
-
-
-def orientation_histogram(theta: np.ndarray) -> np.ndarray:
-    """Wrapped 36-bin histogram of angles (radians), bins centred on multiples of 10°, smoothed with a
-    (1, 2, 1)/4 kernel and divided by its peak; flat (all ones) when no angle is defined."""
-    theta = np.asarray(theta, dtype=np.float64)
-    theta = theta[np.isfinite(theta)]
-    if not len(theta):
-        return np.ones(BINS, dtype=np.float32)
-    bins = np.round(theta / (2 * math.pi / BINS)).astype(int) % BINS
-    h = np.bincount(bins, minlength=BINS).astype(np.float64)
-    h = (np.roll(h, 1) + 2 * h + np.roll(h, -1)) / 4
-    return (h / h.max()).astype(np.float32)
-

@@ -61,12 +61,14 @@ class ObjectInstance:
 
 @dataclass
 class Scene:
-    """A scene: its type and its objects, keyed by id in file order."""
+    """A scene: its type and its objects, keyed by id in file order. ``walls``: the room's walls when known
+    (:class:`scenesuggest.walls.Wall`; None: take them from the room object's box)."""
 
     id: str
     scene_type: str
     objects: dict[str, ObjectInstance] = field(default_factory=dict)
     source: str = ""
+    walls: list | None = None
 
     def __iter__(self) -> Iterator[ObjectInstance]:
         return iter(self.objects.values())
@@ -94,7 +96,7 @@ class Scene:
         """A copy of the scene with ``object_id`` and everything it supports removed."""
         gone = {object_id} | {o.id for o in self.descendants(object_id)}
         kept = {k: v for k, v in self.objects.items() if k not in gone}
-        return Scene(self.id, self.scene_type, kept, self.source)
+        return Scene(self.id, self.scene_type, kept, self.source, self.walls)
 
     def validate(self, file: str | None = None, lines: dict[str, int] | None = None) -> None:
         """Check the support tree: every parent exists, no object supports itself, no cycles.

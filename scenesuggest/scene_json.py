@@ -7,9 +7,11 @@ Layout (version 1)::
                   "transform": [16 numbers, column-major, canonical model frame -> world],
                   "parent": "0" | null, "surface_type": "up_exterior" | null,
                   "attachment_face": "bottom" | null, "contact_point": [x, y, z] | null,
-                  "contact_normal": [x, y, z] | null}, ...]}
+                  "contact_normal": [x, y, z] | null}, ...],
+     "walls": [{"normal": [nx, nz], "offset": d, "along": [a0, a1], "height": [y0, y1]}, ...]}
 
-Metres, +Y up. Unknown keys are errors, so a typo never silently drops data.
+Metres, +Y up. ``walls`` is optional (see :mod:`scenesuggest.walls`; without it the room object's box gives
+them). Unknown keys are errors, so a typo never silently drops data.
 """
 
 from __future__ import annotations
@@ -23,10 +25,12 @@ from .atomic import write_atomically
 from .errors import SceneSuggestError
 from .jsonpos import LineIndex, loads_with_lines
 from .scene import SURFACE_TYPES, ObjectInstance, Scene
+from .walls import Wall
 
 FORMAT = "scenesuggest-scene"
 VERSION = 1
-_TOP_KEYS = {"format", "version", "id", "scene_type", "source", "objects"}
+_TOP_KEYS = {"format", "version", "id", "scene_type", "source", "objects", "walls"}
+_WALL_KEYS = {"normal": 2, "offset": 1, "along": 2, "height": 2}
 _OBJECT_KEYS = {"id", "model_id", "category", "size", "transform", "parent", "surface_type",
                 "attachment_face", "contact_point", "contact_normal"}
 
@@ -36,7 +40,7 @@ def _vec(v) -> list[float] | None:
 
 
 def scene_to_dict(scene: Scene) -> dict:
-    return {
+    doc = {
         "format": FORMAT,
         "version": VERSION,
         "id": scene.id,
@@ -58,6 +62,9 @@ def scene_to_dict(scene: Scene) -> dict:
             for o in scene
         ],
     }
+    if scene.walls is not None:
+        doc["walls"] = [w.to_dict() for w in scene.walls]
+    return doc
 
 
 def dumps(scene: Scene) -> str:
@@ -135,7 +142,32 @@ class _Reader:
                 raise self.fail(f"duplicate object id {inst.id!r}", o, "id")
             scene.objects[inst.id] = inst
             lines[inst.id] = self.index.line_of(o) if self.index else None
+        if "walls" in doc:
+            scene.walls = self.walls(doc)
         return scene, lines
+
+    def walls(self, doc: dict) -> list[Wall]:
+        walls = doc["walls"]
+        if not isinstance(walls, list):
+            raise self.fail("expected a list of walls", doc, "walls")
+        out = []
+        for w in walls:
+            if not isinstance(w, dict):
+                raise self.fail("each wall must be a JSON object", doc, "walls")
+            self.unknown(w, set(_WALL_KEYS))
+            values = {}
+            for key, n in _WALL_KEYS.items():
+                if n == 1:
+                    v = w.get(key)
+                    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                        raise self.fail("expected a number" if key in w else "missing", w, key)
+                    values[key] = float(v)
+                else:
+                    values[key] = self.numbers(w, key, n)
+            if abs(math.hypot(*values["normal"]) - 1.0) > 1e-3:
+                raise self.fail("the normal must be a unit vector (nx, nz)", w, "normal")
+            out.append(Wall(**values))
+        return out
 
     def instance(self, o: dict) -> ObjectInstance:
         self.unknown(o, _OBJECT_KEYS)

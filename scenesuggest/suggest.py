@@ -11,12 +11,19 @@ to an ancestor's subtree takes its share of the occurrence and position terms (i
 subtree's), so rare siblings under one ancestor do not each inherit the ancestor's full evidence.
 
 Placement: ``basic`` attaches the face that geometry suggests and keeps the canonical heading (α = 0);
-``full`` attaches F = argmax_f P_att(f | C, t) and turns the object to the heading h (10° steps, linearly
-interpolated histograms) that maximises Σ_r P_relpos(δ_r) · P_relori(h − h_r), i.e. each reference's
-orientation prior weighted by how typical the click's position is relative to it.
+``full`` attaches F = argmax_f P_att(f | C, t) and turns the object to a heading about the surface normal
+chosen by the orientation option:
 
-Beyond the paper, each off unless :class:`EngineOptions` turns it on: collision- and size-aware placement,
-anchor refinement, and scene-type inference from the objects present.
+* ``learned`` (the default): the weighted product of orientation experts of :mod:`.orientation` — the
+  canonical pose, the fronts of and bearings to the parent and the siblings, the nearest wall — with trust
+  learned per category, keeping the canonical heading when the evidence does not single out another;
+* ``paper``: the heading h (10° steps, linearly interpolated histograms) that maximises
+  Σ_r P_relpos(δ_r) · P_relori(h − h_r), each reference's histogram of θ weighted by how typical the click's
+  position is relative to it (the paper's rule).
+
+Headings and placements are computed only for the suggestions returned (``top``). Beyond the paper, each off
+unless :class:`EngineOptions` turns it on: collision- and size-aware placement, anchor refinement, and
+scene-type inference from the objects present.
 """
 
 from __future__ import annotations
@@ -28,12 +35,14 @@ import numpy as np
 
 from . import frames, poses, surfaces
 from .errors import SceneSuggestError
-from .observations import is_radial
+from .observations import WALL, bearing, is_radial, wall_heading, wall_reference
+from .orientation import KINDS, decide, log_density, mean_by, pair_kind_rows, turned
 from .priors import ANY, BINS, FACES, K_MAX, Priors
 from .scene import SURFACE_TYPES, Scene
 from .scene_types import infer_scene_type
 
 MODES = ("basic", "full")
+ORIENTATIONS = ("learned", "paper")
 #: A click may lie this far (metres) outside its parent's box (or 5% of the box diagonal, if more): boxes
 #: of models placed from metadata are estimates (on the Stanford corpus every contact is within 11 cm).
 POINT_TOLERANCE_M = 0.15
@@ -42,11 +51,13 @@ HEADINGS = np.arange(BINS) * (2 * math.pi / BINS)
 
 @dataclass(frozen=True)
 class EngineOptions:
-    """Weights and switches. The paper's conditions use the defaults; a study file may turn extras on."""
+    """Weights and switches. The paper's conditions use the defaults; a study file may turn extras on, or
+    choose the paper's orientation rule (``orientation = "paper"``)."""
 
     lambda1: float = 1.0
     lambda2: float = 0.25
     backoff: bool = True
+    orientation: str = "learned"
     collision_aware: bool = False
     collision_penalty: float = 0.5
     anchor_refinement: bool = False
@@ -58,6 +69,9 @@ class EngineOptions:
             v = getattr(self, name)
             if not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
                 raise SceneSuggestError(f"must be a finite number ≥ 0, got {v!r}", field=name)
+        if self.orientation not in ORIENTATIONS:
+            raise SceneSuggestError(f"must be one of {', '.join(ORIENTATIONS)}, got {self.orientation!r}",
+                                    field="orientation")
 
 
 @dataclass(frozen=True)
@@ -91,7 +105,8 @@ class Suggestion:
 
 @dataclass
 class Prepared:
-    """A validated query and what the engine derives from it."""
+    """A validated query and what the engine derives from it: surface and scene type, references (the
+    parent and its children) and the nearest wall (with its distance, metres) of an upward surface."""
 
     query: ContextQuery
     point: np.ndarray
@@ -100,18 +115,20 @@ class Prepared:
     scene_type: str
     parent_category: str
     references: list[tuple[object, str]] = field(default_factory=list)
+    wall: tuple[object, float] | None = None
 
 
 @dataclass
 class Scores:
-    """Per-candidate terms of one query (arrays over :attr:`Engine.candidates`)."""
+    """Per-candidate terms of one query (arrays over :attr:`Engine.candidates`); ``densities``: for each
+    reference of :attr:`Prepared.references`, every candidate's P_relpos (scaled as in the position term)."""
 
     prepared: Prepared
     occurrence: np.ndarray
     surface: np.ndarray
     position: np.ndarray
-    orientation: np.ndarray  # (n, 36): Σ_r P_relpos · P_relori at each heading
     total: np.ndarray
+    densities: list[np.ndarray] = field(default_factory=list)
 
 
 def _vector(value, name: str) -> np.ndarray:
@@ -155,18 +172,14 @@ class Engine:
         # a category backed off to an ancestor's subtree gets its share of that subtree's occurrences
         self.share = np.where(pooled > 0, own / np.maximum(pooled, 1.0), 1.0)
         self.base_rate = own / max(total, 1.0)
-        any_s = len(p.scene_types) - 1
-        #: (n, scene types): whether each candidate was seen at least once in each scene type
-        self.seen_in = p.occ_parent_n[self.stat_entity][:, :any_s] > 0
+        self.weights = p.orient_weights[self.candidates].astype(float)  # (n, kinds)
         self._cache: dict[tuple, tuple] = {}
 
     def _borrowed_mask(self, scene_index: int, scene_type: str) -> np.ndarray | float:
         """1 for every candidate when statistics come from the query's own scene type; when they come from
         all scene types (``*``), only candidates seen in the query's scene type keep them."""
-        s = self.priors.scene_index.get(scene_type)
-        if scene_index != len(self.priors.scene_types) - 1 or s is None or s == scene_index:
-            return 1.0
-        return self.seen_in[:, s].astype(float)
+        mask = self.priors.borrowed(self.stat_entity, scene_index, scene_type)
+        return 1.0 if mask is True else np.asarray(mask, dtype=float)
 
     # --- per-category statistics after back-off -------------------------------------------------------------
     def _stat_entity(self, category: str) -> int:
@@ -209,16 +222,17 @@ class Engine:
             scene_type = scene.scene_type
         refs = [(parent, "parent")] + [(q, "sibling") for q in scene.children(parent.id)]
         return Prepared(query, point, normal, surfaces.surface_type(parent.transform, parent.size, point, normal),
-                        scene_type, parent.category, refs)
+                        scene_type, parent.category, refs, wall_reference(scene, point, normal))
 
     def score(self, query: ContextQuery) -> Scores:
         prep = self.prepare(query)
         occ = self._occurrence(prep)
         sup = self.surface_prob[:, SURFACE_TYPES.index(prep.surface_type)]
-        position, orientation = self._context_terms(prep, prep.point)
+        densities = [self._densities(prep, ref, relation, prep.point[None])[0] for ref, relation in prep.references]
+        position = np.sum(densities, axis=0) if densities else np.zeros(len(self.candidates))
         o = self.options
         total = o.lambda1 * occ * sup + o.lambda2 * position
-        return Scores(prep, occ, sup, position, orientation, total)
+        return Scores(prep, occ, sup, position, total, densities)
 
     def _occurrence(self, prep: Prepared) -> np.ndarray:
         p = self.priors
@@ -235,21 +249,14 @@ class Engine:
         return dense[self.stat_entity, np.minimum(k[self.stat_entity], K_MAX)] * self.share * mask
 
     def _resolved(self, ref_category: str, scene_type: str, relation: str, surface_type: str) -> tuple:
-        """For one reference key: the KDE samples of every candidate (memoised; a pure function)."""
+        """For one reference key: the KDE samples of every candidate and its segment (memoised; pure)."""
         key = (ref_category, scene_type, relation, surface_type)
         hit = self._cache.get(key)
         if hit is not None:
             return hit
         p = self.priors
-        seg = np.full(len(self.candidates), -1, dtype=np.int64)
-        g = p.group_for(ref_category, scene_type, relation, surface_type, self.options.backoff)
-        if g is not None:
-            children, segs = p.segments(g)
-            if len(children):
-                pos = np.minimum(np.searchsorted(children, self.stat_entity), len(children) - 1)
-                found = children[pos] == self.stat_entity
-                found &= self._borrowed_mask(int(p.group_keys[g][1]), scene_type) > 0
-                seg[found] = segs[pos[found]]
+        seg = p.pair_segments(self.stat_entity, ref_category, scene_type, relation, surface_type,
+                              self.options.backoff)
         has = np.flatnonzero(seg >= 0)
         starts, counts = p.seg_start[seg[has]], p.seg_count[seg[has]]
         owner = np.repeat(has, counts)
@@ -269,11 +276,10 @@ class Engine:
         if not len(owner):
             return out
         radial = is_radial(ref.size)
-        scale = self.share
         for k, point in enumerate(points):
             delta = poses.plane_offset(point, prep.normal, ref.transform, radial)
             q = (((delta - xy) * inv_bw) ** 2).sum(axis=1)
-            out[k] = np.bincount(owner, weights=weight * np.exp(-0.5 * q), minlength=n) * scale
+            out[k] = np.bincount(owner, weights=weight * np.exp(-0.5 * q), minlength=n) * self.share
         return out
 
     def position_at(self, prep: Prepared, points: np.ndarray) -> np.ndarray:
@@ -281,27 +287,62 @@ class Engine:
         return sum((self._densities(prep, ref, relation, points) for ref, relation in prep.references),
                    np.zeros((len(points), len(self.candidates))))
 
-    def _context_terms(self, prep: Prepared, point: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(Σ_r P_relpos, (n, 36) Σ_r P_relpos · P_relori) over the references of a query at ``point``."""
-        n = len(self.candidates)
-        position = np.zeros(n)
-        orientation = np.zeros((n, BINS))
-        for ref, relation in prep.references:
-            dens = self._densities(prep, ref, relation, point[None])[0]
-            position += dens
-            seg = self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4]
-            has = seg >= 0
-            if not has.any():
+    # --- orientation ---------------------------------------------------------------------------------------
+    def heading_scores(self, scores: Scores, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        """(m, BINS) score of each heading bin for candidates ``idx`` attached by ``faces`` (indices into
+        FACES): the learned log-score, or the paper's Σ_r P_relpos · P_relori (by the orientation option)."""
+        if self.options.orientation == "paper":
+            return self._paper_scores(scores, idx)
+        return self._learned_scores(scores.prepared, idx, faces)
+
+    def _paper_scores(self, scores: Scores, idx: np.ndarray) -> np.ndarray:
+        prep = scores.prepared
+        out = np.zeros((len(idx), BINS))
+        for (ref, relation), dens in zip(prep.references, scores.densities, strict=True):
+            seg = self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4][idx]
+            has = np.flatnonzero(seg >= 0)
+            if not len(has):
                 continue
-            shift = poses.reference_heading(point, prep.normal, ref.transform, is_radial(ref.size)) / (
-                2 * math.pi / BINS)
-            s0 = math.floor(shift)
-            frac = shift - s0
-            idx = np.arange(BINS) - s0
-            hist = self.priors.seg_hist[seg[has]]
-            turned = (1 - frac) * hist[:, idx % BINS] + frac * hist[:, (idx - 1) % BINS]
-            orientation[has] += dens[has, None] * turned
-        return position, orientation
+            shift = poses.reference_heading(prep.point, prep.normal, ref.transform, is_radial(ref.size))
+            out[has] += dens[idx[has], None] * turned(self.priors.seg_hist[seg[has]].astype(float), shift)
+        return out
+
+    def evidence(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        """(m, kinds, BINS) log-probabilities of every heading bin from each kind of orientation evidence
+        (:mod:`.orientation`), for candidates ``idx`` attached by ``faces``."""
+        p = self.priors
+        m = len(idx)
+        t = SURFACE_TYPES.index(prep.surface_type)
+        out = np.zeros((m, len(KINDS), BINS))
+        zero = np.array([poses.zero_heading(f, prep.normal) for f in FACES])[faces]
+        out[:, 0] = turned(log_density(p.alpha_n[self.stat_entity[idx], t, faces]), np.nan_to_num(zero))
+        rows: list[tuple[int, np.ndarray, np.ndarray]] = []  # (kind, candidate rows, values)
+        evidence = [(ref, relation, is_radial(ref.size)) for ref, relation in prep.references]
+        if prep.wall is not None:
+            evidence.append((None, "wall", False))
+        for ref, relation, radial in evidence:
+            seg = self._resolved(ref.category if ref is not None else WALL, prep.scene_type, relation,
+                                 prep.surface_type)[4][idx]
+            has = np.flatnonzero(seg >= 0)
+            if not len(has):
+                continue
+            front_kind, bearing_kind = pair_kind_rows(relation, radial)
+            if ref is None:
+                front = wall_heading(prep.wall[0], prep.normal)
+            else:
+                front = poses.reference_heading(prep.point, prep.normal, ref.transform, radial)
+            if front_kind is not None and math.isfinite(front):
+                rows.append((front_kind, has, turned(log_density(p.seg_theta_n[seg[has]]), front)))
+            toward = bearing(prep.point, prep.normal, ref) if bearing_kind is not None else math.nan
+            if math.isfinite(toward):
+                rows.append((bearing_kind, has, turned(log_density(p.seg_phi_n[seg[has]]), toward)))
+        for kind in {k for k, _, _ in rows}:
+            members = [(r, v) for k, r, v in rows if k == kind]
+            out[:, kind] = mean_by(np.concatenate([r for r, _ in members]), np.vstack([v for _, v in members]), m)
+        return out
+
+    def _learned_scores(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        return np.einsum("mk,mkb->mb", self.weights[idx], self.evidence(prep, idx, faces))
 
     # --- placement -----------------------------------------------------------------------------------------
     def geometric_face(self, size, surface_type: str) -> str:
@@ -315,23 +356,31 @@ class Engine:
         sx, sy, sz = size
         return "back" if sz <= sx or sz <= 0.5 * sy else "right"
 
-    def choose_poses(self, scores: Scores, mode: str) -> tuple[list[str], np.ndarray, np.ndarray]:
-        """(face, α, heading) of every candidate in ``mode`` (see the module docstring)."""
-        prep = scores.prepared
+    def face_indices(self, prep: Prepared, mode: str, idx: np.ndarray) -> np.ndarray:
+        """Attachment face (index into FACES) of candidates ``idx``: by geometry in ``basic``; in ``full`` the
+        most frequent face on this surface type (by geometry where none was observed)."""
+        geometric = self.geometric_faces[prep.surface_type.split("_")[0]][idx]
+        if mode != "full":
+            return geometric
         t = SURFACE_TYPES.index(prep.surface_type)
-        geometric = self.geometric_faces[prep.surface_type.split("_")[0]]
-        if mode == "full":
-            face_index = np.where(self.face_prob[:, t].sum(axis=1) > 0, np.argmax(self.face_prob[:, t], axis=1),
-                                  geometric)
-        else:
-            face_index = geometric
+        prob = self.face_prob[idx, t]
+        return np.where(prob.sum(axis=1) > 0, np.argmax(prob, axis=1), geometric)
+
+    def choose_poses(self, scores: Scores, mode: str, idx: np.ndarray | None = None
+                     ) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """(face, α, heading) of candidates ``idx`` (default: all) in ``mode`` (see the module docstring)."""
+        prep = scores.prepared
+        idx = np.arange(len(self.candidates)) if idx is None else np.asarray(idx, dtype=np.int64)
+        face_index = self.face_indices(prep, mode, idx)
         zero_of = np.array([poses.zero_heading(f, prep.normal) for f in FACES])
         zero = np.nan_to_num(zero_of[face_index])
-        if mode == "full":
-            oriented = scores.orientation.max(axis=1) > 0
-            heading = np.where(oriented, HEADINGS[np.argmax(scores.orientation, axis=1)], zero)
-        else:
+        if mode != "full":
             heading = zero
+        elif self.options.orientation == "paper":
+            score = self.heading_scores(scores, idx, face_index)
+            heading = np.where(score.max(axis=1) > 0, HEADINGS[np.argmax(score, axis=1)], zero)
+        else:
+            heading, _ = decide(self.heading_scores(scores, idx, face_index), zero)
         return [FACES[i] for i in face_index], heading - zero, heading
 
     def suggest(self, query: ContextQuery, mode: str = "full", top: int | None = None) -> list[Suggestion]:
@@ -343,34 +392,35 @@ class Engine:
             raise SceneSuggestError("top must be a positive integer", field="top")
         scores = self.score(query)
         prep = scores.prepared
-        faces, alphas, headings = self.choose_poses(scores, mode)
-        points = np.tile(prep.point, (len(self.candidates), 1))
-        notes: list[list[str]] = [[] for _ in self.candidates]
-        total = scores.total.copy()
+        n = len(self.candidates)
+        points = np.tile(prep.point, (n, 1))
+        notes: list[list[str]] = [[] for _ in range(n)]
+        total = scores.total
         if self.options.anchor_refinement:
             from .placement_checks import refine_anchors
 
             points, moved = refine_anchors(self, scores, self.options.refine_radius_m)
             for i in np.flatnonzero(moved > 0):
                 notes[i].append(f"moved {moved[i]:.2f} m to a more typical spot")
-        if self.options.collision_aware:
+        if self.options.collision_aware:  # every candidate needs its pose before the ranking is known
             from .placement_checks import check_fit
 
-            total = check_fit(self, scores, faces, alphas, headings, points, total, notes, mode)
-        order = np.lexsort((self.name_order, -total))[: top or len(total)]
-        placed = poses.placements(points[order], prep.normal, [faces[i] for i in order], self.size[order],
-                                  alphas[order])
-        orientation = scores.orientation.max(axis=1)
+            faces, alphas, headings = self.choose_poses(scores, mode)
+            total = check_fit(self, scores, faces, alphas, headings, points, total.copy(), notes, mode)
+            order = np.lexsort((self.name_order, -total))[: top or n]
+            faces, alphas, headings = [faces[i] for i in order], alphas[order], headings[order]
+        else:
+            order = np.lexsort((self.name_order, -total))[: top or n]
+            faces, alphas, headings = self.choose_poses(scores, mode, order)
+        placed = poses.placements(points[order], prep.normal, faces, self.size[order], alphas)
         degrees = np.degrees(poses.wrap(headings))
         out = []
         for rank, (i, placement) in enumerate(zip(order, placed, strict=True), start=1):
             out.append(Suggestion(
                 rank=rank, category=self.names[i], score=float(total[i]),
                 terms={"occurrence": float(scores.occurrence[i]), "surface": float(scores.surface[i]),
-                       "position": float(scores.position[i]),
-                       "orientation": float(orientation[i])},
-                placement=placement, attachment_face=faces[i],
-                heading_deg=float(degrees[i]),
+                       "position": float(scores.position[i])},
+                placement=placement, attachment_face=faces[rank - 1], heading_deg=float(degrees[rank - 1]),
                 models=self.members[i], notes=tuple(notes[i])))
         return out
 
@@ -378,4 +428,4 @@ class Engine:
         return Engine(self.priors, replace(self.options, **changes))
 
 
-__all__ = ["ANY", "ContextQuery", "Engine", "EngineOptions", "MODES", "Suggestion"]
+__all__ = ["ANY", "ContextQuery", "Engine", "EngineOptions", "MODES", "ORIENTATIONS", "Suggestion"]

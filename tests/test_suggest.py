@@ -139,10 +139,18 @@ def test_a_candidate_that_does_not_fit_is_turned_to_its_next_best_heading(engine
     from scenesuggest.placement_checks import check_fit
 
     # 0.45 m from the right wall (x = 2.5): a 1.4 m wide desk facing +Z overhangs; turned by 90° it fits
+    engine = engine.with_options()
     scores = engine.score(ContextQuery(study, "room", (2.05, 0.0, 0.3), (0, 1, 0)))
     i = engine.index["Desk"]
-    scores.orientation[i] = 0.0
-    scores.orientation[i, 0], scores.orientation[i, 9] = 1.0, 0.5  # best at 0°, next at 90°
+    learned = engine.heading_scores
+
+    def heading_scores(scores, idx, faces):  # best at 0°, next at 90°, far apart
+        out = learned(scores, idx, faces)
+        out[idx == i] = -50.0
+        out[idx == i, 0], out[idx == i, 9] = 0.0, -10.0
+        return out
+
+    engine.heading_scores = heading_scores
     faces, alphas, headings = engine.choose_poses(scores, "full")
     assert headings[i] == 0.0
     notes = [[] for _ in engine.names]

@@ -41,7 +41,7 @@ from scenesuggest.corpora.stanford import find_mesh_dir  # noqa: E402
 from scenesuggest.errors import SceneSuggestError  # noqa: E402
 from scenesuggest.library import INDEX_FILE, load_index  # noqa: E402
 from scenesuggest.priors import VERSION as PRIORS_VERSION  # noqa: E402
-from scenesuggest.priors import Priors  # noqa: E402
+from scenesuggest.priors import Priors, code_digest  # noqa: E402
 from scenesuggest.representatives import FILE_NAME, read_representatives, top_representatives  # noqa: E402
 
 ENV = "SCENESUGGEST_STANFORD_DIR"
@@ -108,7 +108,7 @@ def prepare(stanford: Path, out: Path = OUT, representatives_file: str | None = 
         raise SceneSuggestError(f"the corpus lacks the targets' source scenes {', '.join(missing)}",
                                 field="stanford_dir")
     training = [s for s in corpus.scenes if s.id not in set(held)]
-    priors_key = digest([sorted(s.id for s in training), PRIORS_VERSION])
+    priors_key = digest([sorted(s.id for s in training), PRIORS_VERSION, code_digest()])
     if old.get("priors_key") != priors_key or not (out / "priors.npz").is_file():
         log(f"training priors on {len(training)} scenes (holding out {', '.join(held)}) …")
         Priors.fit(training, corpus.taxonomy).save(out / "priors.npz")

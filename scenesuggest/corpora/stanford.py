@@ -12,6 +12,8 @@ Each model's bbox comes from its OBJ mesh when present; otherwise from the metad
 placed so that the scene contacts lie on the face that touches the parent (the database puts the
 contact at the centre of that face); without either, a 20 cm box grown to reach what rests on it.
 Categories come from the ShapeNetSem labels, then the first WordNet lemma, then the coarse labels.
+A scene's walls are measured on its room model's mesh (:func:`scenesuggest.walls.mesh_walls`) when the mesh is
+there; otherwise the room's box stands for them.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from ..objfile import obj_bounds
 from ..scene import ROOM, ObjectInstance, Scene
 from ..scene_types import infer_scene_type
 from ..taxonomy import Taxonomy
+from ..walls import mesh_walls
 from .corpus import Corpus, Progress, no_progress
 from .shapenetsem import (
     DEFAULT_FRONT,
@@ -96,7 +99,28 @@ def load_stanford(directory: str | Path, meshes: str | Path | None = None,
     placements = {m.id: (np.linalg.inv(m.canonical_from_raw()), m.size) for m in models.values()}
     scenes = [_convert_scene(sid, objs, models, placements, taxonomy, root / "scenes" / f"{sid}.txt")
               for sid, objs in progress(raw_scenes.items(), "converting scenes")]
+    walls: dict[tuple, list | None] = {}
+    for scene in scenes:
+        rooms = [o for o in scene.roots() if o.category == ROOM]
+        if rooms and models[rooms[0].model_id].mesh:
+            room = rooms[0]
+            key = (room.model_id, room.transform.round(6).tobytes())
+            if key not in walls:
+                walls[key] = _room_walls(models[room.model_id], room.transform)
+            scene.walls = walls[key]
     return Corpus(f"stanford:{root}", scenes, models, taxonomy)
+
+
+def _room_walls(model: ModelInfo, transform: np.ndarray) -> list | None:
+    """The walls of a room model's mesh placed by ``transform`` (canonical → world); None if it cannot be read."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load(model.mesh, force="mesh", skip_materials=True, process=False)
+    except (OSError, ValueError, IndexError) as e:
+        raise SceneSuggestError(f"cannot read the room mesh: {e}", file=str(model.mesh)) from None
+    vertices = frames.apply(transform @ model.canonical_from_raw(), np.asarray(mesh.vertices))
+    return mesh_walls(vertices, np.asarray(mesh.faces)) or None
 
 
 def _model_infos(model_ids, raw_scenes, meta, names, tags, paths, mesh_dir) -> dict[str, ModelInfo]:

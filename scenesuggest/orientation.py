@@ -1,0 +1,261 @@
+"""The orientation prior of ``full`` mode: which way a category faces, by which references, trusted how far.
+
+Headings are angles about the support normal (:mod:`.poses`), in BINS bins of 10° (bin b is centred on b·10°).
+Each *kind* of evidence gives, for one candidate category, a log-probability of every heading bin:
+
+=================  =====================================================================================
+``canonical``      the turn from the canonical pose of the attachment face (how the category is turned in
+                   the corpus's own frame: potted plants and posters are never turned)
+``parent_front``   θ, the heading relative to the parent's front (the paper's term, for the parent)
+``parent_bearing`` φ, the heading relative to the bearing from the object to the parent's centre
+``sibling_front``  θ relative to each other object on the same parent (averaged over them)
+``sibling_bearing`` φ relative to each other object on the same parent (chairs face the table)
+``wall``           θ relative to the nearest wall's inward normal (desks and dressers back onto walls)
+=================  =====================================================================================
+
+A histogram of counts ``c`` (n observations) gives log-probabilities ``log((smooth(c) + a/B) / (n + a))``
+(:func:`log_density`; ``smooth`` is the (1, 2, 1)/4 kernel, ``a`` = PSEUDO_COUNT), so an expert that has seen
+little is nearly flat and changes no decision. The kinds are combined as a weighted product of experts,
+``S(h) = Σ_k w_k · F_k(h)``, with non-negative weights per category learned from the training data
+(:func:`fit_weights`): a conditional logit over the heading bins whose features leave each training object's
+own scene and its near-copies out (:mod:`.folds`), so that a kind earns weight only by predicting headings in
+scenes it has not seen. Categories with fewer than MIN_FIT_OBSERVATIONS observations take their taxonomy
+parent's weights, and fitted weights are shrunk towards them. A plain sum of peak-normalised histograms — the
+paper's rule — lets many flat references outvote one sharp one; a weighted product does not.
+
+Decision (:func:`decide`): the heading bin that maximises ``S``, unless the canonical heading holds at least
+FALLBACK of that bin's probability mass (each bin with its two neighbours): then the canonical heading, so that
+an object whose heading the priors cannot tell keeps the pose it would have in ``basic`` mode.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.optimize import minimize
+
+BINS = 36
+BIN = 2 * math.pi / BINS
+KINDS = ("canonical", "parent_front", "parent_bearing", "sibling_front", "sibling_bearing", "wall")
+PSEUDO_COUNT = 1.0
+MIN_FIT_OBSERVATIONS = 20
+#: Shrinkage of a category's weights towards its parent's (and of the global weights towards 1).
+SHRINK = 5.0
+GLOBAL_SHRINK = 1.0
+FALLBACK = 0.8
+SWITCH_TOLERANCE = math.radians(45.0)
+
+
+def smooth(counts: np.ndarray) -> np.ndarray:
+    """The (1, 2, 1)/4 circular kernel along the last axis."""
+    return (np.roll(counts, 1, axis=-1) + 2 * counts + np.roll(counts, -1, axis=-1)) / 4
+
+
+def log_density(counts: np.ndarray) -> np.ndarray:
+    """Log-probabilities of the heading bins from histogram counts (last axis: BINS), see the module docstring."""
+    counts = np.maximum(np.asarray(counts, dtype=float), 0.0)
+    n = counts.sum(axis=-1, keepdims=True)
+    return np.log((smooth(counts) + PSEUDO_COUNT / BINS) / (n + PSEUDO_COUNT))
+
+
+def turned(values: np.ndarray, angle) -> np.ndarray:
+    """``values`` over relative bins (…, BINS) re-indexed to absolute headings: out[h] = values[h − angle],
+    linearly interpolated between bins; ``angle`` (radians) broadcasts over the leading axes."""
+    values = np.asarray(values, dtype=float)
+    shift = np.broadcast_to(np.asarray(angle, dtype=float) / BIN, values.shape[:-1])
+    s0 = np.floor(shift)
+    frac = (shift - s0)[..., None]
+    idx = (np.arange(BINS) - s0[..., None]).astype(np.int64)
+    a = np.take_along_axis(values, idx % BINS, axis=-1)
+    b = np.take_along_axis(values, (idx - 1) % BINS, axis=-1)
+    return (1 - frac) * a + frac * b
+
+
+def heading_bin(angle) -> np.ndarray:
+    """The bin of a heading (radians)."""
+    return np.round(np.mod(angle, 2 * math.pi) / BIN).astype(np.int64) % BINS
+
+
+def _neighbourhood(q: np.ndarray) -> np.ndarray:
+    return np.roll(q, 1, axis=-1) + q + np.roll(q, -1, axis=-1)
+
+
+def decide(score: np.ndarray, canonical) -> tuple[np.ndarray, np.ndarray]:
+    """(heading in radians, whether the canonical heading was kept) for scores (n, BINS) and canonical headings
+    (n,); see the module docstring."""
+    score = np.atleast_2d(score)
+    canonical = np.asarray(canonical, dtype=float).reshape(-1)
+    q = np.exp(score - score.max(axis=1, keepdims=True))
+    mass = _neighbourhood(q / q.sum(axis=1, keepdims=True))
+    best = np.argmax(score, axis=1)
+    rows = np.arange(len(best))
+    keep = mass[rows, heading_bin(canonical)] >= FALLBACK * mass[rows, best] - 1e-12
+    return np.where(keep, canonical, best * BIN), keep
+
+
+def _fit_one(x: np.ndarray, y: np.ndarray, prior: np.ndarray, shrink: float) -> np.ndarray:
+    """Weights ≥ 0 maximising Σ_i log softmax(w · x_i)[y_i] − shrink/2 · |w − prior|² (x: (n, K, BINS))."""
+    rows = np.arange(len(y))
+    observed = x[rows, :, y]  # (n, K)
+
+    def objective(w):
+        s = np.einsum("k,nkb->nb", w, x)
+        top = s.max(axis=1, keepdims=True)
+        e = np.exp(s - top)
+        z = e.sum(axis=1)
+        p = e / z[:, None]
+        nll = -(s[rows, y] - top[:, 0] - np.log(z)).sum() + 0.5 * shrink * ((w - prior) ** 2).sum()
+        grad = -(observed - np.einsum("nb,nkb->nk", p, x)).sum(axis=0) + shrink * (w - prior)
+        return nll, grad
+
+    result = minimize(objective, prior.copy(), jac=True, method="L-BFGS-B", bounds=[(0.0, None)] * x.shape[1])
+    return result.x
+
+
+def _within(a: np.ndarray, b: np.ndarray, tolerance: float) -> np.ndarray:
+    d = np.mod(a - b, 2 * math.pi)
+    return np.minimum(d, 2 * math.pi - d) <= tolerance
+
+
+def fit_weights(features: np.ndarray, headings: np.ndarray, canonical: np.ndarray, chains: list[list[int]],
+                n_entities: int, parent_of: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """(per-entity weights (n_entities, K), global weights (K,)) from training features (n, K, BINS), the true
+    headings (n,) and the canonical headings (n,), radians. ``chains[i]``: the entities observation i counts for
+    (specific first); ``parent_of``: an entity's next more general entity (its weights are the prior). Entities
+    with fewer than MIN_FIT_OBSERVATIONS observations inherit; an entity whose fitted weights do not place more of
+    its own (held-out) observations within SWITCH_TOLERANCE of the truth than the canonical heading does gets
+    zero weights: it keeps the canonical heading."""
+    k = features.shape[1]
+    targets = heading_bin(headings)
+    members: dict[int, list[int]] = {}
+    for i, chain in enumerate(chains):
+        for e in chain:
+            members.setdefault(e, []).append(i)
+    glob = _fit_one(features, targets, np.ones(k), GLOBAL_SHRINK) if len(targets) else np.ones(k)
+    weights: dict[int, np.ndarray] = {}
+
+    def of(e: int | None) -> np.ndarray:
+        if e is None:
+            return glob
+        if e not in weights:
+            prior = of(parent_of.get(e))
+            rows = np.array(members.get(e, []), dtype=np.int64)
+            if len(rows) < MIN_FIT_OBSERVATIONS:
+                weights[e] = prior
+            else:
+                w = _fit_one(features[rows], targets[rows], prior, SHRINK)
+                predicted, _ = decide(np.einsum("k,nkb->nb", w, features[rows]), canonical[rows])
+                model = _within(predicted, headings[rows], SWITCH_TOLERANCE).mean()
+                kept = _within(canonical[rows], headings[rows], SWITCH_TOLERANCE).mean()
+                weights[e] = w if model > kept else np.zeros(k)
+        return weights[e]
+
+    dense = np.array([of(e) for e in range(n_entities)]).reshape(n_entities, k)
+    return dense.astype(np.float32), glob.astype(np.float32)
+
+
+# --- learning from a corpus ------------------------------------------------------------------------------------
+#: Which kind of evidence a pair gives, by relation: (θ kind, φ kind).
+PAIR_KINDS = {"parent": ("parent_front", "parent_bearing"), "sibling": ("sibling_front", "sibling_bearing"),
+              "wall": ("wall", None)}
+
+
+def pair_kind_rows(relation: str, radial: bool) -> tuple[int | None, int | None]:
+    """Kind indices of a pair's θ and φ evidence (θ of a reference without a front is its bearing: not counted
+    twice)."""
+    front, bearing = PAIR_KINDS[relation]
+    return (None if radial and relation != "wall" else KINDS.index(front)), (
+        KINDS.index(bearing) if bearing else None)
+
+
+def _or_minus_one(k: int | None) -> int:
+    return -1 if k is None else k
+
+
+def mean_by(rows: np.ndarray, values: np.ndarray, n_rows: int) -> np.ndarray:
+    """(n_rows, BINS): the mean of ``values`` (m, BINS) over each row index of ``rows`` (0 where none)."""
+    total = np.zeros((n_rows, BINS))
+    np.add.at(total, rows, values)
+    count = np.bincount(rows, minlength=n_rows)[:, None]
+    return np.divide(total, count, out=np.zeros_like(total), where=count > 0)
+
+
+def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int], expand: dict[str, list[int]]
+                      ) -> np.ndarray:
+    """Per-entity weights (entities, KINDS) of the orientation evidence, learned from the training corpus with
+    every feature computed as if the object's own scene group (a scene and its near-copies) were unseen."""
+    from .frames import FACES
+    from .pair_priors import angle_bins, bin_counts
+    from .scene import SURFACE_TYPES
+
+    heading = np.array([s.heading for s in supports], dtype=float)
+    usable = np.flatnonzero(np.isfinite(heading))
+    n = len(supports)
+    group = np.array([scene_groups[s.scene] for s in supports], dtype=np.int64)
+    stat = {c: priors.stat_entity(c) for c in {s.category for s in supports}}
+    features = np.zeros((n, len(KINDS), BINS))
+
+    # canonical: counts of the turn from the canonical pose, minus the object's own scene group's
+    t = np.array([SURFACE_TYPES.index(s.surface_type) for s in supports])
+    f = np.array([FACES.index(s.face) for s in supports])
+    alpha_bin = angle_bins(np.array([s.alpha for s in supports]))
+    own: dict[tuple[int, int, int, int], np.ndarray] = {}
+    for j, s in enumerate(supports):
+        if alpha_bin[j] >= 0:
+            for e in expand[s.category]:
+                own.setdefault((e, t[j], f[j], group[j]), np.zeros(BINS))[alpha_bin[j]] += 1
+    e_i = np.array([stat[s.category] for s in supports], dtype=np.int64)
+    counts = priors.alpha_n[e_i, t, f].astype(float)
+    for i in range(n):
+        counts[i] -= own.get((e_i[i], t[i], f[i], group[i]), 0.0)
+    alpha = np.array([s.alpha for s in supports], dtype=float)
+    ok = np.isfinite(alpha)
+    features[ok, 0] = turned(log_density(counts[ok]), (heading - alpha)[ok])
+
+    # references: θ and φ counts of the segment the engine would read, minus the own group's
+    if pairs:
+        pair_group = np.array([scene_groups[p.scene] for p in pairs], dtype=np.int64)
+        n_groups = int(max(scene_groups)) + 1
+        key = expanded.segment * n_groups + pair_group[expanded.pair]
+        unique, inverse = np.unique(key, return_inverse=True)
+        theta_own = bin_counts(inverse, angle_bins(expanded.theta), len(unique))
+        phi_own = bin_counts(inverse, angle_bins(expanded.phi), len(unique))
+        memo: dict[tuple, int] = {}
+        seg = np.empty(len(pairs), dtype=np.int64)
+        for k, p in enumerate(pairs):
+            key_p = (stat[p.category], p.ref_category, p.scene_type, p.relation, p.surface_type)
+            if key_p not in memo:
+                memo[key_p] = int(priors.pair_segments([key_p[0]], *key_p[1:])[0])
+            seg[k] = memo[key_p]
+        found = seg >= 0
+        where = np.searchsorted(unique, seg * n_groups + pair_group)
+        where = np.minimum(where, len(unique) - 1)
+        exact = found & (unique[where] == seg * n_groups + pair_group)
+        support = np.array([p.support for p in pairs], dtype=np.int64)
+        for angle_name, all_counts, own_counts, slot in (("theta", priors.seg_theta_n, theta_own, 0),
+                                                         ("phi", priors.seg_phi_n, phi_own, 1)):
+            rel = np.array([getattr(p, angle_name) for p in pairs], dtype=float)
+            kinds = np.array([_or_minus_one(pair_kind_rows(p.relation, p.radial)[slot]) for p in pairs],
+                             dtype=np.int64)
+            use = found & np.isfinite(rel) & np.isfinite(heading[support]) & (kinds >= 0)
+            if not use.any():
+                continue
+            idx = np.flatnonzero(use)
+            c = all_counts[seg[idx]].astype(float) - np.where(exact[idx, None], own_counts[where[idx]], 0.0)
+            values = turned(log_density(c), heading[support[idx]] - rel[idx])
+            kind = kinds[idx]
+            for k in np.unique(kind):
+                m = kind == k
+                features[:, k] += mean_by(support[idx[m]], values[m], n)
+
+    chains = [expand[supports[i].category] for i in usable]
+    parent_of = {}
+    for chain in expand.values():
+        for a, b in zip(chain, chain[1:], strict=False):
+            parent_of[a] = b
+    canonical = heading - np.array([s.alpha for s in supports], dtype=float)
+    canonical = np.where(np.isfinite(canonical), canonical, heading)
+    weights, _ = fit_weights(features[usable], heading[usable], canonical[usable], chains, len(priors.entities),
+                             parent_of)
+    return weights
