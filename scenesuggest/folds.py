@@ -31,35 +31,46 @@ def _supported(scene: Scene):
 def similarity(scenes: list[Scene]) -> np.ndarray:
     """(n, n) matrix: the share of scene i's supported objects that scene j shares by the rule above."""
     n = len(scenes)
-    scene_freq = Counter(m for s in scenes for m in {o.model_id for o in _supported(s)})
+    objects = [_supported(s) for s in scenes]
+    scene_freq = Counter(m for objs in objects for m in {o.model_id for o in objs})
     limit = max(2.0, DISTINCTIVE_SCENES * n)
-    models = [Counter(o.model_id for o in _supported(s) if scene_freq[o.model_id] <= limit) for s in scenes]
-    boxes = []
-    for s in scenes:
-        objects = _supported(s)
-        centres = np.array([sum(o.world_bbox()) / 2 for o in objects]).reshape(-1, 3)
-        boxes.append((np.array([o.category for o in objects]), centres, [o.model_id for o in objects]))
+    category_id: dict[str, int] = {}
+    cats = [np.array([category_id.setdefault(o.category, len(category_id)) for o in objs], dtype=np.int64)
+            for objs in objects]
+    centres = [np.array([sum(o.world_bbox()) / 2 for o in objs]).reshape(-1, 3) for objs in objects]
+    by_category: dict[int, tuple[list[int], list[np.ndarray]]] = {}
+    for j, (c, x) in enumerate(zip(cats, centres, strict=True)):
+        for cat, centre in zip(c.tolist(), x, strict=True):
+            entry = by_category.setdefault(cat, ([], []))
+            entry[0].append(j)
+            entry[1].append(centre)
+    placed = {cat: (np.array(js), np.array(xs)) for cat, (js, xs) in by_category.items()}
+    users: dict[str, set[int]] = {}
+    for j, objs in enumerate(objects):
+        for o in objs:
+            if scene_freq[o.model_id] <= limit:
+                users.setdefault(o.model_id, set()).add(j)
+    models = [Counter(o.model_id for o in objs if scene_freq[o.model_id] <= limit) for objs in objects]
     share = np.zeros((n, n))
     for i in range(n):
-        cats_i, centres_i, models_i = boxes[i]
-        if not len(cats_i):
+        k = len(cats[i])
+        if not k:
             continue
-        for j in range(n):
-            if i == j:
-                continue
-            cats_j, centres_j, _ = boxes[j]
-            by_model = Counter(models[i]) & models[j]
-            # (a): objects whose distinctive model B also uses, up to B's count of it
-            taken = Counter()
-            hit = np.zeros(len(cats_i), dtype=bool)
-            for k, m in enumerate(models_i):
-                if taken[m] < by_model.get(m, 0):
+        # (b): an object of the same category within SAME_PLACE_M, in each other scene at once
+        hit = np.zeros((k, n), dtype=bool)
+        for row, (cat, centre) in enumerate(zip(cats[i].tolist(), centres[i], strict=True)):
+            js, xs = placed[cat]
+            hit[row, js[np.linalg.norm(xs - centre, axis=1) < SAME_PLACE_M]] = True
+        # (a): objects whose distinctive model scene j also uses, up to j's count of it
+        for j in set().union(*(users[m] for m in models[i])) if models[i] else ():
+            taken: Counter = Counter()
+            for row, o in enumerate(objects[i]):
+                m = o.model_id
+                if taken[m] < min(models[i][m], models[j].get(m, 0)):
                     taken[m] += 1
-                    hit[k] = True
-            if len(cats_j):  # (b): same category near the same place
-                d = np.linalg.norm(centres_i[:, None] - centres_j[None], axis=2)
-                hit |= ((cats_i[:, None] == cats_j[None]) & (d < SAME_PLACE_M)).any(axis=1)
-            share[i, j] = hit.mean()
+                    hit[row, j] = True
+        share[i] = hit.mean(axis=0)
+        share[i, i] = 0.0
     return share
 
 

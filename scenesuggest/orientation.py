@@ -38,7 +38,7 @@ from scipy.optimize import minimize
 BINS = 36
 BIN = 2 * math.pi / BINS
 KINDS = ("canonical", "parent_front", "parent_bearing", "sibling_front", "sibling_bearing", "wall")
-PSEUDO_COUNT = 1.0
+PSEUDO_COUNT = 3.0
 MIN_FIT_OBSERVATIONS = 20
 #: Shrinkage of a category's weights towards its parent's (and of the global weights towards 1).
 SHRINK = 5.0
@@ -119,40 +119,54 @@ def _within(a: np.ndarray, b: np.ndarray, tolerance: float) -> np.ndarray:
 
 
 def fit_weights(features: np.ndarray, headings: np.ndarray, canonical: np.ndarray, chains: list[list[int]],
-                n_entities: int, parent_of: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """(per-entity weights (n_entities, K), global weights (K,)) from training features (n, K, BINS), the true
-    headings (n,) and the canonical headings (n,), radians. ``chains[i]``: the entities observation i counts for
-    (specific first); ``parent_of``: an entity's next more general entity (its weights are the prior). Entities
-    with fewer than MIN_FIT_OBSERVATIONS observations inherit; an entity whose fitted weights do not place more of
-    its own (held-out) observations within SWITCH_TOLERANCE of the truth than the canonical heading does gets
-    zero weights: it keeps the canonical heading."""
+                surface: np.ndarray, n_entities: int, n_surfaces: int, parent_of: dict[int, int]) -> np.ndarray:
+    """Weights (n_entities, n_surfaces, K) from training features (n, K, BINS), the true headings (n,) and the
+    canonical headings (n,), radians, and each observation's surface type (n,).
+
+    Levels, each fitted with the one above as its prior: all observations; each surface type (what counts for
+    furniture on a floor differs from clutter on a desk); each entity of ``chains[i]`` (the entities observation
+    i counts for, specific first; ``parent_of``: an entity's next more general entity, whose weights are its
+    prior — the top entity's prior is the global fit). Entities with fewer than MIN_FIT_OBSERVATIONS
+    observations have no fit of their own: they take their parent entity's, and at the top the surface type's
+    weights. A fit that does not place more of its own (held-out) observations within SWITCH_TOLERANCE of the
+    truth than the canonical heading does becomes zero weights: the canonical heading is kept."""
     k = features.shape[1]
     targets = heading_bin(headings)
+
+    def fit(rows: np.ndarray, prior: np.ndarray, shrink: float) -> np.ndarray:
+        w = _fit_one(features[rows], targets[rows], prior, shrink)
+        predicted, _ = decide(np.einsum("k,nkb->nb", w, features[rows]), canonical[rows])
+        model = _within(predicted, headings[rows], SWITCH_TOLERANCE).mean()
+        kept = _within(canonical[rows], headings[rows], SWITCH_TOLERANCE).mean()
+        return w if model > kept else np.zeros(k)
+
+    glob = _fit_one(features, targets, np.ones(k), GLOBAL_SHRINK) if len(targets) else np.ones(k)
+    by_surface = []
+    for t in range(n_surfaces):
+        rows = np.flatnonzero(surface == t)
+        by_surface.append(fit(rows, glob, SHRINK) if len(rows) >= MIN_FIT_OBSERVATIONS else glob)
     members: dict[int, list[int]] = {}
     for i, chain in enumerate(chains):
         for e in chain:
             members.setdefault(e, []).append(i)
-    glob = _fit_one(features, targets, np.ones(k), GLOBAL_SHRINK) if len(targets) else np.ones(k)
-    weights: dict[int, np.ndarray] = {}
+    own: dict[int, np.ndarray | None] = {}
 
-    def of(e: int | None) -> np.ndarray:
+    def fitted(e: int | None) -> np.ndarray | None:
+        """The entity's own weights, or those of the nearest fitted entity above it (None: none is)."""
         if e is None:
-            return glob
-        if e not in weights:
-            prior = of(parent_of.get(e))
+            return None
+        if e not in own:
+            above = fitted(parent_of.get(e))
             rows = np.array(members.get(e, []), dtype=np.int64)
-            if len(rows) < MIN_FIT_OBSERVATIONS:
-                weights[e] = prior
-            else:
-                w = _fit_one(features[rows], targets[rows], prior, SHRINK)
-                predicted, _ = decide(np.einsum("k,nkb->nb", w, features[rows]), canonical[rows])
-                model = _within(predicted, headings[rows], SWITCH_TOLERANCE).mean()
-                kept = _within(canonical[rows], headings[rows], SWITCH_TOLERANCE).mean()
-                weights[e] = w if model > kept else np.zeros(k)
-        return weights[e]
+            own[e] = fit(rows, glob if above is None else above, SHRINK) if len(rows) >= MIN_FIT_OBSERVATIONS \
+                else above
+        return own[e]
 
-    dense = np.array([of(e) for e in range(n_entities)]).reshape(n_entities, k)
-    return dense.astype(np.float32), glob.astype(np.float32)
+    dense = np.zeros((n_entities, n_surfaces, k), dtype=np.float32)
+    for e in range(n_entities):
+        w = fitted(e)
+        dense[e] = w if w is not None else np.array(by_surface)
+    return dense
 
 
 # --- learning from a corpus ------------------------------------------------------------------------------------
@@ -188,6 +202,7 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
     from .frames import FACES
     from .pair_priors import angle_bins, bin_counts
     from .scene import SURFACE_TYPES
+    from .taxonomy import MIN_OBSERVATIONS
 
     heading = np.array([s.heading for s in supports], dtype=float)
     usable = np.flatnonzero(np.isfinite(heading))
@@ -222,12 +237,25 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
         theta_own = bin_counts(inverse, angle_bins(expanded.theta), len(unique))
         phi_own = bin_counts(inverse, angle_bins(expanded.phi), len(unique))
         memo: dict[tuple, int] = {}
+        pooled: dict[tuple, int] = {}
+
+        def theta_own_of(segment: int, grp: int) -> float:
+            i = int(np.searchsorted(unique, segment * n_groups + grp))
+            return float(theta_own[i].sum()) if i < len(unique) and unique[i] == segment * n_groups + grp else 0.0
+
         seg = np.empty(len(pairs), dtype=np.int64)
         for k, p in enumerate(pairs):
             key_p = (stat[p.category], p.ref_category, p.scene_type, p.relation, p.surface_type)
             if key_p not in memo:
                 memo[key_p] = int(priors.pair_segments([key_p[0]], *key_p[1:])[0])
             seg[k] = memo[key_p]
+        # walls: a category seldom seen at one reads the statistics of all categories (as the engine does)
+        for k, p in enumerate(pairs):
+            if p.relation == "wall":
+                mine = priors.seg_theta_n[seg[k]].sum() - theta_own_of(seg[k], pair_group[k]) if seg[k] >= 0 else 0
+                if mine < MIN_OBSERVATIONS:
+                    seg[k] = pooled.setdefault((p.scene_type, p.surface_type), priors.pooled_segment(
+                        p.ref_category, p.scene_type, "wall", p.surface_type))
         found = seg >= 0
         where = np.searchsorted(unique, seg * n_groups + pair_group)
         where = np.minimum(where, len(unique) - 1)
@@ -256,6 +284,5 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
             parent_of[a] = b
     canonical = heading - np.array([s.alpha for s in supports], dtype=float)
     canonical = np.where(np.isfinite(canonical), canonical, heading)
-    weights, _ = fit_weights(features[usable], heading[usable], canonical[usable], chains, len(priors.entities),
-                             parent_of)
-    return weights
+    return fit_weights(features[usable], heading[usable], canonical[usable], chains, t[usable], len(priors.entities),
+                       len(SURFACE_TYPES), parent_of)

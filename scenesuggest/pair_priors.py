@@ -10,7 +10,9 @@ entity within a group, holding its samples:
 * relative orientation — counts of θ and of φ in 36 bins of 10° (``seg_theta_n``, ``seg_phi_n``).
 
 The expansion is vectorised: pairs that share (category, reference category, scene type, relation, surface
-type) share their expansion, which is built once and repeated.
+type) share their expansion, which is built once and repeated. Wall pairs are also pooled over every category
+(the entity ``*``): what "at a wall" means for furniture in general stands in for a category that was seldom
+seen at one.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from .scene import SURFACE_TYPES
 MIN_BANDWIDTH_M = 0.05
 #: Peak normalisers are evaluated at up to this many sample points per KDE; KDEs of up to SMALL_SEGMENT
 #: samples are normalised together, exactly.
-PEAK_POINTS = 512
+PEAK_POINTS = 128
 SMALL_SEGMENT = 24
 
 
@@ -45,8 +47,10 @@ class Expanded:
     keys: list[tuple[int, int, int, int]]  # group → (reference entity, scene index, relation, surface type)
 
 
-def expand_pairs(pairs: list[Pair], expand: dict[str, list[int]], s_index: dict[str, int], any_s: int) -> Expanded:
-    """Expand pairs over entities and scene keys (see the module docstring)."""
+def expand_pairs(pairs: list[Pair], expand: dict[str, list[int]], s_index: dict[str, int], any_s: int,
+                 pooled: int | None = None) -> Expanded:
+    """Expand pairs over entities and scene keys (see the module docstring); wall pairs also count for the
+    ``pooled`` entity (every category at once)."""
     key_of: dict[tuple, int] = {}
     pair_key = np.array([key_of.setdefault((p.category, p.ref_category, p.scene_type, p.relation, p.surface_type),
                                            len(key_of)) for p in pairs], dtype=np.int64)
@@ -58,7 +62,7 @@ def expand_pairs(pairs: list[Pair], expand: dict[str, list[int]], s_index: dict[
         for e_ref in expand[ref_category]:
             for s in sorted({s_index[scene_type], any_s}):
                 g = group_of.setdefault((e_ref, s, r, t), len(group_of))
-                for e_child in expand[category]:
+                for e_child in expand[category] + ([pooled] if relation == "wall" and pooled is not None else []):
                     combo_group.append(g)
                     combo_child.append(e_child)
                     n += 1
@@ -153,17 +157,18 @@ def _small_peaks(xy: np.ndarray, starts: np.ndarray, counts: np.ndarray, bandwid
 
 
 def _peak(points: np.ndarray, bandwidth: np.ndarray) -> float:
-    """The largest value of Σ exp(−q/2) over the sample points (all of them for small samples; for large ones
-    the most repeated points and an even spread of the rest, which is where a KDE's peak lies)."""
+    """The largest value of Σ exp(−q/2) over the sample points: all of them for small samples; for large ones
+    the points of the densest cells of a bandwidth-sized grid (where a KDE's peak lies), PEAK_POINTS at most."""
     unique, weight = np.unique(points, axis=0, return_counts=True)
     if len(unique) <= PEAK_POINTS:
         probe = unique
     else:
-        busiest = unique[np.argsort(-weight, kind="stable")[: PEAK_POINTS // 2]]
-        spread = unique[:: max(1, len(unique) // (PEAK_POINTS // 2))]
-        probe = np.vstack([busiest, spread])
+        cells, cell_of = np.unique(np.floor(unique / bandwidth).astype(np.int64), axis=0, return_inverse=True)
+        cell_weight = np.bincount(cell_of.reshape(-1), weights=weight, minlength=len(cells))
+        rank = np.argsort(np.argsort(-cell_weight, kind="stable"), kind="stable")[cell_of.reshape(-1)]
+        probe = unique[np.argsort(rank, kind="stable")[:PEAK_POINTS]]
     best = 0.0
-    for chunk in np.array_split(probe, max(1, len(probe) // 128)):
+    for chunk in np.array_split(probe, max(1, len(probe) // 64)):
         d = (chunk[:, None, :] - unique[None, :, :]) / bandwidth
         best = max(best, float((np.exp(-0.5 * (d ** 2).sum(axis=2)) @ weight).max()))
     return best

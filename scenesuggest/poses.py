@@ -78,16 +78,25 @@ def plane_zero(normal) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+def headings(directions, normals) -> np.ndarray:
+    """(N,) signed angles (radians, about each normal) from the plane's zero direction (see :func:`plane_zero`) to
+    each direction projected onto its plane; NaN where a direction is perpendicular to its plane."""
+    d = np.asarray(directions, dtype=float).reshape(-1, 3)
+    n = np.broadcast_to(np.asarray(normals, dtype=float).reshape(-1, 3), d.shape)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    d = d - (d * n).sum(axis=1, keepdims=True) * n
+    horizontal = np.abs(n[:, 1]) > HORIZONTAL_COS
+    ref = np.where(horizontal[:, None], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])
+    z = ref - (ref * n).sum(axis=1, keepdims=True) * n
+    z = z / np.linalg.norm(z, axis=1, keepdims=True)
+    out = np.arctan2((np.cross(z, d) * n).sum(axis=1), (z * d).sum(axis=1))
+    return np.where(np.linalg.norm(d, axis=1) < 1e-9, np.nan, out)
+
+
 def heading(direction, normal) -> float:
     """Signed angle (radians, about ``normal``) from the plane's zero direction to ``direction`` projected
-    onto the plane; NaN when ``direction`` is perpendicular to the plane."""
-    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    d = np.asarray(direction, dtype=float)
-    d = d - np.dot(d, n) * n
-    if np.linalg.norm(d) < 1e-9:
-        return float("nan")
-    z = plane_zero(n)
-    return math.atan2(float(np.dot(np.cross(z, d), n)), float(np.dot(z, d)))
+    onto the plane; NaN when ``direction`` is perpendicular to the plane (:func:`headings` of one)."""
+    return float(headings(direction, normal)[0])
 
 
 def rotation_of(transform: np.ndarray) -> np.ndarray:
@@ -133,33 +142,58 @@ def placements(points, normal, faces: list[str], sizes, alphas) -> np.ndarray:
     return out
 
 
-def plane_offset(point, normal, ref_transform: np.ndarray, radial: bool) -> np.ndarray:
-    """2-D offset of ``point`` from a reference object's origin, in the reference's frame, on the plane.
+def rotations_of(transforms) -> np.ndarray:
+    """(N, 3, 3) rotation parts of (N, 4, 4) transforms (columns normalised)."""
+    r = np.asarray(transforms, dtype=float)[:, :3, :3]
+    return r / np.linalg.norm(r, axis=1, keepdims=True)
+
+
+def plane_offsets(points, normals, ref_transforms, radial) -> np.ndarray:
+    """(N, 2) offsets of points from reference objects' origins, in each reference's frame, on the plane.
 
     Horizontal planes: (x, z) in the reference's frame (or (radius, 0) for references without a front).
     Vertical planes: (distance along the wall, height) relative to the reference.
     """
-    r = rotation_of(ref_transform)
-    delta = r.T @ (np.asarray(point, dtype=float) - ref_transform[:3, 3])
-    n_local = r.T @ (np.asarray(normal, dtype=float) / np.linalg.norm(normal))
-    if abs(n_local[1]) > HORIZONTAL_COS:
-        xz = np.array([delta[0], delta[2]])
-        return np.array([np.hypot(*xz), 0.0]) if radial else xz
+    t = np.asarray(ref_transforms, dtype=float).reshape(-1, 4, 4)
+    r = rotations_of(t)
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    delta = np.einsum("nji,nj->ni", r, p - t[:, :3, 3])
+    n_local = np.einsum("nji,nj->ni", r, n)
+    flat = np.abs(n_local[:, 1]) > HORIZONTAL_COS
+    radial = np.broadcast_to(np.asarray(radial, dtype=bool), flat.shape)
+    xz = delta[:, [0, 2]]
+    horizontal = np.where(radial[:, None], np.column_stack([np.hypot(xz[:, 0], xz[:, 1]), np.zeros(len(xz))]), xz)
     along = np.cross([0.0, 1.0, 0.0], n_local)
-    along /= np.linalg.norm(along)
-    return np.array([float(np.dot(delta, along)), float(delta[1])])
+    length = np.linalg.norm(along, axis=1, keepdims=True)
+    along = along / np.where(length > 0, length, 1.0)
+    vertical = np.column_stack([(delta * along).sum(axis=1), delta[:, 1]])
+    return np.where(flat[:, None], horizontal, vertical)
+
+
+def plane_offset(point, normal, ref_transform: np.ndarray, radial: bool) -> np.ndarray:
+    """:func:`plane_offsets` of one point."""
+    return plane_offsets(point, normal, ref_transform, radial)[0]
+
+
+def reference_headings(points, normals, ref_transforms, radial) -> np.ndarray:
+    """(N,) headings relative orientation is measured from: a reference's front on horizontal planes (or the
+    direction from the point towards it when it has no front); the plane's up (0) on vertical planes; 0 where
+    undefined."""
+    t = np.asarray(ref_transforms, dtype=float).reshape(-1, 4, 4)
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    n = np.broadcast_to(np.asarray(normals, dtype=float).reshape(-1, 3), p.shape)
+    radial = np.broadcast_to(np.asarray(radial, dtype=bool), (len(p),))
+    direction = np.where(radial[:, None], t[:, :3, 3] - p, rotations_of(t)[:, :, 2])
+    h = np.nan_to_num(headings(direction, n), nan=0.0)
+    horizontal = np.abs(n[:, 1]) / np.linalg.norm(n, axis=1) > HORIZONTAL_COS
+    return np.where(horizontal, h, 0.0)
 
 
 def reference_heading(point, normal, ref_transform: np.ndarray, radial: bool) -> float:
-    """The heading relative orientation is measured from: a reference's front on horizontal planes (or the
-    direction from ``point`` towards it when it has no front); the plane's up (0) on vertical planes."""
-    if not is_horizontal(normal):
-        return 0.0
-    if radial:
-        h = heading(ref_transform[:3, 3] - np.asarray(point, dtype=float), normal)
-        return 0.0 if math.isnan(h) else h
-    h = heading(rotation_of(ref_transform)[:, 2], normal)
-    return 0.0 if math.isnan(h) else h
+    """:func:`reference_headings` of one point."""
+    return float(reference_headings(point, normal, ref_transform, radial)[0])
 
 
 def turn_about(placed: np.ndarray, target: np.ndarray, normal) -> float:

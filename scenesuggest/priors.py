@@ -44,6 +44,8 @@ from .taxonomy import MIN_OBSERVATIONS, Taxonomy
 FORMAT = "scenesuggest-priors"
 VERSION = 2
 ANY = "*"
+#: The entity that pools every category (wall statistics only, see :mod:`.pair_priors`).
+POOLED = "*"
 K_MAX = 8
 FACES = frames.FACES
 
@@ -66,7 +68,8 @@ ARRAYS = {
     "seg_theta_n": ("(segments, BINS)", "counts of θ per 10° bin"),
     "seg_phi_n": ("(segments, BINS)", "counts of φ per 10° bin"),
     "pair_xy": ("(samples, 2)", "offsets δ, metres, in the reference's frame"),
-    "orient_weights": ("(entities, kinds)", "trust in each kind of orientation evidence (orientation.KINDS)"),
+    "orient_weights": ("(entities, surface types, kinds)",
+                       "trust in each kind of orientation evidence (orientation.KINDS)"),
     "model_category": ("(models,)", "category index of each model"),
     "model_size": ("(models, 3)", "canonical box size, metres"),
     "model_count": ("(models,)", "supported instances of the model"),
@@ -263,6 +266,15 @@ class Priors:
         seg[found] = segs[pos[found]]
         return seg
 
+    def pooled_segment(self, ref_category: str, scene_type: str | None, relation: str, surface_type: str) -> int:
+        """The segment pooling every category next to a reference (−1 where there is none)."""
+        g = self.group_for(ref_category, scene_type, relation, surface_type)
+        if g is None:
+            return -1
+        children, segs = self.segments(g)
+        pos = int(np.searchsorted(children, self.entity_index[POOLED]))
+        return int(segs[pos]) if pos < len(children) and children[pos] == self.entity_index[POOLED] else -1
+
     def describe(self) -> dict:
         return {"scenes": self.meta["scenes"], "supports": self.meta["supports"], "pairs": int(len(self.pair_xy)),
                 "categories": len(self.categories), "candidates": int(len(self.candidate_categories)),
@@ -293,7 +305,7 @@ def _vocabulary(scenes: list[Scene], taxonomy: Taxonomy) -> tuple[list[str], Tax
     parents = {c: taxonomy.parent(c) for c in categories if taxonomy.parent(c) in set(categories)}
     tax = Taxonomy(parents)
     has_children = set(parents.values())
-    entities = list(categories) + [_subtree(c) for c in categories if c in has_children]
+    entities = list(categories) + [_subtree(c) for c in categories if c in has_children] + [POOLED]
     entity_index = {e: i for i, e in enumerate(entities)}
     expand = {c: [entity_index[c]] + [entity_index[_subtree(x)] for x in [c, *tax.ancestors(c)]
                                       if _subtree(x) in entity_index] for c in categories}
@@ -352,7 +364,7 @@ def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
         model_counts[sup.model_id] += 1
         model_info[sup.model_id] = (sup.category, sup.size)
 
-    expanded = expand_pairs(pairs, expand, s_index, len(scene_types) - 1)
+    expanded = expand_pairs(pairs, expand, s_index, len(scene_types) - 1, pooled=n_e - 1)
     arrays.update(pair_arrays(expanded, progress))
     model_ids = sorted(model_counts, key=lambda m: (model_info[m][0], -model_counts[m], m))
     c_index = {c: i for i, c in enumerate(categories)}
@@ -362,7 +374,7 @@ def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
         model_size=np.array([model_info[m][1] for m in model_ids], dtype=np.float32).reshape(-1, 3),
         model_count=np.array([model_counts[m] for m in model_ids], dtype=np.int32),
         candidate_categories=np.array(sorted({c_index[model_info[m][0]] for m in model_ids}), dtype=np.int32),
-        orient_weights=np.ones((n_e, 1), dtype=np.float32),
+        orient_weights=np.ones((n_e, len(SURFACE_TYPES), 1), dtype=np.float32),
     )
     meta = {"format": FORMAT, "version": VERSION, "categories": categories, "entities": entities,
             "scene_types": scene_types, "model_ids": model_ids, "taxonomy": tax.to_dict(),

@@ -35,11 +35,12 @@ import numpy as np
 
 from . import frames, poses, surfaces
 from .errors import SceneSuggestError
-from .observations import WALL, bearing, is_radial, wall_heading, wall_reference
+from .observations import WALL, bearing, is_radial, near_wall, wall_heading, wall_reference
 from .orientation import KINDS, decide, log_density, mean_by, pair_kind_rows, turned
 from .priors import ANY, BINS, FACES, K_MAX, Priors
 from .scene import SURFACE_TYPES, Scene
 from .scene_types import infer_scene_type
+from .taxonomy import MIN_OBSERVATIONS
 
 MODES = ("basic", "full")
 ORIENTATIONS = ("learned", "paper")
@@ -172,7 +173,7 @@ class Engine:
         # a category backed off to an ancestor's subtree gets its share of that subtree's occurrences
         self.share = np.where(pooled > 0, own / np.maximum(pooled, 1.0), 1.0)
         self.base_rate = own / max(total, 1.0)
-        self.weights = p.orient_weights[self.candidates].astype(float)  # (n, kinds)
+        self.weights = p.orient_weights[self.candidates].astype(float)  # (n, surface types, kinds)
         self._cache: dict[tuple, tuple] = {}
 
     def _borrowed_mask(self, scene_index: int, scene_type: str) -> np.ndarray | float:
@@ -323,6 +324,11 @@ class Engine:
         for ref, relation, radial in evidence:
             seg = self._resolved(ref.category if ref is not None else WALL, prep.scene_type, relation,
                                  prep.surface_type)[4][idx]
+            if ref is None:  # only candidates that would stand at the wall; seldom seen at one: all categories
+                pooled = p.pooled_segment(WALL, prep.scene_type, relation, prep.surface_type)
+                few = (seg < 0) | (p.seg_theta_n[np.maximum(seg, 0)].sum(axis=1) < MIN_OBSERVATIONS)
+                seg = np.where(few, pooled, seg)
+                seg = np.where([near_wall(prep.wall[1], s) for s in self.size[idx]], seg, -1)
             has = np.flatnonzero(seg >= 0)
             if not len(has):
                 continue
@@ -342,7 +348,8 @@ class Engine:
         return out
 
     def _learned_scores(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        return np.einsum("mk,mkb->mb", self.weights[idx], self.evidence(prep, idx, faces))
+        weights = self.weights[idx, SURFACE_TYPES.index(prep.surface_type)]
+        return np.einsum("mk,mkb->mb", weights, self.evidence(prep, idx, faces))
 
     # --- placement -----------------------------------------------------------------------------------------
     def geometric_face(self, size, surface_type: str) -> str:

@@ -158,9 +158,9 @@ def _file_key(path: Path, transform: np.ndarray) -> str:
     return digest.hexdigest()
 
 
-def _period_of_model(model, cache: _Cache) -> float | None:
-    """The period of one model's mesh: its OBJ source in the canonical frame, its built GLB, or the procedural
-    model of its type; None when it has none."""
+def _period_of_model(model, cache: _Cache, base: Path | None = None) -> float | None:
+    """The period of one model's mesh: its OBJ source in the canonical frame, its built GLB (``asset``, relative
+    to ``base`` when not absolute), or the procedural model of its type; None when it has none."""
     import trimesh
 
     if model.mesh and Path(model.mesh).is_file():
@@ -171,8 +171,11 @@ def _period_of_model(model, cache: _Cache) -> float | None:
             return symmetry_period_deg(mesh.apply_transform(transform))
 
         return cache.get(_file_key(path, transform), compute)
-    if model.asset and Path(model.asset).is_file():
-        path = Path(model.asset)
+    asset = Path(model.asset) if model.asset else None
+    if asset is not None and not asset.is_absolute() and base is not None:
+        asset = base / asset
+    if asset is not None and asset.is_file():
+        path = asset
         return cache.get(_file_key(path, np.eye(4)), lambda: glb_symmetry_period_deg(path.read_bytes()))
     if model.size_source == "procedural":
         from .assets.procedural import procedural_model
@@ -184,16 +187,17 @@ def _period_of_model(model, cache: _Cache) -> float | None:
 
 
 def corpus_periods(models: Iterable, progress: Callable[[Iterable, str], Iterable] | None = None,
-                   cache: Path | None | bool = True) -> ModelPeriods:
+                   cache: Path | None | bool = True, base: str | Path | None = None) -> ModelPeriods:
     """:class:`ModelPeriods` of ``models`` (:class:`~scenesuggest.library.ModelInfo`); ``cache``: True for the
-    user's cache folder, a folder, or None/False for no cache."""
+    user's cache folder, a folder, or None/False for no cache; ``base``: the folder of a model library, whose
+    assets are named relative to it."""
     progress = progress or (lambda items, label="": items)
     models = list(models)
     store = _Cache(cache_dir() if cache is True else (Path(cache) if cache else None))
     measured: dict[str, float] = {}
     try:
         for model in progress([m for m in models if m.category != ROOM], "symmetry"):
-            period = _period_of_model(model, store)
+            period = _period_of_model(model, store, Path(base) if base else None)
             if period is not None:
                 measured[model.id] = period
     finally:

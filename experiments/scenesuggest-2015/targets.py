@@ -62,7 +62,7 @@ def _computer_desk(a: SceneAuthor) -> None:
     desk = a.put("Desk", "room", 0.0, BACK + d / 2)
     a.put("Monitor", desk, 0.0, BACK + 0.2)
     a.put("Keyboard", desk, 0.0, BACK + 0.55)
-    a.put("ComputerMouse", desk, 0.4, BACK + 0.55)
+    a.put("ComputerMouse", desk, 0.4, BACK + 0.55, yaw_deg=180)  # the model's front is its cable end
     a.put("Speaker", desk, -0.55, BACK + 0.25, yaw_deg=15)
     a.put("OfficeChair", "room", 0.0, BACK + d + 0.45, yaw_deg=180)
     a.hang("PowerSocket", "back", 1.25, 0.3)
