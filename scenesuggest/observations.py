@@ -95,11 +95,9 @@ def bearings(points, normals, ref_transforms, ref_sizes) -> np.ndarray:
     nearest point of a reference's footprint when the point lies outside it (a chair at a long table faces the
     table's edge, not its far-away centre), to its centre when inside; NaN on vertical planes or within
     MIN_BEARING_M."""
-    t = np.asarray(ref_transforms, dtype=float).reshape(-1, 4, 4)
-    p = np.asarray(points, dtype=float).reshape(-1, 3)
-    n = np.broadcast_to(np.asarray(normals, dtype=float).reshape(-1, 3), p.shape)
+    t, p, n = poses.broadcast_frames(ref_transforms, points, normals)
     n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    size = np.asarray(ref_sizes, dtype=float).reshape(-1, 3)
+    size = np.broadcast_to(np.asarray(ref_sizes, dtype=float).reshape(-1, 3), p.shape)
     r = poses.rotations_of(t)
     half = size * np.linalg.norm(t[:, :3, :3], axis=1) / 2
     middle = np.einsum("nij,nj->ni", t[:, :3, :3], size * [0, 0.5, 0]) + t[:, :3, 3]

@@ -142,6 +142,15 @@ def placements(points, normal, faces: list[str], sizes, alphas) -> np.ndarray:
     return out
 
 
+def broadcast_frames(transforms, points, normals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, 4, 4) transforms, (N, 3) points and (N, 3) normals, each given once or N times."""
+    t = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    count = max(len(t), len(p), len(n))
+    return (np.broadcast_to(t, (count, 4, 4)), np.broadcast_to(p, (count, 3)), np.broadcast_to(n, (count, 3)))
+
+
 def rotations_of(transforms) -> np.ndarray:
     """(N, 3, 3) rotation parts of (N, 4, 4) transforms (columns normalised)."""
     r = np.asarray(transforms, dtype=float)[:, :3, :3]
@@ -154,10 +163,8 @@ def plane_offsets(points, normals, ref_transforms, radial) -> np.ndarray:
     Horizontal planes: (x, z) in the reference's frame (or (radius, 0) for references without a front).
     Vertical planes: (distance along the wall, height) relative to the reference.
     """
-    t = np.asarray(ref_transforms, dtype=float).reshape(-1, 4, 4)
+    t, p, n = broadcast_frames(ref_transforms, points, normals)
     r = rotations_of(t)
-    p = np.asarray(points, dtype=float).reshape(-1, 3)
-    n = np.asarray(normals, dtype=float).reshape(-1, 3)
     n = n / np.linalg.norm(n, axis=1, keepdims=True)
     delta = np.einsum("nji,nj->ni", r, p - t[:, :3, 3])
     n_local = np.einsum("nji,nj->ni", r, n)
@@ -181,9 +188,7 @@ def reference_headings(points, normals, ref_transforms, radial) -> np.ndarray:
     """(N,) headings relative orientation is measured from: a reference's front on horizontal planes (or the
     direction from the point towards it when it has no front); the plane's up (0) on vertical planes; 0 where
     undefined."""
-    t = np.asarray(ref_transforms, dtype=float).reshape(-1, 4, 4)
-    p = np.asarray(points, dtype=float).reshape(-1, 3)
-    n = np.broadcast_to(np.asarray(normals, dtype=float).reshape(-1, 3), p.shape)
+    t, p, n = broadcast_frames(ref_transforms, points, normals)
     radial = np.broadcast_to(np.asarray(radial, dtype=bool), (len(p),))
     direction = np.where(radial[:, None], t[:, :3, 3] - p, rotations_of(t)[:, :, 2])
     h = np.nan_to_num(headings(direction, n), nan=0.0)

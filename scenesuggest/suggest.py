@@ -29,14 +29,15 @@ scene-type inference from the objects present.
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from . import frames, poses, surfaces
 from .errors import SceneSuggestError
-from .observations import WALL, bearing, is_radial, near_wall, wall_heading, wall_reference
-from .orientation import KINDS, decide, log_density, mean_by, pair_kind_rows, turned
+from .observations import WALL, bearings, is_radial, near_wall, wall_heading, wall_reference
+from .orientation import KINDS, decide, log_density, pair_kind_rows, turned
 from .priors import ANY, BINS, FACES, K_MAX, Priors
 from .scene import SURFACE_TYPES, Scene
 from .scene_types import infer_scene_type
@@ -229,7 +230,7 @@ class Engine:
         prep = self.prepare(query)
         occ = self._occurrence(prep)
         sup = self.surface_prob[:, SURFACE_TYPES.index(prep.surface_type)]
-        densities = [self._densities(prep, ref, relation, prep.point[None])[0] for ref, relation in prep.references]
+        densities = self._reference_densities(prep)
         position = np.sum(densities, axis=0) if densities else np.zeros(len(self.candidates))
         o = self.options
         total = o.lambda1 * occ * sup + o.lambda2 * position
@@ -283,6 +284,28 @@ class Engine:
             out[k] = np.bincount(owner, weights=weight * np.exp(-0.5 * q), minlength=n) * self.share
         return out
 
+    def _reference_densities(self, prep: Prepared) -> list[np.ndarray]:
+        """:meth:`_densities` at the query's point for every reference at once (one array operation)."""
+        refs = prep.references
+        n = len(self.candidates)
+        if not refs:
+            return []
+        resolved = [self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)
+                    for ref, relation in refs]
+        delta = poses.plane_offsets(prep.point, prep.normal, np.array([ref.transform for ref, _ in refs]),
+                                    np.array([is_radial(ref.size) for ref, _ in refs]))
+        sizes = [len(r[3]) for r in resolved]
+        if not sum(sizes):
+            return [np.zeros(n) for _ in refs]
+        which = np.repeat(np.arange(len(refs)), sizes)
+        xy = np.concatenate([r[0] for r in resolved])
+        inv_bw = np.concatenate([r[1] for r in resolved])
+        weight = np.concatenate([r[2] for r in resolved])
+        owner = np.concatenate([r[3] for r in resolved])
+        q = (((delta[which] - xy) * inv_bw) ** 2).sum(axis=1)
+        out = np.bincount(which * n + owner, weights=weight * np.exp(-0.5 * q), minlength=len(refs) * n)
+        return list(out.reshape(len(refs), n) * self.share)
+
     def position_at(self, prep: Prepared, points: np.ndarray) -> np.ndarray:
         """(P, n) position term Σ_r P_relpos of every candidate at each of ``points``."""
         return sum((self._densities(prep, ref, relation, points) for ref, relation in prep.references),
@@ -310,42 +333,57 @@ class Engine:
 
     def evidence(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         """(m, kinds, BINS) log-probabilities of every heading bin from each kind of orientation evidence
-        (:mod:`.orientation`), for candidates ``idx`` attached by ``faces``."""
+        (:mod:`.orientation`), for candidates ``idx`` attached by ``faces``: references of one kind averaged."""
         p = self.priors
         m = len(idx)
         t = SURFACE_TYPES.index(prep.surface_type)
         out = np.zeros((m, len(KINDS), BINS))
-        zero = np.array([poses.zero_heading(f, prep.normal) for f in FACES])[faces]
-        out[:, 0] = turned(log_density(p.alpha_n[self.stat_entity[idx], t, faces]), np.nan_to_num(zero))
-        rows: list[tuple[int, np.ndarray, np.ndarray]] = []  # (kind, candidate rows, values)
-        evidence = [(ref, relation, is_radial(ref.size)) for ref, relation in prep.references]
-        if prep.wall is not None:
-            evidence.append((None, "wall", False))
-        for ref, relation, radial in evidence:
-            seg = self._resolved(ref.category if ref is not None else WALL, prep.scene_type, relation,
-                                 prep.surface_type)[4][idx]
-            if ref is None:  # only candidates that would stand at the wall; seldom seen at one: all categories
-                pooled = p.pooled_segment(WALL, prep.scene_type, relation, prep.surface_type)
-                few = (seg < 0) | (p.seg_theta_n[np.maximum(seg, 0)].sum(axis=1) < MIN_OBSERVATIONS)
-                seg = np.where(few, pooled, seg)
-                seg = np.where([near_wall(prep.wall[1], s) for s in self.size[idx]], seg, -1)
+        zero = self._zero_headings(prep.normal)[faces]
+        out[:, 0] = turned(log_density(p.alpha_n[self.stat_entity[idx], t, faces]), zero)
+        refs = prep.references
+        segs, kinds, angles, rows = [], [], [], []  # per contribution: segment, kind, reference angle, candidate
+        if refs:
+            transforms = np.array([ref.transform for ref, _ in refs])
+            radial = np.array([is_radial(ref.size) for ref, _ in refs])
+            fronts = poses.reference_headings(prep.point, prep.normal, transforms, radial)
+            towards = bearings(prep.point, prep.normal, transforms, np.array([ref.size for ref, _ in refs]))
+            for (ref, relation), is_round, front, toward in zip(refs, radial, fronts, towards, strict=True):
+                seg = self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4][idx]
+                has = np.flatnonzero(seg >= 0)
+                front_kind, bearing_kind = pair_kind_rows(relation, bool(is_round))
+                for kind, angle, table in ((front_kind, front, 0), (bearing_kind, toward, 1)):
+                    if kind is not None and math.isfinite(angle) and len(has):
+                        segs.append(seg[has] * 2 + table)
+                        kinds.append(np.full(len(has), kind))
+                        angles.append(np.full(len(has), angle))
+                        rows.append(has)
+        if prep.wall is not None:  # only candidates that would stand at it; seldom seen at one: all categories
+            seg = self._resolved(WALL, prep.scene_type, "wall", prep.surface_type)[4][idx]
+            pooled = p.pooled_segment(WALL, prep.scene_type, "wall", prep.surface_type)
+            few = (seg < 0) | (p.seg_theta_n[np.maximum(seg, 0)].sum(axis=1) < MIN_OBSERVATIONS)
+            seg = np.where(few, pooled, seg)
+            seg = np.where([near_wall(prep.wall[1], size) for size in self.size[idx]], seg, -1)
             has = np.flatnonzero(seg >= 0)
-            if not len(has):
-                continue
-            front_kind, bearing_kind = pair_kind_rows(relation, radial)
-            if ref is None:
-                front = wall_heading(prep.wall[0], prep.normal)
-            else:
-                front = poses.reference_heading(prep.point, prep.normal, ref.transform, radial)
-            if front_kind is not None and math.isfinite(front):
-                rows.append((front_kind, has, turned(log_density(p.seg_theta_n[seg[has]]), front)))
-            toward = bearing(prep.point, prep.normal, ref) if bearing_kind is not None else math.nan
-            if math.isfinite(toward):
-                rows.append((bearing_kind, has, turned(log_density(p.seg_phi_n[seg[has]]), toward)))
-        for kind in {k for k, _, _ in rows}:
-            members = [(r, v) for k, r, v in rows if k == kind]
-            out[:, kind] = mean_by(np.concatenate([r for r, _ in members]), np.vstack([v for _, v in members]), m)
+            if len(has):
+                segs.append(seg[has] * 2)
+                kinds.append(np.full(len(has), KINDS.index("wall")))
+                angles.append(np.full(len(has), wall_heading(prep.wall[0], prep.normal)))
+                rows.append(has)
+        if segs:
+            seg, kind, angle, row = (np.concatenate(a) for a in (segs, kinds, angles, rows))
+            counts = np.where((seg % 2 == 0)[:, None], p.seg_theta_n[seg // 2], p.seg_phi_n[seg // 2])
+            values = turned(log_density(counts), angle)
+            slot = row * len(KINDS) + kind
+            total = np.zeros((m * len(KINDS), BINS))
+            np.add.at(total, slot, values)
+            count = np.bincount(slot, minlength=m * len(KINDS))[:, None]
+            mean = np.divide(total, count, out=np.zeros_like(total), where=count > 0).reshape(m, len(KINDS), BINS)
+            out[:, 1:] = mean[:, 1:]
         return out
+
+    def _zero_headings(self, normal) -> np.ndarray:
+        """The canonical heading of every face on a plane with ``normal`` (0 where undefined)."""
+        return np.nan_to_num(np.array([poses.zero_heading(f, normal) for f in FACES]))
 
     def _learned_scores(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         weights = self.weights[idx, SURFACE_TYPES.index(prep.surface_type)]
@@ -379,8 +417,7 @@ class Engine:
         prep = scores.prepared
         idx = np.arange(len(self.candidates)) if idx is None else np.asarray(idx, dtype=np.int64)
         face_index = self.face_indices(prep, mode, idx)
-        zero_of = np.array([poses.zero_heading(f, prep.normal) for f in FACES])
-        zero = np.nan_to_num(zero_of[face_index])
+        zero = self._zero_headings(prep.normal)[face_index]
         if mode != "full":
             heading = zero
         elif self.options.orientation == "paper":
@@ -390,8 +427,10 @@ class Engine:
             heading, _ = decide(self.heading_scores(scores, idx, face_index), zero)
         return [FACES[i] for i in face_index], heading - zero, heading
 
-    def suggest(self, query: ContextQuery, mode: str = "full", top: int | None = None) -> list[Suggestion]:
-        """Ranked suggestions (best first, ties by name), each with a placement; ``top`` limits the list."""
+    def suggest(self, query: ContextQuery, mode: str = "full", top: int | None = None,
+                only: Collection[str] | None = None) -> list[Suggestion]:
+        """Ranked suggestions (best first, ties by name), each with a placement; ``top`` limits the list and
+        ``only`` (category names) the categories that may appear, as a study whose library lacks some does."""
         if mode not in MODES:
             raise SceneSuggestError(f"mode must be one of {', '.join(MODES)} (the 'none' condition never asks "
                                     "the engine)", field="mode")
@@ -409,15 +448,16 @@ class Engine:
             points, moved = refine_anchors(self, scores, self.options.refine_radius_m)
             for i in np.flatnonzero(moved > 0):
                 notes[i].append(f"moved {moved[i]:.2f} m to a more typical spot")
+        allowed = np.ones(n, dtype=bool) if only is None else np.isin(self.names, list(only))
         if self.options.collision_aware:  # every candidate needs its pose before the ranking is known
             from .placement_checks import check_fit
 
             faces, alphas, headings = self.choose_poses(scores, mode)
             total = check_fit(self, scores, faces, alphas, headings, points, total.copy(), notes, mode)
-            order = np.lexsort((self.name_order, -total))[: top or n]
+            order = self._ranking(total, allowed)[: top or n]
             faces, alphas, headings = [faces[i] for i in order], alphas[order], headings[order]
         else:
-            order = np.lexsort((self.name_order, -total))[: top or n]
+            order = self._ranking(total, allowed)[: top or n]
             faces, alphas, headings = self.choose_poses(scores, mode, order)
         placed = poses.placements(points[order], prep.normal, faces, self.size[order], alphas)
         degrees = np.degrees(poses.wrap(headings))
@@ -430,6 +470,11 @@ class Engine:
                 placement=placement, attachment_face=faces[rank - 1], heading_deg=float(degrees[rank - 1]),
                 models=self.members[i], notes=tuple(notes[i])))
         return out
+
+    def _ranking(self, total: np.ndarray, allowed: np.ndarray) -> np.ndarray:
+        """Candidate indices best first (ties by name), only the allowed ones."""
+        order = np.lexsort((self.name_order, -total))
+        return order[allowed[order]]
 
     def with_options(self, **changes) -> Engine:
         return Engine(self.priors, replace(self.options, **changes))

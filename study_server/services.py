@@ -25,6 +25,7 @@ class StudyRuntime:
         self.study = study
         self._lock = threading.RLock()
         self._engines: dict[str, Engine] = {}
+        self._placeable: dict[str, frozenset[str]] = {}
 
     def check_resources(self) -> None:
         """Fail at start-up, naming the key, when the priors file or the model library is missing."""
@@ -47,6 +48,17 @@ class StudyRuntime:
             if condition_id not in self._engines:
                 self._engines[condition_id] = Engine(self.priors, self.study.condition(condition_id).engine)
             return self._engines[condition_id]
+
+    def placeable(self, condition_id: str) -> frozenset[str]:
+        """The engine's categories that this study's library has a model of (the ones worth suggesting)."""
+        with self._lock:
+            key = f"placeable:{condition_id}"
+            if key not in self._placeable:
+                engine = self.engine(condition_id)
+                self._placeable[key] = frozenset(
+                    name for name, members in zip(engine.names, engine.members, strict=True)
+                    if any(m in self.library for m in members) or name in self.by_category)
+            return self._placeable[key]
 
     @cached_property
     def library(self) -> dict[str, ModelInfo]:

@@ -211,7 +211,7 @@ def suggest():
     mode = "full" if condition == "full" else "basic"
     try:
         query = ContextQuery(scene, data.get("parent"), data.get("point"), data.get("normal"))
-        found = engine.suggest(query, mode)
+        found = engine.suggest(query, mode, top=SUGGESTIONS_SHOWN, only=rt.placeable(condition))
         surface = engine.prepare(query).surface_type
     except SceneSuggestError as e:
         raise ApiError(400, e.message, e.field) from None
