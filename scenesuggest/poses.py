@@ -13,6 +13,7 @@ hangs by its top, its up +Y when attached by a side), so on a floor the heading 
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -89,7 +90,9 @@ def headings(directions, normals) -> np.ndarray:
     ref = np.where(horizontal[:, None], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])
     z = ref - (ref * n).sum(axis=1, keepdims=True) * n
     z = z / np.linalg.norm(z, axis=1, keepdims=True)
-    out = np.arctan2((np.cross(z, d) * n).sum(axis=1), (z * d).sum(axis=1))
+    cross = np.column_stack([z[:, 1] * d[:, 2] - z[:, 2] * d[:, 1], z[:, 2] * d[:, 0] - z[:, 0] * d[:, 2],
+                             z[:, 0] * d[:, 1] - z[:, 1] * d[:, 0]])  # z × d, cheaper than np.cross on small arrays
+    out = np.arctan2((cross * n).sum(axis=1), (z * d).sum(axis=1))
     return np.where(np.linalg.norm(d, axis=1) < 1e-9, np.nan, out)
 
 
@@ -115,6 +118,24 @@ def zero_heading(face: str, normal) -> float:
     return heading(attach_rotation(face, normal) @ np.asarray(FACE_REFERENCE[face]), normal)
 
 
+@functools.lru_cache(maxsize=1024)
+def _attach_rotation(face: str, normal: tuple[float, float, float]) -> np.ndarray:
+    r = attach_rotation(face, normal)
+    r.setflags(write=False)
+    return r
+
+
+@functools.lru_cache(maxsize=256)
+def _zero_headings(normal: tuple[float, float, float]) -> tuple[float, ...]:
+    return tuple(zero_heading(face, normal) for face in frames.FACES)
+
+
+def zero_headings(normal) -> np.ndarray:
+    """:func:`zero_heading` of every face (in ``frames.FACES`` order) on a plane with ``normal``; NaN where
+    undefined. Memoised: a scene's clicks fall on few distinct planes."""
+    return np.array(_zero_headings(tuple(float(v) for v in np.asarray(normal, dtype=float).reshape(3))))
+
+
 def placement(point, normal, face: str, size, alpha: float) -> np.ndarray:
     """4×4 canonical → world transform: ``face`` on the plane at ``point``, turned by ``alpha`` about it."""
     n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
@@ -133,7 +154,8 @@ def axis_rotations(axis, angles) -> np.ndarray:
 def placements(points, normal, faces: list[str], sizes, alphas) -> np.ndarray:
     """(n, 4, 4) :func:`placement` for many objects on one plane, vectorised."""
     n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    attach = {f: attach_rotation(f, n) for f in set(faces)}
+    key = tuple(float(v) for v in n)
+    attach = {f: _attach_rotation(f, key) for f in set(faces)}
     r = axis_rotations(n, alphas) @ np.stack([attach[f] for f in faces])
     centres = np.array([FACE_CENTRE[f] for f in faces]) * np.asarray(sizes, dtype=float)
     out = np.tile(np.eye(4), (len(faces), 1, 1))

@@ -383,7 +383,7 @@ class Engine:
 
     def _zero_headings(self, normal) -> np.ndarray:
         """The canonical heading of every face on a plane with ``normal`` (0 where undefined)."""
-        return np.nan_to_num(np.array([poses.zero_heading(f, normal) for f in FACES]))
+        return np.nan_to_num(poses.zero_headings(normal))
 
     def _learned_scores(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         weights = self.weights[idx, SURFACE_TYPES.index(prep.surface_type)]
