@@ -237,17 +237,19 @@ def suggest_cmd(priors_file, scene_file, parent_id, point, normal, mode, top, sc
 @click.option("--group-similar/--no-group-similar", default=True, show_default=True,
               help="Keep near-copies of a scene in one fold (and report plain k-fold figures beside).")
 @click.option("--by-category", is_flag=True, help="Also print orientation accuracy per category.")
+@click.option("--ablations", is_flag=True, help="Also train and measure each orientation ablation (slow).")
 @meshes_option
 @click.option("--json", "as_json", is_flag=True)
-def evaluate_cmd(source: str, folds: int, seed: int, group_similar: bool, by_category: bool, meshes: str | None,
-                 as_json: bool) -> None:
+def evaluate_cmd(source: str, folds: int, seed: int, group_similar: bool, by_category: bool, ablations: bool,
+                 meshes: str | None, as_json: bool) -> None:
     """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines."""
     from .evaluate import evaluate, format_evaluation
 
     c = _load(source, meshes)
     if len(c.scenes) < folds:
         raise SceneSuggestError(f"{len(c.scenes)} scenes cannot make {folds} folds", field="folds")
-    result = evaluate(c, folds=folds, seed=seed, progress=progress, group_similar=group_similar)
+    result = evaluate(c, folds=folds, seed=seed, progress=progress, group_similar=group_similar,
+                      ablations=ablations)
     emit(result, as_json, format_evaluation(result, by_category=by_category))
 
 

@@ -40,6 +40,18 @@ from .suggest import ContextQuery, Engine, EngineOptions
 from .symmetry import ModelPeriods, corpus_periods
 
 BASELINES = ("frequency", "parent_only", "no_backoff", "no_position")
+#: Orientation ablations (``evaluate(..., ablations=True)``): name → Priors.fit options. Each is trained and
+#: measured on the same folds; the paper's rule and the canonical pose are measured in every run.
+ABLATIONS = {
+    "all evidence, learned trust": {},
+    "without walls": {"orientation_kinds": ("canonical", "parent_front", "parent_bearing", "sibling_front",
+                                            "sibling_bearing")},
+    "without bearings": {"orientation_kinds": ("canonical", "parent_front", "sibling_front", "wall")},
+    "without the canonical prior": {"orientation_kinds": ("parent_front", "parent_bearing", "sibling_front",
+                                                          "sibling_bearing", "wall")},
+    "fronts only (the paper's evidence)": {"orientation_kinds": ("parent_front", "sibling_front")},
+    "all evidence, equal trust": {"orientation_trust": "equal"},
+}
 #: Poses whose orientation is measured: the engine's full mode, full mode with the paper's orientation rule, and
 #: the canonical pose of basic mode.
 POSES = ("full", "paper", "canonical")
@@ -118,15 +130,17 @@ def _footprint(o: ObjectInstance) -> tuple[float, float]:
 
 
 def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
-         progress) -> tuple[dict[str, list[float]], list[dict], int]:
-    """Ranks per ranking, one orientation record per placed query, and the number of skipped edges."""
+         progress, fit_options: dict | None = None, rankings: bool = True
+         ) -> tuple[dict[str, list[float]], list[dict], int]:
+    """Ranks per ranking, one orientation record per placed query, and the number of skipped edges
+    (``rankings=False``: the baselines are not ranked, for orientation-only runs)."""
     ranks: dict[str, list[float]] = {m: [] for m in ("basic", "full", *BASELINES)}
     records: list[dict] = []
     skipped = 0
     for held in progress(folds, "folds"):
         held_set = set(held.tolist())
         train = [s for i, s in enumerate(corpus.scenes) if i not in held_set]
-        engine = Engine(Priors.fit(train, corpus.taxonomy), options)
+        engine = Engine(Priors.fit(train, corpus.taxonomy, **(fit_options or {})), options)
         plain = engine.with_options(backoff=False)
         paper = engine.with_options(orientation="paper")
         for i in held:
@@ -145,10 +159,12 @@ def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, period
                 r = rank_of(scores.total, index)
                 ranks["basic"].append(r)
                 ranks["full"].append(r)
-                ranks["frequency"].append(rank_of(engine.base_rate, index))
-                ranks["parent_only"].append(rank_of(scores.occurrence, index))
-                ranks["no_position"].append(rank_of(options.lambda1 * scores.occurrence * scores.surface, index))
-                ranks["no_backoff"].append(rank_of(plain.score(query).total, plain.index.get(o.category)))
+                if rankings:
+                    ranks["frequency"].append(rank_of(engine.base_rate, index))
+                    ranks["parent_only"].append(rank_of(scores.occurrence, index))
+                    ranks["no_position"].append(rank_of(options.lambda1 * scores.occurrence * scores.surface,
+                                                        index))
+                    ranks["no_backoff"].append(rank_of(plain.score(query).total, plain.index.get(o.category)))
                 if index is not None:
                     records.append(_orientation_record(engine, paper, scores, index, scene, o, corpus, periods))
     return ranks, records, skipped
@@ -211,11 +227,13 @@ def _chairs(records: list[dict]) -> dict:
 
 def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptions | None = None,
              progress: Callable[[Iterable, str], Iterable] | None = None, group_similar: bool = True,
-             periods: ModelPeriods | None = None) -> dict:
+             periods: ModelPeriods | None = None, ablations: bool = False) -> dict:
     """Run the k-fold evaluation; returns the JSON-ready summary (see the CLI's ``evaluate --json``).
 
     With ``group_similar`` the main figures come from folds that keep near-copies together and the plain
-    k-fold figures are added under ``"ungrouped"``; without it only plain k-fold by scene is run."""
+    k-fold figures are added under ``"ungrouped"``; without it only plain k-fold by scene is run. With
+    ``ablations`` every variant of :data:`ABLATIONS` is trained and measured on the main folds too
+    (``"ablations"``: the full-mode orientation summary and the chairs beside tables of each)."""
     progress = progress or (lambda items, label="": items)
     options = options or EngineOptions()
     if periods is None:
@@ -234,6 +252,14 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
         "categories": _categories(records),
         "chairs_at_tables": _chairs(records),
     }
+    if ablations:
+        result["ablations"] = {}
+        for name, fit_options in ABLATIONS.items():
+            if fit_options:
+                _, variant, _ = _run(corpus, main_folds, options, periods, progress, fit_options, rankings=False)
+            else:
+                variant = records
+            result["ablations"][name] = {**_orientation(variant, "full"), "chairs_at_tables": _chairs(variant)}
     if group_similar:
         plain_ranks, plain_records, _ = _run(corpus, plain_folds, options, periods, progress)
         result["ungrouped"] = {"queries": len(plain_ranks["full"]), **_modes(plain_ranks, plain_records),
@@ -281,6 +307,15 @@ def format_evaluation(result: dict, by_category: bool = False, top: int = 30) ->
                       "queries)", f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]
         lines += _ranking_rows(plain)
         lines += [""] + _orientation_rows(plain["modes"]["full"])
+    if "ablations" in result:
+        lines += ["", f"{'orientation ablations':<38}{'folded ≤15°':>12}{'≤45°':>8}{'median':>9}{'chairs facing':>15}"]
+        rows = [(name, m, m["chairs_at_tables"]["full_facing_within_45"]) for name, m in result["ablations"].items()]
+        rows += [("the paper's rule", full["paper"], chairs["paper_facing_within_45"]),
+                 ("canonical pose (basic)", full["canonical"], chairs["canonical_facing_within_45"])]
+        for name, m, facing in rows:
+            lines.append(f"{name:<38}{100 * m['orient_folded_within_15']:>11.1f}%"
+                         f"{100 * m['orient_folded_within_45']:>7.1f}%{m['orient_median_deg']:>8.1f}°"
+                         f"{100 * facing:>14.1f}%")
     if by_category:
         lines += ["", f"{'folded ≤45°':<24}{'n':>6}{'period':>8}{'full':>8}{'paper':>8}{'canonical':>11}"]
         for name, c in list(result["categories"].items())[:top]:

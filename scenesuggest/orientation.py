@@ -35,6 +35,10 @@ import math
 import numpy as np
 from scipy.optimize import minimize
 
+from .frames import FACES
+from .scene import SURFACE_TYPES
+from .taxonomy import MIN_OBSERVATIONS
+
 BINS = 36
 BIN = 2 * math.pi / BINS
 KINDS = ("canonical", "parent_front", "parent_bearing", "sibling_front", "sibling_bearing", "wall")
@@ -195,14 +199,23 @@ def mean_by(rows: np.ndarray, values: np.ndarray, n_rows: int) -> np.ndarray:
     return np.divide(total, count, out=np.zeros_like(total), where=count > 0)
 
 
-def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int], expand: dict[str, list[int]]
-                      ) -> np.ndarray:
-    """Per-entity weights (entities, KINDS) of the orientation evidence, learned from the training corpus with
-    every feature computed as if the object's own scene group (a scene and its near-copies) were unseen."""
-    from .frames import FACES
-    from .pair_priors import angle_bins, bin_counts
-    from .scene import SURFACE_TYPES
-    from .taxonomy import MIN_OBSERVATIONS
+TRUSTS = ("learned", "equal")
+
+
+def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int], expand: dict[str, list[int]],
+                      kinds: tuple[str, ...] = KINDS, trust: str = "learned") -> np.ndarray:
+    """Weights (entities, surface types, KINDS) of the orientation evidence, learned from the training corpus
+    with every feature computed as if the object's own scene group (a scene and its near-copies) were unseen.
+
+    Ablations: only ``kinds`` are used (the others get weight 0); ``trust = "equal"`` gives each used kind
+    weight 1 everywhere (a plain product of experts, nothing learned)."""
+    unknown = set(kinds) - set(KINDS)
+    if unknown or trust not in TRUSTS:
+        raise ValueError(f"unknown orientation kinds {sorted(unknown)} or trust {trust!r}")
+    used = np.array([k in kinds for k in KINDS], dtype=float)
+    if trust == "equal":
+        return np.broadcast_to(used.astype(np.float32), (len(priors.entities), len(SURFACE_TYPES), len(KINDS))).copy()
+    from .pair_priors import angle_bins, bin_counts  # pair_priors reads this module's BINS
 
     heading = np.array([s.heading for s in supports], dtype=float)
     usable = np.flatnonzero(np.isfinite(heading))
@@ -284,5 +297,7 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
             parent_of[a] = b
     canonical = heading - np.array([s.alpha for s in supports], dtype=float)
     canonical = np.where(np.isfinite(canonical), canonical, heading)
-    return fit_weights(features[usable], heading[usable], canonical[usable], chains, t[usable], len(priors.entities),
-                       len(SURFACE_TYPES), parent_of)
+    features *= used[None, :, None]
+    weights = fit_weights(features[usable], heading[usable], canonical[usable], chains, t[usable],
+                          len(priors.entities), len(SURFACE_TYPES), parent_of)
+    return used.astype(np.float32) * weights

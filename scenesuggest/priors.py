@@ -36,7 +36,7 @@ from . import frames
 from .errors import SceneSuggestError
 from .folds import similar_groups
 from .observations import RELATIONS, WALL, corpus_observations
-from .orientation import BINS, learn_orientation, smooth
+from .orientation import BINS, KINDS, learn_orientation, smooth
 from .pair_priors import angle_bins, expand_pairs, pair_arrays
 from .scene import SURFACE_TYPES, Scene
 from .taxonomy import MIN_OBSERVATIONS, Taxonomy
@@ -147,9 +147,13 @@ class Priors:
     # --- construction --------------------------------------------------------------------------------------
     @classmethod
     def fit(cls, scenes: Iterable[Scene], taxonomy: Taxonomy | None = None,
-            progress: Callable[[Iterable, str], Iterable] | None = None) -> Priors:
-        """Learn every prior from ``scenes`` (world frame) with ``taxonomy`` for back-off."""
-        return _fit(list(scenes), taxonomy or Taxonomy(), progress or (lambda items, label="": items))
+            progress: Callable[[Iterable, str], Iterable] | None = None, orientation_kinds: tuple[str, ...] = KINDS,
+            orientation_trust: str = "learned") -> Priors:
+        """Learn every prior from ``scenes`` (world frame) with ``taxonomy`` for back-off. ``orientation_kinds``
+        and ``orientation_trust`` restrict the orientation evidence, for ablations (:func:`.orientation.
+        learn_orientation`)."""
+        return _fit(list(scenes), taxonomy or Taxonomy(), progress or (lambda items, label="": items),
+                    tuple(orientation_kinds), orientation_trust)
 
     # --- persistence ---------------------------------------------------------------------------------------
     def save(self, path: str | Path) -> Path:
@@ -340,7 +344,8 @@ def _occurrence(scenes: list[Scene], expand: dict, s_index: dict, n_e: int, prog
             "occ_child": np.array([c for (_, c), _ in occ_items], dtype=np.int32), "occ_pgt": occ_pgt}
 
 
-def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
+def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress, kinds: tuple[str, ...] = KINDS,
+         trust: str = "learned") -> Priors:
     categories, tax, entities, expand = _vocabulary(scenes, taxonomy)
     scene_types = sorted({s.scene_type for s in scenes} - {ANY}) + [ANY]
     s_index = {s: i for i, s in enumerate(scene_types)}
@@ -379,8 +384,9 @@ def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress) -> Priors:
     meta = {"format": FORMAT, "version": VERSION, "categories": categories, "entities": entities,
             "scene_types": scene_types, "model_ids": model_ids, "taxonomy": tax.to_dict(),
             "scenes": len(scenes), "scene_ids": sorted(s.id for s in scenes), "supports": len(supports),
-            "k_max": K_MAX, "bins": BINS, "min_observations": MIN_OBSERVATIONS}
+            "k_max": K_MAX, "bins": BINS, "min_observations": MIN_OBSERVATIONS,
+            "orientation_kinds": list(kinds), "orientation_trust": trust}
     untrusted = Priors(arrays, meta)
     arrays["orient_weights"] = learn_orientation(untrusted, supports, pairs, expanded, similar_groups(scenes),
-                                                 expand)
+                                                 expand, kinds, trust)
     return Priors(arrays, meta)

@@ -22,8 +22,8 @@ BLOCKINGS = ("condition", "scene")
 PLATFORMS = ("prolific", "mturk", "link")
 CODES = ("complete", "no_consent", "screened_out", "technical")
 QUESTION_KINDS = ("likert", "choice", "number", "text")
-ENGINE_OPTIONS = ("lambda1", "lambda2", "backoff", "collision_aware", "collision_penalty", "anchor_refinement",
-                  "refine_radius_m", "infer_scene_type")
+ENGINE_OPTIONS = ("lambda1", "lambda2", "backoff", "orientation", "collision_aware", "collision_penalty",
+                  "anchor_refinement", "refine_radius_m", "infer_scene_type")
 
 
 class StudyFileError(SceneSuggestError):

@@ -37,7 +37,19 @@ def test_evaluation_on_a_synthetic_corpus():
     assert set(base) == {"frequency", "parent_only", "no_backoff", "no_position"}
     assert full["mrr"] > 0.9 > base["frequency"]["mrr"]
     assert full["orient_within_45"] > 0.9
-    assert "MRR" in format_evaluation(result)
+    # folded by symmetry: at least as good as unfolded; the chairs face their desks, the canonical pose does not
+    for pose in (full, full["paper"], full["canonical"]):
+        assert {"orient_folded_within_15", "orient_folded_within_45", "orient_median_deg"} <= set(pose)
+        assert pose["orient_folded_within_45"] >= pose["orient_folded_within_15"]
+    assert full["orient_folded_within_45"] > full["canonical"]["orient_folded_within_45"]
+    chairs = result["chairs_at_tables"]
+    assert chairs["n"] == 12 and chairs["full_facing_within_45"] == 1.0 > chairs["canonical_facing_within_45"]
+    assert result["categories"]["OfficeChair"]["n"] == 12
+    assert "ungrouped" in result and result["ungrouped"]["queries"] == result["queries"]
+    text = format_evaluation(result, by_category=True)
+    assert "MRR" in text and "OfficeChair" in text and "near-copies kept together" in text
+    plain = evaluate(synthetic.corpus(), folds=4, seed=0, group_similar=False)
+    assert "ungrouped" not in plain and plain["grouping"]["group_similar"] is False
 
 
 def test_what_each_prior_buys_on_the_stanford_corpus(stanford):
@@ -59,7 +71,14 @@ def test_evaluate_command(tmp_path):
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout)
     assert result["folds"] == 2 and {"basic", "full"} <= set(result["modes"])
-    assert {"mrr", "top1", "top5", "orient_within_15", "orient_within_45"} <= set(result["modes"]["full"])
+    assert {"mrr", "top1", "top5", "orient_within_15", "orient_within_45", "orient_folded_within_15",
+            "orient_folded_within_45", "orient_median_deg", "canonical"} <= set(result["modes"]["full"])
+    assert set(result["modes"]["full"]["canonical"]) >= {"orient_folded_within_15", "orient_folded_within_45",
+                                                          "orient_median_deg"}
+    assert result["categories"] and all("full_folded_within_45" in c for c in result["categories"].values())
+    proc = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "evaluate", f"json:{out}", "--folds", "2",
+                           "--by-category", "--no-group-similar"], capture_output=True, text=True)
+    assert proc.returncode == 0 and "folded ≤45°" in proc.stdout and "canonical" in proc.stdout
     proc = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "evaluate", f"json:{out}", "--folds", "20"],
                           capture_output=True, text=True)
     assert proc.returncode == 2 and "cannot make 20 folds" in proc.stderr

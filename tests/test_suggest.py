@@ -190,3 +190,19 @@ def test_anchor_refinement_moves_towards_the_typical_spot(engine, study):
     local = frames.apply(np.linalg.inv(desk.transform), monitor.placement[:3, 3][None])[0]
     assert local[2] < -0.05 and monitor.notes and "moved" in monitor.notes[0]
     assert poses.is_horizontal((0, 1, 0))
+
+
+def test_orientation_option_and_restricting_the_list(engine, study):
+    with pytest.raises(SceneSuggestError) as info:
+        EngineOptions(orientation="sideways")
+    assert info.value.field == "orientation"
+    query = ContextQuery(study, "room", (0.0, 0.0, 0.3), (0, 1, 0))
+    learned = {s.category: s for s in engine.suggest(query, "full")}
+    paper = {s.category: s for s in engine.with_options(orientation="paper").suggest(query, "full")}
+    assert [s for s in learned] == [s for s in paper]  # ranking is the same; only the headings may differ
+    # the office chair in front of the desk faces it (180°); the paper's rule orients some categories otherwise
+    assert learned["OfficeChair"].heading_deg == pytest.approx(180.0)
+    assert any(learned[c].heading_deg != paper[c].heading_deg for c in learned)
+    only = engine.suggest(query, "full", top=2, only={"Speaker", "OfficeChair"})
+    assert [s.category for s in only] == [c for c in learned if c in {"Speaker", "OfficeChair"}]
+    assert [s.rank for s in only] == [1, 2]

@@ -32,3 +32,24 @@ def test_glb_models_and_visible_turns():
     assert visible_turn_deg(170.0, 180.0) == pytest.approx(-10.0)
     assert visible_turn_deg(100.0, 90.0) == pytest.approx(10.0)
     assert visible_turn_deg(123.0, 0.0) == 0.0 and visible_turn_deg(-150.0, 360.0) == -150.0
+
+
+def test_periods_of_a_corpus_are_cached_and_meshless_models_take_their_category_period(tmp_path, monkeypatch):
+    from scenesuggest import symmetry
+    from scenesuggest.library import ModelInfo
+
+    glb = tmp_path / "table.glb"
+    glb.write_bytes(trimesh.Scene(trimesh.creation.box((1.2, 0.05, 0.6))).export(file_type="glb"))
+    models = [ModelInfo("t1", "Table", ["Table"], asset=str(glb)), ModelInfo("t2", "Table", ["Table"]),
+              ModelInfo("v1", "Vase", ["Vase"])]
+    periods = symmetry.corpus_periods(models, cache=tmp_path / "cache")
+    assert periods.of("t1", "Table") == (180.0, "mesh")
+    assert periods.of("t2", "Table") == (180.0, "category") and periods.of("v1", "Vase") == (360.0, "none")
+    calls = []
+    monkeypatch.setattr(symmetry, "symmetry_period_deg", lambda *a, **k: calls.append(1) or 0.0)
+    again = symmetry.corpus_periods(models, cache=tmp_path / "cache")
+    assert again.measured == periods.measured and not calls  # read from the cache, not measured again
+    # a round category's period cannot hold for an oblong instance
+    round_ = symmetry.ModelPeriods({}, {"Bowl": 0.0})
+    assert round_.of("b", "Bowl", (0.3, 0.3)) == (0.0, "category")
+    assert round_.of("b", "Bowl", (0.6, 0.3)) == (180.0, "category")
