@@ -34,14 +34,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import frames, poses, surfaces
+from . import frames, headings, poses, surfaces
 from .errors import SceneSuggestError
-from .observations import WALL, bearings, is_radial, near_wall, wall_heading, wall_reference
-from .orientation import KINDS, decide, log_density, pair_kind_rows, turned
+from .observations import is_radial, wall_reference
+from .orientation import decide
 from .priors import ANY, BINS, FACES, K_MAX, Priors
 from .scene import SURFACE_TYPES, Scene
 from .scene_types import infer_scene_type
-from .taxonomy import MIN_OBSERVATIONS
 
 MODES = ("basic", "full")
 ORIENTATIONS = ("learned", "paper")
@@ -320,74 +319,18 @@ class Engine:
         return self._learned_scores(scores.prepared, idx, faces)
 
     def _paper_scores(self, scores: Scores, idx: np.ndarray) -> np.ndarray:
-        prep = scores.prepared
-        out = np.zeros((len(idx), BINS))
-        for (ref, relation), dens in zip(prep.references, scores.densities, strict=True):
-            seg = self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4][idx]
-            has = np.flatnonzero(seg >= 0)
-            if not len(has):
-                continue
-            shift = poses.reference_heading(prep.point, prep.normal, ref.transform, is_radial(ref.size))
-            out[has] += dens[idx[has], None] * turned(self.priors.seg_hist[seg[has]].astype(float), shift)
-        return out
+        return headings.paper_scores(self, scores, idx)
 
     def evidence(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        """(m, kinds, BINS) log-probabilities of every heading bin from each kind of orientation evidence
-        (:mod:`.orientation`), for candidates ``idx`` attached by ``faces``: references of one kind averaged."""
-        p = self.priors
-        m = len(idx)
-        t = SURFACE_TYPES.index(prep.surface_type)
-        out = np.zeros((m, len(KINDS), BINS))
-        zero = self._zero_headings(prep.normal)[faces]
-        out[:, 0] = turned(log_density(p.alpha_n[self.stat_entity[idx], t, faces]), zero)
-        refs = prep.references
-        segs, kinds, angles, rows = [], [], [], []  # per contribution: segment, kind, reference angle, candidate
-        if refs:
-            transforms = np.array([ref.transform for ref, _ in refs])
-            radial = np.array([is_radial(ref.size) for ref, _ in refs])
-            fronts = poses.reference_headings(prep.point, prep.normal, transforms, radial)
-            towards = bearings(prep.point, prep.normal, transforms, np.array([ref.size for ref, _ in refs]))
-            for (ref, relation), is_round, front, toward in zip(refs, radial, fronts, towards, strict=True):
-                seg = self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4][idx]
-                has = np.flatnonzero(seg >= 0)
-                front_kind, bearing_kind = pair_kind_rows(relation, bool(is_round))
-                for kind, angle, table in ((front_kind, front, 0), (bearing_kind, toward, 1)):
-                    if kind is not None and math.isfinite(angle) and len(has):
-                        segs.append(seg[has] * 2 + table)
-                        kinds.append(np.full(len(has), kind))
-                        angles.append(np.full(len(has), angle))
-                        rows.append(has)
-        if prep.wall is not None:  # only candidates that would stand at it; seldom seen at one: all categories
-            seg = self._resolved(WALL, prep.scene_type, "wall", prep.surface_type)[4][idx]
-            pooled = p.pooled_segment(WALL, prep.scene_type, "wall", prep.surface_type)
-            few = (seg < 0) | (p.seg_theta_n[np.maximum(seg, 0)].sum(axis=1) < MIN_OBSERVATIONS)
-            seg = np.where(few, pooled, seg)
-            seg = np.where([near_wall(prep.wall[1], size) for size in self.size[idx]], seg, -1)
-            has = np.flatnonzero(seg >= 0)
-            if len(has):
-                segs.append(seg[has] * 2)
-                kinds.append(np.full(len(has), KINDS.index("wall")))
-                angles.append(np.full(len(has), wall_heading(prep.wall[0], prep.normal)))
-                rows.append(has)
-        if segs:
-            seg, kind, angle, row = (np.concatenate(a) for a in (segs, kinds, angles, rows))
-            counts = np.where((seg % 2 == 0)[:, None], p.seg_theta_n[seg // 2], p.seg_phi_n[seg // 2])
-            values = turned(log_density(counts), angle)
-            slot = row * len(KINDS) + kind
-            total = np.zeros((m * len(KINDS), BINS))
-            np.add.at(total, slot, values)
-            count = np.bincount(slot, minlength=m * len(KINDS))[:, None]
-            mean = np.divide(total, count, out=np.zeros_like(total), where=count > 0).reshape(m, len(KINDS), BINS)
-            out[:, 1:] = mean[:, 1:]
-        return out
+        """(m, kinds, BINS) orientation evidence of candidates ``idx`` (:func:`.headings.evidence`)."""
+        return headings.evidence(self, prep, idx, faces)
 
     def _zero_headings(self, normal) -> np.ndarray:
         """The canonical heading of every face on a plane with ``normal`` (0 where undefined)."""
         return np.nan_to_num(poses.zero_headings(normal))
 
     def _learned_scores(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        weights = self.weights[idx, SURFACE_TYPES.index(prep.surface_type)]
-        return np.einsum("mk,mkb->mb", weights, self.evidence(prep, idx, faces))
+        return headings.learned_scores(self, prep, idx, faces)
 
     # --- placement -----------------------------------------------------------------------------------------
     def geometric_face(self, size, surface_type: str) -> str:

@@ -1,0 +1,89 @@
+"""Heading scores of candidates at a query: the learned orientation evidence, and the paper's rule.
+
+Both work on the candidates ``idx`` of an :class:`~scenesuggest.suggest.Engine` (its cached reference
+resolutions and statistics) and return one row of BINS heading-bin scores per candidate; headings are about the
+support normal (:mod:`.poses`), the evidence kinds those of :mod:`.orientation`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import poses
+from .observations import WALL, bearings, is_radial, near_wall, wall_heading
+from .orientation import BINS, KINDS, log_density, pair_kind_rows, turned
+from .scene import SURFACE_TYPES
+from .taxonomy import MIN_OBSERVATIONS
+
+
+def paper_scores(engine, scores, idx: np.ndarray) -> np.ndarray:
+    """(m, BINS) the paper's Σ_r P_relpos · P_relori(h − h_r) for candidates ``idx``."""
+    prep = scores.prepared
+    out = np.zeros((len(idx), BINS))
+    for (ref, relation), dens in zip(prep.references, scores.densities, strict=True):
+        seg = engine._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4][idx]
+        has = np.flatnonzero(seg >= 0)
+        if not len(has):
+            continue
+        shift = poses.reference_heading(prep.point, prep.normal, ref.transform, is_radial(ref.size))
+        out[has] += dens[idx[has], None] * turned(engine.priors.seg_hist[seg[has]].astype(float), shift)
+    return out
+
+
+def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(m, kinds, BINS) log-probabilities of every heading bin from each kind of orientation evidence
+    (:mod:`.orientation`), for candidates ``idx`` attached by ``faces``: references of one kind averaged."""
+    p = engine.priors
+    m = len(idx)
+    t = SURFACE_TYPES.index(prep.surface_type)
+    out = np.zeros((m, len(KINDS), BINS))
+    zero = np.nan_to_num(poses.zero_headings(prep.normal))[faces]
+    out[:, 0] = turned(log_density(p.alpha_n[engine.stat_entity[idx], t, faces]), zero)
+    refs = prep.references
+    segs, kinds, angles, rows = [], [], [], []  # per contribution: segment, kind, reference angle, candidate
+    if refs:
+        transforms = np.array([ref.transform for ref, _ in refs])
+        radial = np.array([is_radial(ref.size) for ref, _ in refs])
+        fronts = poses.reference_headings(prep.point, prep.normal, transforms, radial)
+        towards = bearings(prep.point, prep.normal, transforms, np.array([ref.size for ref, _ in refs]))
+        for (ref, relation), is_round, front, toward in zip(refs, radial, fronts, towards, strict=True):
+            seg = engine._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4][idx]
+            has = np.flatnonzero(seg >= 0)
+            front_kind, bearing_kind = pair_kind_rows(relation, bool(is_round))
+            for kind, angle, table in ((front_kind, front, 0), (bearing_kind, toward, 1)):
+                if kind is not None and math.isfinite(angle) and len(has):
+                    segs.append(seg[has] * 2 + table)
+                    kinds.append(np.full(len(has), kind))
+                    angles.append(np.full(len(has), angle))
+                    rows.append(has)
+    if prep.wall is not None:  # only candidates that would stand at it; seldom seen at one: all categories
+        seg = engine._resolved(WALL, prep.scene_type, "wall", prep.surface_type)[4][idx]
+        pooled = p.pooled_segment(WALL, prep.scene_type, "wall", prep.surface_type)
+        few = (seg < 0) | (p.seg_theta_n[np.maximum(seg, 0)].sum(axis=1) < MIN_OBSERVATIONS)
+        seg = np.where(few, pooled, seg)
+        seg = np.where([near_wall(prep.wall[1], size) for size in engine.size[idx]], seg, -1)
+        has = np.flatnonzero(seg >= 0)
+        if len(has):
+            segs.append(seg[has] * 2)
+            kinds.append(np.full(len(has), KINDS.index("wall")))
+            angles.append(np.full(len(has), wall_heading(prep.wall[0], prep.normal)))
+            rows.append(has)
+    if segs:
+        seg, kind, angle, row = (np.concatenate(a) for a in (segs, kinds, angles, rows))
+        counts = np.where((seg % 2 == 0)[:, None], p.seg_theta_n[seg // 2], p.seg_phi_n[seg // 2])
+        values = turned(log_density(counts), angle)
+        slot = row * len(KINDS) + kind
+        total = np.zeros((m * len(KINDS), BINS))
+        np.add.at(total, slot, values)
+        count = np.bincount(slot, minlength=m * len(KINDS))[:, None]
+        mean = np.divide(total, count, out=np.zeros_like(total), where=count > 0).reshape(m, len(KINDS), BINS)
+        out[:, 1:] = mean[:, 1:]
+    return out
+
+
+def learned_scores(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(m, BINS) Σ_k w_k · F_k(h): the learned log-score of every heading bin."""
+    weights = engine.weights[idx, SURFACE_TYPES.index(prep.surface_type)]
+    return np.einsum("mk,mkb->mb", weights, evidence(engine, prep, idx, faces))
