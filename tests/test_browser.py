@@ -119,7 +119,7 @@ def heading_deg(transform, face="bottom"):
 
 
 def suggest_at(page, x, y, shift=True):
-    before = hook(page, "lastSuggest && lastSuggest.list_id") or None
+    before = hook(page, "lastSuggest?.list_id") or None
     if shift:
         page.keyboard.down("Shift")
     page.mouse.click(x, y)
@@ -530,4 +530,69 @@ def test_an_experimenter_authors_a_target_scene(page, authoring_server):
     pixels = np.asarray(image).reshape(-1, 3)
     assert len(np.unique(pixels // 16, axis=0)) > 20  # a rendered scene, not a blank canvas
     screenshot(page, "authoring")
+    assert not page.console_problems, page.console_problems
+
+
+@pytest.fixture(scope="module")
+def replication_admin(tmp_path_factory, replication):
+    """gunicorn serving the replication with an admin password, for its scene editor (the full condition)."""
+    from serverproc import StudyServer
+    from werkzeug.security import generate_password_hash
+
+    _require_browser()
+    tmp = tmp_path_factory.mktemp("replication-admin")
+    make_app(tmp, f"sqlite:///{tmp / 'study.sqlite3'}", studies=[replication])
+    server = StudyServer(tmp / "instance", f"sqlite:///{tmp / 'study.sqlite3'}", migrate=False, study=replication)
+    server.env["SCENESUGGEST_ADMIN_PASSWORD_HASH"] = generate_password_hash("author-password")
+    with server:
+        yield server.base
+
+
+def _facing_error_deg(transform, target_xz) -> float:
+    """Angle (degrees) between an object's front and the direction from it to a point, in the floor plane."""
+    front = math.atan2(transform[8], transform[10])
+    towards = math.atan2(target_xz[0] - transform[12], target_xz[1] - transform[14])
+    return abs((math.degrees(front - towards) + 180) % 360 - 180)
+
+
+def test_oriented_suggestions_face_the_table_and_back_onto_the_wall(page, replication_admin):
+    """The replication's dining table and bedroom corner in the scene editor (the full condition): each dining chair
+    and the dresser taken away and asked for again with a shift-click where it stood; the suggestion of its category
+    comes turned the way the target has it — the chairs facing the table, the dresser's back to the wall."""
+    base = replication_admin
+    page.goto(f"{base}/admin/login")
+    page.fill("input[name=password]", "author-password")
+    page.click("button[type=submit]")
+    for scene_id, category in (("dining-table", "SideChair"), ("bedroom-corner", "Dresser")):
+        page.goto(f"{base}/admin/scenesuggest-2015/author/{scene_id}")
+        ready(page)
+        table = next((o for o in objects(page).values() if o["category"] == "DiningTable"), None)
+        for k, o in enumerate([o for o in objects(page).values() if o["category"] == category]):
+            page.evaluate("() => window.sceneSuggestTest.loaded()")
+            grab = hook(page, f"grabPixel({o['id']!r})")
+            if grab:
+                page.mouse.click(*grab)
+            else:  # hidden behind the table from this view
+                hook(page, f"select({o['id']!r})")
+            page.keyboard.press("Delete")
+            assert o["id"] not in objects(page)
+            x, y = floor_pixel(page, o["contact_point"][0], o["contact_point"][2])
+            assert hook(page, f"pickAt({x}, {y}).objectId") == "room"  # the floor where it stood is in view
+            before = set(objects(page))
+            response = suggest_at(page, x, y)
+            assert category in [s["category"] for s in response["suggestions"][:10]]
+            page.click(f".suggestions .tile[data-category={category}]")
+            until(page, f"window.sceneSuggestTest.objects().some(o => o.category === {category!r} && "
+                        f"!{sorted(before)!r}.includes(o.id))")
+            [placed] = [p for p in objects(page).values() if p["id"] not in before]
+            assert placed["category"] == category
+            transform = placed["transform"]
+            if table is not None:  # a dining chair faces the table
+                assert _facing_error_deg(transform, (table["transform"][12], table["transform"][14])) <= 30
+            else:  # the dresser stands with its back to the back wall, facing into the room (+Z)
+                assert abs((heading_deg(transform) + 180) % 360 - 180) <= 15
+            assert abs(((heading_deg(transform) - heading_deg(o["transform"])) + 180) % 360 - 180) <= 15
+            page.click(".suggestions button.close")
+            page.evaluate("() => window.sceneSuggestTest.loaded()")
+            screenshot(page, f"full-{scene_id}-{category.lower()}-{k}")
     assert not page.console_problems, page.console_problems

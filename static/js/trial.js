@@ -256,6 +256,8 @@ async function main() {
         .addScaledVector(n, -0.01);  // on the support plane, where the turn is measured
       return viewer.worldToPixel(p.x, p.y, p.z);
     },
+    /** Select an object as a click on it would (for objects the default view hides). */
+    select: (id) => editor.select(id),
     pickAt: (x, y) => { const h = viewer.pick(x, y); return h && { objectId: h.objectId, point: h.point.toArray(), normal: h.normal.toArray(), room: h.room }; },
     lastSeq: () => outbox.lastSeq,
     pending: () => outbox.pendingCount,
