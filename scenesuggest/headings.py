@@ -7,8 +7,6 @@ support normal (:mod:`.poses`), the evidence kinds those of :mod:`.orientation`.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from . import poses
@@ -48,16 +46,17 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         radial = np.array([is_radial(ref.size) for ref, _ in refs])
         fronts = poses.reference_headings(prep.point, prep.normal, transforms, radial)
         towards = bearings(prep.point, prep.normal, transforms, np.array([ref.size for ref, _ in refs]))
-        for (ref, relation), is_round, front, toward in zip(refs, radial, fronts, towards, strict=True):
-            seg = engine._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4][idx]
-            has = np.flatnonzero(seg >= 0)
-            front_kind, bearing_kind = pair_kind_rows(relation, bool(is_round))
-            for kind, angle, table in ((front_kind, front, 0), (bearing_kind, toward, 1)):
-                if kind is not None and math.isfinite(angle) and len(has):
-                    segs.append(seg[has] * 2 + table)
-                    kinds.append(np.full(len(has), kind))
-                    angles.append(np.full(len(has), angle))
-                    rows.append(has)
+        seg = np.stack([engine._resolved(ref.category, prep.scene_type, relation, prep.surface_type)[4]
+                        for ref, relation in refs])[:, idx]  # (references, m)
+        kind_of = np.array([[-1 if k is None else k for k in pair_kind_rows(relation, bool(is_round))]
+                            for (_, relation), is_round in zip(refs, radial, strict=True)])  # (references, 2)
+        for table, angle in ((0, fronts), (1, towards)):
+            usable = (kind_of[:, table] >= 0) & np.isfinite(angle)
+            r, c = np.nonzero((seg >= 0) & usable[:, None])
+            segs.append(seg[r, c] * 2 + table)
+            kinds.append(kind_of[r, table])
+            angles.append(angle[r])
+            rows.append(c)
     if prep.wall is not None:  # only candidates that would stand at it; seldom seen at one: all categories
         seg = engine._resolved(WALL, prep.scene_type, "wall", prep.surface_type)[4][idx]
         pooled = p.pooled_segment(WALL, prep.scene_type, "wall", prep.surface_type)
@@ -70,13 +69,16 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
             kinds.append(np.full(len(has), KINDS.index("wall")))
             angles.append(np.full(len(has), wall_heading(prep.wall[0], prep.normal)))
             rows.append(has)
-    if segs:
-        seg, kind, angle, row = (np.concatenate(a) for a in (segs, kinds, angles, rows))
+    seg, kind, angle, row = (np.concatenate(a) if a else np.zeros(0, np.int64) for a in (segs, kinds, angles, rows))
+    if len(seg):
         counts = np.where((seg % 2 == 0)[:, None], p.seg_theta_n[seg // 2], p.seg_phi_n[seg // 2])
         values = turned(log_density(counts), angle)
         slot = row * len(KINDS) + kind
+        order = np.argsort(slot, kind="stable")
+        slot, values = slot[order], values[order]
+        starts = np.flatnonzero(np.r_[True, np.diff(slot) != 0])
         total = np.zeros((m * len(KINDS), BINS))
-        np.add.at(total, slot, values)
+        total[slot[starts]] = np.add.reduceat(values, starts, axis=0)
         count = np.bincount(slot, minlength=m * len(KINDS))[:, None]
         mean = np.divide(total, count, out=np.zeros_like(total), where=count > 0).reshape(m, len(KINDS), BINS)
         out[:, 1:] = mean[:, 1:]
