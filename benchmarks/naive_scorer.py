@@ -70,16 +70,16 @@ class NaiveScorer:
         key = p.occurrence_key(prep.parent_category, prep.scene_type, e.options.backoff)
         any_s = len(p.scene_types) - 1
         if key is None:
-            mask = p.borrowed(np.array([entity]), any_s, prep.scene_type)
-            return float(e.base_rate[i]) * (1.0 if mask is True else float(mask[0]))
+            mask = np.broadcast_to(p.borrowed(np.array([entity]), any_s, prep.scene_type), (1,))
+            return float(e.base_rate[i]) * float(mask[0])
         k = sum(entity in p.entity_chain(child.category) for child in prep.query.scene.children(prep.query.parent_id))
         children, rows = p.occurrence_rows(key)
         value = 0.0
         for child, row in zip(children.tolist(), rows, strict=True):
             if child == entity:
                 value = float(row[min(k, K_MAX)])
-        mask = p.borrowed(np.array([entity]), key % len(p.scene_types), prep.scene_type)
-        return value * float(e.share[i]) * (1.0 if mask is True else float(mask[0]))
+        mask = np.broadcast_to(p.borrowed(np.array([entity]), key % len(p.scene_types), prep.scene_type), (1,))
+        return value * float(e.share[i]) * float(mask[0])
 
     def scores(self, query) -> np.ndarray:
         """The total score of every candidate: λ1 · occurrence · surface + λ2 · Σ_r P_relpos."""
@@ -94,7 +94,9 @@ class NaiveScorer:
                                               prep.surface_type, e.options.backoff)[0])
                 if segment >= 0:
                     delta = poses.plane_offset(prep.point, prep.normal, ref.transform, is_radial(ref.size))
-                    position += self.density(segment, delta) * float(e.share[i])
+                    trust = float(p.pair_trust(e.stat_entity[i:i + 1], ref.category, prep.scene_type, relation,
+                                               prep.surface_type, e.options.backoff)[0])
+                    position += self.density(segment, delta) * float(e.share[i]) * trust
             out[i] = (e.options.lambda1 * self.occurrence(i, prep) * float(e.surface_prob[i, t])
                       + e.options.lambda2 * position)
         return out

@@ -179,8 +179,7 @@ class Engine:
     def _borrowed_mask(self, scene_index: int, scene_type: str) -> np.ndarray | float:
         """1 for every candidate when statistics come from the query's own scene type; when they come from
         all scene types (``*``), only candidates seen in the query's scene type keep them."""
-        mask = self.priors.borrowed(self.stat_entity, scene_index, scene_type)
-        return 1.0 if mask is True else np.asarray(mask, dtype=float)
+        return self.priors.borrowed(self.stat_entity, scene_index, scene_type)
 
     # --- per-category statistics after back-off -------------------------------------------------------------
     def _stat_entity(self, category: str) -> int:
@@ -258,13 +257,14 @@ class Engine:
         p = self.priors
         seg = p.pair_segments(self.stat_entity, ref_category, scene_type, relation, surface_type,
                               self.options.backoff)
+        trust = p.pair_trust(self.stat_entity, ref_category, scene_type, relation, surface_type, self.options.backoff)
         has = np.flatnonzero(seg >= 0)
         starts, counts = p.seg_start[seg[has]], p.seg_count[seg[has]]
         owner = np.repeat(has, counts)
         segs_rep = np.repeat(seg[has], counts)
         sample = np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
         value = (p.pair_xy[sample].astype(float), 1.0 / p.seg_bandwidth[segs_rep].astype(float),
-                 p.seg_weight[segs_rep].astype(float), owner, seg)
+                 p.seg_weight[segs_rep].astype(float) * trust[owner], owner, seg)
         self._cache[key] = value
         return value
 
