@@ -67,19 +67,13 @@ class NaiveScorer:
     def occurrence(self, i: int, prep) -> float:
         e, p = self.engine, self.priors
         entity = int(e.stat_entity[i])
-        key = p.occurrence_key(prep.parent_category, prep.scene_type, e.options.backoff)
+        table = p.occurrence_table(prep.parent_category, prep.scene_type, e.options.backoff)
         any_s = len(p.scene_types) - 1
-        if key is None:
+        if table is None:
             mask = np.broadcast_to(p.borrowed(np.array([entity]), any_s, prep.scene_type), (1,))
             return float(e.base_rate[i]) * float(mask[0])
         k = sum(entity in p.entity_chain(child.category) for child in prep.query.scene.children(prep.query.parent_id))
-        children, rows = p.occurrence_rows(key)
-        value = 0.0
-        for child, row in zip(children.tolist(), rows, strict=True):
-            if child == entity:
-                value = float(row[min(k, K_MAX)])
-        mask = np.broadcast_to(p.borrowed(np.array([entity]), key % len(p.scene_types), prep.scene_type), (1,))
-        return value * float(e.share[i]) * float(mask[0])
+        return float(table[entity, min(k, K_MAX)]) * float(e.share[i])
 
     def scores(self, query) -> np.ndarray:
         """The total score of every candidate: λ1 · occurrence · surface + λ2 · Σ_r P_relpos."""
@@ -90,13 +84,11 @@ class NaiveScorer:
         for i in range(len(e.candidates)):
             position = 0.0
             for ref, relation in prep.references:
-                segment = int(p.pair_segments(e.stat_entity[i:i + 1], ref.category, prep.scene_type, relation,
-                                              prep.surface_type, e.options.backoff)[0])
-                if segment >= 0:
+                segments, trusts = p.pair_sources(e.stat_entity[i:i + 1], ref.category, prep.scene_type, relation,
+                                                  prep.surface_type, e.options.backoff)
+                if segments[0] >= 0:
                     delta = poses.plane_offset(prep.point, prep.normal, ref.transform, is_radial(ref.size))
-                    trust = float(p.pair_trust(e.stat_entity[i:i + 1], ref.category, prep.scene_type, relation,
-                                               prep.surface_type, e.options.backoff)[0])
-                    position += self.density(segment, delta) * float(e.share[i]) * trust
+                    position += self.density(int(segments[0]), delta) * float(e.share[i]) * float(trusts[0])
             out[i] = (e.options.lambda1 * self.occurrence(i, prep) * float(e.surface_prob[i, t])
                       + e.options.lambda2 * position)
         return out

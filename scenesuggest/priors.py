@@ -18,8 +18,9 @@ fewer than 5 instances reads the statistics of the first ancestor subtree that h
 stat_entity`). Statistics keyed by scene type climb the taxonomy within the query's scene type first
 (a chest of drawers in a bedroom reads the bedroom statistics of all chests of drawers) and only then
 use all scene types (``*``) (:meth:`Priors.keyed_entity`); what is borrowed from other scene types counts
-fully for categories seen in the query's scene type at least once and by half for the others — a soft
-prior, so that what never happens in bedrooms is held back there but stays reachable where the context
+fully for categories seen in the query's scene type at least once and by UNSEEN_IN_SCENE_TYPE for the
+others, and a category never seen on a parent or next to a reference in the query's scene type reads the
+statistics of all scene types, weighted likewise — a soft prior, so that what never happens in bedrooms is held back there but stays reachable where the context
 supports it (:meth:`Priors.borrowed`). When nothing is observed the engine falls back to geometry.
 """
 
@@ -45,9 +46,9 @@ FORMAT = "scenesuggest-priors"
 VERSION = 2
 ANY = "*"
 #: Statistics borrowed from all scene types count this much for a category never seen in the query's scene type
-#: (chosen by held-out MRR on near-copy-grouped folds: 0 — a hard mask — 0.229, 0.5 0.232 on Stanford; AI2-THOR,
-#: whose rooms all have their type, is unaffected).
-UNSEEN_IN_SCENE_TYPE = 0.5
+#: or never seen next to a reference or on a parent there (chosen by held-out MRR on near-copy-grouped folds:
+#: Stanford 0.234 with a hard mask (0), 0.239 at 0.2, 0.237 at 0.5; AI2-THOR 0.492 at 0 and at 0.2).
+UNSEEN_IN_SCENE_TYPE = 0.2
 #: The entity that pools every category (wall statistics only, see :mod:`.pair_priors`).
 POOLED = "*"
 K_MAX = 8
@@ -252,38 +253,79 @@ class Priors:
     def borrowed(self, entities: np.ndarray, scene_index: int, scene_type: str | None) -> np.ndarray | float:
         """How far statistics read under ``scene_index`` count for ``entities`` in a ``scene_type`` query: fully
         when they come from the query's own type, or from all types (``*``) for entities seen in it; by
-        UNSEEN_IN_SCENE_TYPE for entities never seen in it — a soft prior, so that what the context supports
-        stays reachable in a room type the corpus never showed it in."""
+        UNSEEN_IN_SCENE_TYPE for entities never seen in it."""
         s = self.scene_index.get(scene_type) if scene_type is not None else None
         if scene_index != len(self.scene_types) - 1 or s is None or s == scene_index:
             return 1.0
         return np.where(self.occ_parent_n[entities, s] > 0, 1.0, UNSEEN_IN_SCENE_TYPE)
 
-    def pair_trust(self, entities: np.ndarray, ref_category: str, scene_type: str | None, relation: str,
-                   surface_type: str, backoff: bool = True) -> np.ndarray:
-        """For each of ``entities``: how far its statistics next to a reference count (:meth:`borrowed`)."""
+    def occurrence_table(self, parent_category: str, scene_type: str | None, backoff: bool = True
+                         ) -> np.ndarray | None:
+        """(entities, K_MAX + 1) P(|C on p| > k) for a parent in a scene type, None for a parent never seen.
+
+        The scene type is a soft prior: a child the parent never carried in this scene type reads the parent's
+        statistics over all scene types, weighted by UNSEEN_IN_SCENE_TYPE; when the scene type has no statistics
+        of the parent at all, all scene types stand in (weighted by :meth:`borrowed`)."""
+        key = self.occurrence_key(parent_category, scene_type, backoff)
+        if key is None:
+            return None
+        n_s = len(self.scene_types)
+        dense = np.zeros((len(self.entities), K_MAX + 1))
+        if key % n_s != n_s - 1:
+            wide = self.occurrence_key(parent_category, None, backoff)
+            if wide is not None:
+                children, rows = self.occurrence_rows(wide)
+                dense[children] = UNSEEN_IN_SCENE_TYPE * rows
+            children, rows = self.occurrence_rows(key)
+            dense[children] = rows
+            return dense
+        children, rows = self.occurrence_rows(key)
+        dense[children] = rows
+        return dense * np.asarray(self.borrowed(np.arange(len(self.entities)), n_s - 1, scene_type)).reshape(-1, 1)
+
+    def pair_sources(self, entities: np.ndarray, ref_category: str, scene_type: str | None, relation: str,
+                     surface_type: str, backoff: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """For each of ``entities`` (the statistics entities of candidate categories): the segment that holds
+        its statistics next to a reference of ``ref_category`` (−1 where there is none) and how far they count.
+
+        The query's scene type first; an entity never seen next to this reference in it reads the statistics of
+        all scene types, weighted by UNSEEN_IN_SCENE_TYPE (the scene type is a soft prior, never a hard mask);
+        when the scene type has none of this reference, all scene types stand in (weighted by
+        :meth:`borrowed`)."""
         entities = np.asarray(entities, dtype=np.int64)
+        seg = np.full(len(entities), -1, dtype=np.int64)
+        trust = np.zeros(len(entities))
         g = self.group_for(ref_category, scene_type, relation, surface_type, backoff)
         if g is None:
-            return np.ones(len(entities))
-        return np.broadcast_to(self.borrowed(entities, int(self.group_keys[g][1]), scene_type), entities.shape)
+            return seg, trust
+        own = int(self.group_keys[g][1]) != len(self.scene_types) - 1
+        weight = 1.0 if own else self.borrowed(entities, int(self.group_keys[g][1]), scene_type)
+        self._fill(g, entities, seg, trust, np.broadcast_to(weight, entities.shape))
+        if own:
+            wide = self.group_for(ref_category, None, relation, surface_type, backoff)
+            if wide is not None:
+                missing = seg < 0
+                sub_seg, sub_trust = seg[missing], trust[missing]
+                self._fill(wide, entities[missing], sub_seg, sub_trust,
+                           np.full(int(missing.sum()), UNSEEN_IN_SCENE_TYPE))
+                seg[missing], trust[missing] = sub_seg, sub_trust
+        seg[trust <= 0] = -1
+        return seg, trust
+
+    def _fill(self, group: int, entities: np.ndarray, seg: np.ndarray, trust: np.ndarray, weight: np.ndarray):
+        """Write into ``seg`` and ``trust`` the segments of ``entities`` found in ``group``, with ``weight``."""
+        children, segs = self.segments(group)
+        if not len(children) or not len(entities):
+            return
+        pos = np.minimum(np.searchsorted(children, entities), len(children) - 1)
+        found = children[pos] == entities
+        seg[found] = segs[pos[found]]
+        trust[found] = weight[found]
 
     def pair_segments(self, entities: np.ndarray, ref_category: str, scene_type: str | None, relation: str,
                       surface_type: str, backoff: bool = True) -> np.ndarray:
-        """For each of ``entities`` (the statistics entities of candidate categories): the segment that holds
-        its statistics next to a reference of ``ref_category`` (−1 where there is none)."""
-        entities = np.asarray(entities, dtype=np.int64)
-        seg = np.full(len(entities), -1, dtype=np.int64)
-        g = self.group_for(ref_category, scene_type, relation, surface_type, backoff)
-        if g is None:
-            return seg
-        children, segs = self.segments(g)
-        if not len(children):
-            return seg
-        pos = np.minimum(np.searchsorted(children, entities), len(children) - 1)
-        found = (children[pos] == entities) & (self.borrowed(entities, int(self.group_keys[g][1]), scene_type) > 0)
-        seg[found] = segs[pos[found]]
-        return seg
+        """The segments of :meth:`pair_sources`."""
+        return self.pair_sources(entities, ref_category, scene_type, relation, surface_type, backoff)[0]
 
     def pooled_segment(self, ref_category: str, scene_type: str | None, relation: str, surface_type: str) -> int:
         """The segment pooling every category next to a reference (−1 where there is none)."""

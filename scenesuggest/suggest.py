@@ -236,17 +236,13 @@ class Engine:
 
     def _occurrence(self, prep: Prepared) -> np.ndarray:
         p = self.priors
-        key = p.occurrence_key(prep.parent_category, prep.scene_type, self.options.backoff)
-        if key is None:  # an unseen parent: how often each category rests on anything at all
+        dense = p.occurrence_table(prep.parent_category, prep.scene_type, self.options.backoff)
+        if dense is None:  # an unseen parent: how often each category rests on anything at all
             return self.base_rate * self._borrowed_mask(len(p.scene_types) - 1, prep.scene_type)
-        dense = np.zeros((len(p.entities), K_MAX + 1))
-        children, rows = p.occurrence_rows(key)
-        dense[children] = rows
         k = np.zeros(len(p.entities), dtype=int)
         for child in prep.query.scene.children(prep.query.parent_id):
             k[self.priors.entity_chain(child.category)] += 1
-        mask = self._borrowed_mask(key % len(p.scene_types), prep.scene_type)
-        return dense[self.stat_entity, np.minimum(k[self.stat_entity], K_MAX)] * self.share * mask
+        return dense[self.stat_entity, np.minimum(k[self.stat_entity], K_MAX)] * self.share
 
     def _resolved(self, ref_category: str, scene_type: str, relation: str, surface_type: str) -> tuple:
         """For one reference key: the KDE samples of every candidate and its segment (memoised; pure)."""
@@ -255,9 +251,8 @@ class Engine:
         if hit is not None:
             return hit
         p = self.priors
-        seg = p.pair_segments(self.stat_entity, ref_category, scene_type, relation, surface_type,
-                              self.options.backoff)
-        trust = p.pair_trust(self.stat_entity, ref_category, scene_type, relation, surface_type, self.options.backoff)
+        seg, trust = p.pair_sources(self.stat_entity, ref_category, scene_type, relation, surface_type,
+                                    self.options.backoff)
         has = np.flatnonzero(seg >= 0)
         starts, counts = p.seg_start[seg[has]], p.seg_count[seg[has]]
         owner = np.repeat(has, counts)
