@@ -20,8 +20,9 @@ stat_entity`). Statistics keyed by scene type climb the taxonomy within the quer
 use all scene types (``*``) (:meth:`Priors.keyed_entity`); what is borrowed from other scene types counts
 fully for categories seen in the query's scene type at least once and by UNSEEN_IN_SCENE_TYPE for the
 others, and a category never seen on a parent or next to a reference in the query's scene type reads the
-statistics of all scene types, weighted likewise — a soft prior, so that what never happens in bedrooms is held back there but stays reachable where the context
-supports it (:meth:`Priors.borrowed`). When nothing is observed the engine falls back to geometry.
+statistics of all scene types, weighted likewise — a soft prior, so that what never happens in bedrooms
+is held back there but stays reachable where the context supports it (:meth:`Priors.borrowed`,
+:meth:`Priors.occurrence_table`, :meth:`Priors.pair_sources`). When nothing is observed the engine falls back to geometry.
 """
 
 from __future__ import annotations
