@@ -20,8 +20,7 @@ $(DEMO_LIBRARY): $(wildcard scenesuggest/assets/*.py) | $(PIP_STAMP)
 	$(BIN)/scenesuggest assets build ai2thor --out var/library/ai2thor
 
 # Priors are retrained when the code that learns them changes (a new priors file version would not load).
-PRIORS_CODE := scenesuggest/priors.py scenesuggest/pair_priors.py scenesuggest/orientation.py \
-	scenesuggest/observations.py scenesuggest/walls.py scenesuggest/folds.py scenesuggest/corpora/ai2thor.py
+PRIORS_CODE := $(wildcard scenesuggest/*.py scenesuggest/corpora/*.py)
 $(DEMO_PRIORS): $(PRIORS_CODE) | $(PIP_STAMP)
 	mkdir -p var/priors
 	$(BIN)/scenesuggest priors train ai2thor -o $@

@@ -16,9 +16,9 @@ import numpy as np
 from scipy.stats import gaussian_kde
 
 from scenesuggest import poses
-from scenesuggest.observations import WALL, bearing, is_radial, near_wall, wall_heading
+from scenesuggest.observations import RELATIONS, WALL, bearing, is_radial, near_wall, wall_heading
 from scenesuggest.orientation import BINS, KINDS, PSEUDO_COUNT, pair_kind_rows
-from scenesuggest.priors import FACES, K_MAX
+from scenesuggest.priors import FACES, K_MAX, POOLED, UNSEEN_IN_SCENE_TYPE
 from scenesuggest.scene import SURFACE_TYPES
 from scenesuggest.taxonomy import MIN_OBSERVATIONS
 
@@ -43,8 +43,38 @@ class NaiveScorer:
 
     def __init__(self, engine):
         self.engine = engine
-        self.priors = engine.priors
+        self.priors = p = engine.priors
         self.kdes: dict[int, FixedKDE] = {}
+        # the pair statistics' index, rebuilt from the raw arrays: group key → {child entity: segment}
+        self.group_of = {tuple(int(v) for v in key): g for g, key in enumerate(p.group_keys)}
+        self.children: dict[int, dict[int, int]] = {}
+        for segment, (g, child) in enumerate(zip(p.seg_group.tolist(), p.seg_child.tolist(), strict=True)):
+            self.children.setdefault(g, {})[child] = segment
+
+    def segment(self, entity: int, ref_category: str, scene_type, relation: str, surface_type: str
+                ) -> tuple[int, float]:
+        """(segment, weight) of a candidate entity's statistics next to a reference: the query's room type, else
+        all room types — weighted by the soft room-type prior for a category never seen there."""
+        p = self.priors
+        any_s = len(p.scene_types) - 1
+        query_s = p.scene_index.get(scene_type)
+        r, t = RELATIONS.index(relation), SURFACE_TYPES.index(surface_type)
+
+        def look(key):
+            if key is None:
+                return -1
+            g = self.group_of.get((key[0], key[1], r, t))
+            return -1 if g is None else self.children.get(g, {}).get(entity, -1)
+
+        key = p.keyed_entity(ref_category, scene_type, self.engine.options.backoff)
+        if key is None:
+            return -1, 0.0
+        wide = look(p.keyed_entity(ref_category, None, self.engine.options.backoff))
+        if key[1] != any_s and self.group_of.get((key[0], key[1], r, t)) is not None:  # the room type's own
+            own = look(key)
+            return (own, 1.0) if own >= 0 else (wide, UNSEEN_IN_SCENE_TYPE)
+        seen = query_s is None or query_s == any_s or p.occ_parent_n[entity, query_s] > 0
+        return wide, 1.0 if seen else UNSEEN_IN_SCENE_TYPE
 
     def kde(self, segment: int) -> FixedKDE:
         if segment not in self.kdes:
@@ -67,28 +97,43 @@ class NaiveScorer:
     def occurrence(self, i: int, prep) -> float:
         e, p = self.engine, self.priors
         entity = int(e.stat_entity[i])
-        table = p.occurrence_table(prep.parent_category, prep.scene_type, e.options.backoff)
         any_s = len(p.scene_types) - 1
-        if table is None:
-            mask = np.broadcast_to(p.borrowed(np.array([entity]), any_s, prep.scene_type), (1,))
-            return float(e.base_rate[i]) * float(mask[0])
+        query_s = p.scene_index.get(prep.scene_type)
+        seen = query_s is None or query_s == any_s or p.occ_parent_n[entity, query_s] > 0
+        key = p.occurrence_key(prep.parent_category, prep.scene_type, e.options.backoff)
+        if key is None:
+            return float(e.base_rate[i]) * (1.0 if seen else UNSEEN_IN_SCENE_TYPE)
         k = sum(entity in p.entity_chain(child.category) for child in prep.query.scene.children(prep.query.parent_id))
-        return float(table[entity, min(k, K_MAX)]) * float(e.share[i])
+
+        def row(block):
+            children, rows = p.occurrence_rows(block)
+            for child, values in zip(children.tolist(), rows, strict=True):
+                if child == entity:
+                    return float(values[min(k, K_MAX)])
+            return None
+
+        if key % len(p.scene_types) != any_s:
+            own = row(key)
+            if own is None:
+                wide = p.occurrence_key(prep.parent_category, None, e.options.backoff)
+                own = UNSEEN_IN_SCENE_TYPE * (row(wide) or 0.0) if wide is not None else 0.0
+            return own * float(e.share[i])
+        return (row(key) or 0.0) * float(e.share[i]) * (1.0 if seen else UNSEEN_IN_SCENE_TYPE)
 
     def scores(self, query) -> np.ndarray:
         """The total score of every candidate: λ1 · occurrence · surface + λ2 · Σ_r P_relpos."""
-        e, p = self.engine, self.priors
+        e = self.engine
         prep = e.prepare(query)
         t = SURFACE_TYPES.index(prep.surface_type)
         out = np.zeros(len(e.candidates))
         for i in range(len(e.candidates)):
             position = 0.0
             for ref, relation in prep.references:
-                segments, trusts = p.pair_sources(e.stat_entity[i:i + 1], ref.category, prep.scene_type, relation,
-                                                  prep.surface_type, e.options.backoff)
-                if segments[0] >= 0:
+                segment, trust = self.segment(int(e.stat_entity[i]), ref.category, prep.scene_type, relation,
+                                              prep.surface_type)
+                if segment >= 0:
                     delta = poses.plane_offset(prep.point, prep.normal, ref.transform, is_radial(ref.size))
-                    position += self.density(int(segments[0]), delta) * float(e.share[i]) * float(trusts[0])
+                    position += self.density(segment, delta) * float(e.share[i]) * trust
             out[i] = (e.options.lambda1 * self.occurrence(i, prep) * float(e.surface_prob[i, t])
                       + e.options.lambda2 * position)
         return out
@@ -121,10 +166,10 @@ class NaiveScorer:
         if prep.wall is not None and near_wall(prep.wall[1], e.size[i]):
             references.append((None, "wall", False))
         for ref, relation, radial in references:
-            segment = int(p.pair_segments([entity], ref.category if ref else WALL, prep.scene_type, relation,
-                                          prep.surface_type, e.options.backoff)[0])
+            segment, _ = self.segment(entity, ref.category if ref else WALL, prep.scene_type, relation,
+                                      prep.surface_type)
             if ref is None and (segment < 0 or p.seg_theta_n[segment].sum() < MIN_OBSERVATIONS):
-                segment = p.pooled_segment(WALL, prep.scene_type, relation, prep.surface_type)
+                segment, _ = self.segment(p.entity_index[POOLED], WALL, prep.scene_type, relation, prep.surface_type)
             if segment < 0:
                 continue
             front_kind, bearing_kind = pair_kind_rows(relation, radial)

@@ -180,6 +180,8 @@ def scene_observations(scene: Scene, index: int = 0, first: int = 0) -> tuple[li
     for k, (sup, o) in enumerate(zip(supports, supported, strict=True)):
         normal = np.asarray(o.contact_normal, dtype=float)
         wall = wall_reference(scene, o.contact_point, normal)
+        # the instance's own footprint (scenes scale models): did it stand at the wall? At query time the same
+        # rule asks whether the suggested model, at its own size, would
         footprint = np.asarray(o.size, dtype=float) * np.linalg.norm(o.transform[:3, :3], axis=0)
         if wall is not None and near_wall(wall[1], footprint):
             pairs.append(Pair(scene.scene_type, o.category, WALL, "wall", o.surface_type, (wall[1], 0.0),

@@ -127,13 +127,15 @@ def fit_weights(features: np.ndarray, headings: np.ndarray, canonical: np.ndarra
     """Weights (n_entities, n_surfaces, K) from training features (n, K, BINS), the true headings (n,) and the
     canonical headings (n,), radians, and each observation's surface type (n,).
 
-    Levels, each fitted with the one above as its prior: all observations; each surface type (what counts for
-    furniture on a floor differs from clutter on a desk); each entity of ``chains[i]`` (the entities observation
-    i counts for, specific first; ``parent_of``: an entity's next more general entity, whose weights are its
-    prior — the top entity's prior is the global fit). Entities with fewer than MIN_FIT_OBSERVATIONS
-    observations have no fit of their own: they take their parent entity's, and at the top the surface type's
-    weights. A fit that does not place more of its own (held-out) observations within SWITCH_TOLERANCE of the
-    truth than the canonical heading does becomes zero weights: the canonical heading is kept."""
+    Levels: a global fit over all observations; a fit per surface type (what counts for furniture on a floor
+    differs from clutter on a desk), with the global fit as its prior; a fit per entity of ``chains[i]`` (the
+    entities observation i counts for, specific first; ``parent_of``: an entity's next more general entity),
+    with the nearest fitted entity above it — else the global fit — as its prior, one weight vector for every
+    surface type. Entities with fewer than MIN_FIT_OBSERVATIONS observations have no fit of their own: they
+    take the nearest fitted entity's weights, and without one their surface type's. A fit that does not place
+    more of its observations within SWITCH_TOLERANCE of the truth than the canonical heading does becomes zero
+    weights: the canonical heading is kept. (The features leave each observation's scene group out; the
+    weights are scored on the observations they were fitted to.)"""
     k = features.shape[1]
     targets = heading_bin(headings)
 
@@ -262,6 +264,22 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
             if key_p not in memo:
                 memo[key_p] = int(priors.pair_segments([key_p[0]], *key_p[1:])[0])
             seg[k] = memo[key_p]
+        # as if the own scene group were unseen: a category seen next to a reference in this room type only in
+        # its own group reads the statistics of all room types (as the engine does for one never seen there)
+        own_samples = np.bincount(inverse.reshape(-1), minlength=len(unique))
+        wide: dict[tuple, int] = {}
+        for k, p in enumerate(pairs):
+            if seg[k] < 0 or p.relation == "wall":
+                continue
+            i = int(np.searchsorted(unique, seg[k] * n_groups + pair_group[k]))
+            mine = own_samples[i] if i < len(unique) and unique[i] == seg[k] * n_groups + pair_group[k] else 0
+            if priors.seg_count[seg[k]] - mine <= 0 and priors.group_keys[priors.seg_group[seg[k]]][1] != \
+                    len(priors.scene_types) - 1:
+                key_w = (stat[p.category], p.ref_category, p.relation, p.surface_type)
+                if key_w not in wide:
+                    wide[key_w] = int(priors.pair_segments([key_w[0]], p.ref_category, None, p.relation,
+                                                           p.surface_type)[0])
+                seg[k] = wide[key_w]
         # walls: a category seldom seen at one reads the statistics of all categories (as the engine does)
         for k, p in enumerate(pairs):
             if p.relation == "wall":

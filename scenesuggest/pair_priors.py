@@ -12,7 +12,8 @@ entity within a group, holding its samples:
 * relative orientation — counts of θ and of φ in 36 bins of 10° (``seg_theta_n``, ``seg_phi_n``).
 
 The expansion is vectorised: pairs that share (category, reference category, scene type, relation, surface
-type) share their expansion, which is built once and repeated. Wall pairs are also pooled over every category
+type) share their expansion, which is built once and repeated. Wall pairs are kept under all scene types only
+(a wall is no object of a room type, so its statistics are never read per type) and are also pooled over every category
 (the entity ``*``): what "at a wall" means for furniture in general stands in for a category that was seldom
 seen at one.
 """
@@ -61,8 +62,9 @@ def expand_pairs(pairs: list[Pair], expand: dict[str, list[int]], s_index: dict[
     for category, ref_category, scene_type, relation, surface_type in key_of:
         r, t = RELATIONS.index(relation), SURFACE_TYPES.index(surface_type)
         n = 0
+        scenes = [any_s] if relation == "wall" else sorted({s_index[scene_type], any_s})
         for e_ref in expand[ref_category]:
-            for s in sorted({s_index[scene_type], any_s}):
+            for s in scenes:
                 g = group_of.setdefault((e_ref, s, r, t), len(group_of))
                 for e_child in expand[category] + ([pooled] if relation == "wall" and pooled is not None else []):
                     combo_group.append(g)

@@ -22,7 +22,8 @@ fully for categories seen in the query's scene type at least once and by UNSEEN_
 others, and a category never seen on a parent or next to a reference in the query's scene type reads the
 statistics of all scene types, weighted likewise — a soft prior, so that what never happens in bedrooms
 is held back there but stays reachable where the context supports it (:meth:`Priors.borrowed`,
-:meth:`Priors.occurrence_table`, :meth:`Priors.pair_sources`). When nothing is observed the engine falls back to geometry.
+:meth:`Priors.occurrence_table`, :meth:`Priors.pair_sources`). When nothing is observed the engine falls back
+to geometry.
 """
 
 from __future__ import annotations
@@ -83,17 +84,15 @@ ARRAYS = {
 }
 
 
-#: The modules whose code decides what a priors file holds (see :func:`code_digest`).
-LEARNING_MODULES = ("priors.py", "pair_priors.py", "orientation.py", "observations.py", "walls.py", "folds.py")
-
-
 def code_digest() -> str:
-    """A short hash of the code that learns priors: prepared priors files are retrained when it changes."""
+    """A short hash of the engine's code (every module of the package and its corpus loaders), which decides
+    what a priors file holds: prepared priors files are retrained when it changes."""
     import hashlib
 
     digest = hashlib.sha256()
-    for name in LEARNING_MODULES:
-        digest.update((Path(__file__).parent / name).read_bytes())
+    root = Path(__file__).parent
+    for path in sorted([*root.glob("*.py"), *root.glob("corpora/*.py")]):
+        digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
 
@@ -276,7 +275,7 @@ class Priors:
             wide = self.occurrence_key(parent_category, None, backoff)
             if wide is not None:
                 children, rows = self.occurrence_rows(wide)
-                dense[children] = UNSEEN_IN_SCENE_TYPE * rows
+                dense[children] = UNSEEN_IN_SCENE_TYPE * rows.astype(float)
             children, rows = self.occurrence_rows(key)
             dense[children] = rows
             return dense
@@ -291,25 +290,24 @@ class Priors:
 
         The query's scene type first; an entity never seen next to this reference in it reads the statistics of
         all scene types, weighted by UNSEEN_IN_SCENE_TYPE (the scene type is a soft prior, never a hard mask);
-        when the scene type has none of this reference, all scene types stand in (weighted by
-        :meth:`borrowed`)."""
+        when the scene type has no statistics of this reference (in this relation, on this surface type), all
+        scene types stand in, weighted by :meth:`borrowed`."""
         entities = np.asarray(entities, dtype=np.int64)
         seg = np.full(len(entities), -1, dtype=np.int64)
         trust = np.zeros(len(entities))
         g = self.group_for(ref_category, scene_type, relation, surface_type, backoff)
-        if g is None:
-            return seg, trust
-        own = int(self.group_keys[g][1]) != len(self.scene_types) - 1
-        weight = 1.0 if own else self.borrowed(entities, int(self.group_keys[g][1]), scene_type)
-        self._fill(g, entities, seg, trust, np.broadcast_to(weight, entities.shape))
-        if own:
-            wide = self.group_for(ref_category, None, relation, surface_type, backoff)
-            if wide is not None:
-                missing = seg < 0
+        wide = self.group_for(ref_category, None, relation, surface_type, backoff)
+        if g is not None and int(self.group_keys[g][1]) != len(self.scene_types) - 1:  # the room type's own
+            self._fill(g, entities, seg, trust, np.ones(len(entities)))
+            missing = seg < 0
+            if wide is not None and missing.any():
                 sub_seg, sub_trust = seg[missing], trust[missing]
                 self._fill(wide, entities[missing], sub_seg, sub_trust,
                            np.full(int(missing.sum()), UNSEEN_IN_SCENE_TYPE))
                 seg[missing], trust[missing] = sub_seg, sub_trust
+        elif wide is not None:
+            weight = self.borrowed(entities, len(self.scene_types) - 1, scene_type)
+            self._fill(wide, entities, seg, trust, np.broadcast_to(weight, entities.shape))
         seg[trust <= 0] = -1
         return seg, trust
 

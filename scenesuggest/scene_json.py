@@ -11,7 +11,7 @@ Layout (version 1)::
      "walls": [{"normal": [nx, nz], "offset": d, "along": [a0, a1], "height": [y0, y1]}, ...]}
 
 Metres, +Y up. ``walls`` is optional (see :mod:`scenesuggest.walls`; without it the room object's box gives
-them). Unknown keys are errors, so a typo never silently drops data.
+them; an empty list says the scene has no walls). Unknown keys are errors, so a typo never silently drops data.
 """
 
 from __future__ import annotations
@@ -166,6 +166,9 @@ class _Reader:
                     values[key] = self.numbers(w, key, n)
             if abs(math.hypot(*values["normal"]) - 1.0) > 1e-3:
                 raise self.fail("the normal must be a unit vector (nx, nz)", w, "normal")
+            for key in ("along", "height"):
+                if values[key][0] > values[key][1]:
+                    raise self.fail("expected [low, high]", w, key)
             out.append(Wall(**values))
         return out
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from naive_scorer import NaiveScorer
 
+from scenesuggest.orientation import KINDS
 from scenesuggest.priors import Priors
 from scenesuggest.suggest import ContextQuery, Engine
 
@@ -40,13 +41,16 @@ def test_total_scores_match_the_naive_scorer(queries_and_engine):
 def test_heading_scores_match_the_naive_scorer(queries_and_engine):
     queries, engine = queries_and_engine
     naive = NaiveScorer(engine)
-    compared = 0
+    exercised = dict.fromkeys(KINDS, 0)
     for q in queries:
         scores = engine.score(q)
         top = np.argsort(-scores.total, kind="stable")[:10]
         faces = engine.face_indices(scores.prepared, "full", top)
         fast = engine.heading_scores(scores, top, faces)
+        evidence = engine.evidence(scores.prepared, top, faces)
         for row, (i, face) in enumerate(zip(top, faces, strict=True)):
             np.testing.assert_allclose(fast[row], naive.heading_scores(q, int(i), int(face)), rtol=1e-9, atol=1e-12)
-            compared += int(np.ptp(fast[row]) > 0)
-    assert compared > 200  # most of them carry orientation evidence, not a flat line
+            for k, kind in enumerate(KINDS):
+                exercised[kind] += int(np.ptp(evidence[row, k]) > 0)
+    # every kind of evidence was compared, walls and bearings included, not flat lines
+    assert min(exercised.values()) >= 20, exercised

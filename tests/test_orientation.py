@@ -57,7 +57,8 @@ def test_trust_goes_to_the_kind_of_evidence_that_predicts_held_out_headings():
     score = np.einsum("k,nkb->nb", w, features)
     predicted, _ = decide(score, canonical)
     assert np.mean(heading_bin(predicted) == heading_bin(truth)) > 0.9
-    # when no kind beats the canonical heading, the weights are zero: the canonical heading is kept
+    # the switch: when the fitted weights do not beat the canonical heading (here it is the truth itself), they
+    # are replaced by zeros and the canonical heading is kept
     useless = fit_weights(features[:, [KINDS.index("wall")]] * 1.0, truth, truth, [[0]] * n,
                           np.zeros(n, dtype=int), 1, 6, {})
     assert np.all(useless == 0)

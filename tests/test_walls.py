@@ -50,6 +50,10 @@ def test_scenes_carry_walls_through_the_native_format(tmp_path):
     with pytest.raises(SceneSuggestError) as info:
         scene_json.from_dict(doc)
     assert info.value.field == "normal"
+    doc["walls"][0] = {"normal": [0.0, 1.0], "offset": -2.0, "along": [2.5, -2.5], "height": [0, 1]}
+    with pytest.raises(SceneSuggestError) as info:
+        scene_json.from_dict(doc)
+    assert info.value.field == "along"
     doc["walls"][0] = {"normal": [0.0, 1.0], "offset": "far", "along": [0, 1], "height": [0, 1]}
     with pytest.raises(SceneSuggestError) as info:
         scene_json.from_dict(doc)

@@ -112,15 +112,16 @@ def load_stanford(directory: str | Path, meshes: str | Path | None = None,
 
 
 def _room_walls(model: ModelInfo, transform: np.ndarray) -> list | None:
-    """The walls of a room model's mesh placed by ``transform`` (canonical → world); None if it cannot be read."""
+    """The walls of a room model's mesh placed by ``transform`` (canonical → world); None when the mesh has none
+    (the room's box then stands for them). A mesh that cannot be read is an error naming the file."""
     import trimesh
 
     try:
         mesh = trimesh.load(model.mesh, force="mesh", skip_materials=True, process=False)
-    except (OSError, ValueError, IndexError) as e:
+        vertices, faces = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    except Exception as e:  # trimesh raises many kinds on malformed files
         raise SceneSuggestError(f"cannot read the room mesh: {e}", file=str(model.mesh)) from None
-    vertices = frames.apply(transform @ model.canonical_from_raw(), np.asarray(mesh.vertices))
-    return mesh_walls(vertices, np.asarray(mesh.faces)) or None
+    return mesh_walls(frames.apply(transform @ model.canonical_from_raw(), vertices), faces) or None
 
 
 def _model_infos(model_ids, raw_scenes, meta, names, tags, paths, mesh_dir) -> dict[str, ModelInfo]:
