@@ -16,9 +16,9 @@ import numpy as np
 from scipy.stats import gaussian_kde
 
 from scenesuggest import poses
-from scenesuggest.observations import RELATIONS, WALL, bearing, is_radial, near_wall, wall_heading
+from scenesuggest.observations import POOLED, RELATIONS, WALL, bearing, is_radial, near_wall, wall_heading
 from scenesuggest.orientation import BINS, KINDS, PSEUDO_COUNT, pair_kind_rows
-from scenesuggest.priors import FACES, K_MAX, POOLED, UNSEEN_IN_SCENE_TYPE
+from scenesuggest.priors import FACES, K_MAX, UNSEEN_IN_SCENE_TYPE
 from scenesuggest.scene import SURFACE_TYPES
 from scenesuggest.taxonomy import MIN_OBSERVATIONS
 

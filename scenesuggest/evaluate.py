@@ -98,11 +98,6 @@ def _is_table(category: str, corpus: Corpus) -> bool:
     return any(c in ("Table", "Desk") for c in [category, *corpus.taxonomy.ancestors(category)])
 
 
-def _centre(o: ObjectInstance) -> np.ndarray:
-    lo, hi = o.world_bbox()
-    return (lo + hi) / 2
-
-
 def _nearest_table(scene: Scene, o: ObjectInstance, corpus: Corpus) -> ObjectInstance | None:
     """For a chair: the table or desk on the same parent whose centre is nearest (None if there is none)."""
     if not _is_chair(o.category, corpus):
@@ -110,7 +105,7 @@ def _nearest_table(scene: Scene, o: ObjectInstance, corpus: Corpus) -> ObjectIns
     tables = [q for q in scene.children(o.parent) if q.id != o.id and _is_table(q.category, corpus)]
     if not tables:
         return None
-    return min(tables, key=lambda q: float(np.linalg.norm((_centre(q) - _centre(o))[[0, 2]])))
+    return min(tables, key=lambda q: float(np.linalg.norm((q.centre() - o.centre())[[0, 2]])))
 
 
 def _facing_error_deg(placement: np.ndarray, size, target: ObjectInstance, normal) -> float:
@@ -118,15 +113,10 @@ def _facing_error_deg(placement: np.ndarray, size, target: ObjectInstance, norma
     in the support plane."""
     position = poses.rotation_of(placement) @ (np.asarray(size, dtype=float) * [0, 0.5, 0]) + placement[:3, 3]
     front = poses.heading(poses.rotation_of(placement)[:, 2], normal)
-    towards = poses.heading(_centre(target) - position, normal)
+    towards = poses.heading(target.centre() - position, normal)
     if math.isnan(front) or math.isnan(towards):
         return 180.0
     return abs(math.degrees(float(poses.wrap(front - towards + math.pi)) - math.pi))
-
-
-def _footprint(o: ObjectInstance) -> tuple[float, float]:
-    scale = np.linalg.norm(o.transform[:3, :3], axis=0)
-    return float(o.size[0] * scale[0]), float(o.size[2] * scale[2])
 
 
 def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
@@ -173,7 +163,7 @@ def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, period
 def _orientation_record(engine: Engine, paper: Engine, scores, index: int, scene: Scene, o: ObjectInstance,
                         corpus: Corpus, periods: ModelPeriods) -> dict:
     prep = scores.prepared
-    period, source = periods.of(o.model_id, o.category, _footprint(o))
+    period, source = periods.of(o.model_id, o.category, tuple(o.scaled_size()[[0, 2]]))
     table = _nearest_table(scene, o, corpus)
     record = {"category": o.category, "period": period, "period_source": source, "chair_at_table": table is not None}
     for pose, by, mode in (("full", engine, "full"), ("paper", paper, "full"), ("canonical", engine, "basic")):

@@ -37,7 +37,7 @@ def similarity(scenes: list[Scene]) -> np.ndarray:
     category_id: dict[str, int] = {}
     cats = [np.array([category_id.setdefault(o.category, len(category_id)) for o in objs], dtype=np.int64)
             for objs in objects]
-    centres = [np.array([sum(o.world_bbox()) / 2 for o in objs]).reshape(-1, 3) for objs in objects]
+    centres = [np.array([o.centre() for o in objs]).reshape(-1, 3) for objs in objects]
     by_category: dict[int, tuple[list[int], list[np.ndarray]]] = {}
     for j, (c, x) in enumerate(zip(cats, centres, strict=True)):
         for cat, centre in zip(c.tolist(), x, strict=True):

@@ -11,9 +11,8 @@ import numpy as np
 
 from . import poses
 from .observations import WALL, bearings, is_radial, near_wall, wall_heading
-from .orientation import BINS, KINDS, log_density, pair_kind_rows, turned
+from .orientation import BINS, KINDS, log_density, mean_by, pair_kind_rows, turned
 from .scene import SURFACE_TYPES
-from .taxonomy import MIN_OBSERVATIONS
 
 
 def paper_scores(engine, scores, idx: np.ndarray) -> np.ndarray:
@@ -37,7 +36,7 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
     m = len(idx)
     t = SURFACE_TYPES.index(prep.surface_type)
     out = np.zeros((m, len(KINDS), BINS))
-    zero = np.nan_to_num(poses.zero_headings(prep.normal))[faces]
+    zero = poses.zero_headings(prep.normal)[faces]
     out[:, 0] = turned(log_density(p.alpha_n[engine.stat_entity[idx], t, faces]), zero)
     refs = prep.references
     segs, kinds, angles, rows = [], [], [], []  # per contribution: segment, kind, reference angle, candidate
@@ -57,31 +56,19 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
             kinds.append(kind_of[r, table])
             angles.append(angle[r])
             rows.append(c)
-    if prep.wall is not None:  # only candidates that would stand at it; seldom seen at one: all categories
+    if prep.wall is not None:  # only candidates that would stand at it
         seg = engine._resolved(WALL, prep.scene_type, "wall", prep.surface_type)[4][idx]
-        pooled = p.pooled_segment(WALL, prep.scene_type, "wall", prep.surface_type)
-        few = (seg < 0) | (p.seg_theta_n[np.maximum(seg, 0)].sum(axis=1) < MIN_OBSERVATIONS)
-        seg = np.where(few, pooled, seg)
         seg = np.where([near_wall(prep.wall[1], size) for size in engine.size[idx]], seg, -1)
         has = np.flatnonzero(seg >= 0)
-        if len(has):
-            segs.append(seg[has] * 2)
-            kinds.append(np.full(len(has), KINDS.index("wall")))
-            angles.append(np.full(len(has), wall_heading(prep.wall[0], prep.normal)))
-            rows.append(has)
+        segs.append(seg[has] * 2)
+        kinds.append(np.full(len(has), KINDS.index("wall")))
+        angles.append(np.full(len(has), wall_heading(prep.wall[0], prep.normal)))
+        rows.append(has)
     seg, kind, angle, row = (np.concatenate(a) if a else np.zeros(0, np.int64) for a in (segs, kinds, angles, rows))
     if len(seg):
         counts = np.where((seg % 2 == 0)[:, None], p.seg_theta_n[seg // 2], p.seg_phi_n[seg // 2])
-        values = turned(log_density(counts), angle)
-        slot = row * len(KINDS) + kind
-        order = np.argsort(slot, kind="stable")
-        slot, values = slot[order], values[order]
-        starts = np.flatnonzero(np.r_[True, np.diff(slot) != 0])
-        total = np.zeros((m * len(KINDS), BINS))
-        total[slot[starts]] = np.add.reduceat(values, starts, axis=0)
-        count = np.bincount(slot, minlength=m * len(KINDS))[:, None]
-        mean = np.divide(total, count, out=np.zeros_like(total), where=count > 0).reshape(m, len(KINDS), BINS)
-        out[:, 1:] = mean[:, 1:]
+        mean = mean_by(row * len(KINDS) + kind, turned(log_density(counts), angle), m * len(KINDS))
+        out[:, 1:] = mean.reshape(m, len(KINDS), BINS)[:, 1:]
     return out
 
 

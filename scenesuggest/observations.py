@@ -33,6 +33,8 @@ from .walls import Wall, nearest_wall, room_walls
 
 RELATIONS = ("sibling", "parent", "wall")
 WALL = "Wall"
+#: The entity that pools every category (wall statistics only, see :mod:`.pair_priors`).
+POOLED = "*"
 #: A reference without a front (radial) has a footprint this close to square or round.
 RADIAL_ASPECT = 1.1
 #: Bearings to references whose centre is closer than this (metres, in the plane) are undefined.
@@ -75,12 +77,6 @@ class Pair:
     scene: int = 0
     support: int = 0  # index of the pair's Support record
     radial: bool = False  # the reference has no front (θ is then measured from the bearing to it)
-
-
-def centre(o: ObjectInstance) -> np.ndarray:
-    """The world centre of an object's box."""
-    lo, hi = o.world_bbox()
-    return (lo + hi) / 2
 
 
 def context(scene: Scene, o: ObjectInstance) -> list[tuple[ObjectInstance, str]]:
@@ -182,8 +178,7 @@ def scene_observations(scene: Scene, index: int = 0, first: int = 0) -> tuple[li
         wall = wall_reference(scene, o.contact_point, normal)
         # the instance's own footprint (scenes scale models): did it stand at the wall? At query time the same
         # rule asks whether the suggested model, at its own size, would
-        footprint = np.asarray(o.size, dtype=float) * np.linalg.norm(o.transform[:3, :3], axis=0)
-        if wall is not None and near_wall(wall[1], footprint):
+        if wall is not None and near_wall(wall[1], o.scaled_size()):
             pairs.append(Pair(scene.scene_type, o.category, WALL, "wall", o.surface_type, (wall[1], 0.0),
                               _relative(sup.heading, wall_heading(wall[0], normal)), math.nan, index, first + k))
     return supports, pairs

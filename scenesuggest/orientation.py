@@ -36,6 +36,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .frames import FACES
+from .observations import POOLED
 from .scene import SURFACE_TYPES
 from .taxonomy import MIN_OBSERVATIONS
 
@@ -195,10 +196,64 @@ def _or_minus_one(k: int | None) -> int:
 
 def mean_by(rows: np.ndarray, values: np.ndarray, n_rows: int) -> np.ndarray:
     """(n_rows, BINS): the mean of ``values`` (m, BINS) over each row index of ``rows`` (0 where none)."""
-    total = np.zeros((n_rows, BINS))
-    np.add.at(total, rows, values)
-    count = np.bincount(rows, minlength=n_rows)[:, None]
-    return np.divide(total, count, out=np.zeros_like(total), where=count > 0)
+    out = np.zeros((n_rows, BINS))
+    if not len(rows):
+        return out
+    order = np.argsort(rows, kind="stable")
+    rows, values = np.asarray(rows)[order], np.asarray(values, dtype=float)[order]
+    starts = np.flatnonzero(np.r_[True, np.diff(rows) != 0])
+    out[rows[starts]] = np.add.reduceat(values, starts, axis=0) / np.diff(np.r_[starts, len(rows)])[:, None]
+    return out
+
+
+class _GroupCounts:
+    """Samples and θ, φ counts of each (segment, scene group): what leaving a scene group out subtracts."""
+
+    def __init__(self, expanded, row_group: np.ndarray):
+        from .pair_priors import angle_bins, bin_counts  # pair_priors reads this module's BINS
+
+        self.n_groups = int(row_group.max()) + 1 if len(row_group) else 1
+        self.keys, inverse = np.unique(expanded.segment * self.n_groups + row_group, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        self.samples = np.bincount(inverse, minlength=len(self.keys))
+        self.theta = bin_counts(inverse, angle_bins(expanded.theta), len(self.keys))
+        self.phi = bin_counts(inverse, angle_bins(expanded.phi), len(self.keys))
+
+    def of(self, segments: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(samples, θ counts, φ counts) that scene groups ``groups`` put into ``segments`` (0 where none)."""
+        key = np.asarray(segments) * self.n_groups + np.asarray(groups)
+        i = np.minimum(np.searchsorted(self.keys, key), max(len(self.keys) - 1, 0))
+        hit = (np.asarray(segments) >= 0) & (self.keys[i] == key) if len(self.keys) else np.zeros(len(key), bool)
+        return (np.where(hit, self.samples[i], 0), np.where(hit[:, None], self.theta[i], 0.0),
+                np.where(hit[:, None], self.phi[i], 0.0))
+
+
+def _segments_as_unseen(priors, pairs, stat: dict, pair_group: np.ndarray, own: _GroupCounts) -> np.ndarray:
+    """For each pair: the segment the engine would read for the pair's category next to its reference if the
+    pair's own scene group were unseen — :meth:`~scenesuggest.priors.Priors.pair_segments`, then, with the
+    group's samples left out, all room types for a category seen next to it in this room type only in its own
+    group, and every category for one seen at a wall fewer than MIN_OBSERVATIONS times."""
+    memo: dict[tuple, int] = {}
+
+    def segment(entity: int, *key) -> int:
+        if (entity, *key) not in memo:
+            memo[(entity, *key)] = int(priors.pair_segments([entity], *key)[0])
+        return memo[(entity, *key)]
+
+    seg = np.array([segment(stat[p.category], p.ref_category, p.scene_type, p.relation, p.surface_type)
+                    for p in pairs], dtype=np.int64)
+    samples, theta, _ = own.of(seg, pair_group)
+    any_s = len(priors.scene_types) - 1
+    pooled = priors.entity_index[POOLED]
+    for k, p in enumerate(pairs):
+        if seg[k] < 0:
+            continue
+        if p.relation == "wall":
+            if priors.seg_theta_n[seg[k]].sum() - theta[k].sum() < MIN_OBSERVATIONS:
+                seg[k] = segment(pooled, p.ref_category, p.scene_type, p.relation, p.surface_type)
+        elif priors.seg_count[seg[k]] - samples[k] <= 0 and priors.group_keys[priors.seg_group[seg[k]]][1] != any_s:
+            seg[k] = segment(stat[p.category], p.ref_category, None, p.relation, p.surface_type)
+    return seg
 
 
 TRUSTS = ("learned", "equal")
@@ -217,7 +272,7 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
     used = np.array([k in kinds for k in KINDS], dtype=float)
     if trust == "equal":
         return np.broadcast_to(used.astype(np.float32), (len(priors.entities), len(SURFACE_TYPES), len(KINDS))).copy()
-    from .pair_priors import angle_bins, bin_counts  # pair_priors reads this module's BINS
+    from .pair_priors import angle_bins  # pair_priors reads this module's BINS
 
     heading = np.array([s.heading for s in supports], dtype=float)
     usable = np.flatnonzero(np.isfinite(heading))
@@ -245,67 +300,22 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
 
     # references: θ and φ counts of the segment the engine would read, minus the own group's
     if pairs:
+        own = _GroupCounts(expanded, np.array([scene_groups[p.scene] for p in pairs], dtype=np.int64)[expanded.pair])
         pair_group = np.array([scene_groups[p.scene] for p in pairs], dtype=np.int64)
-        n_groups = int(max(scene_groups)) + 1
-        key = expanded.segment * n_groups + pair_group[expanded.pair]
-        unique, inverse = np.unique(key, return_inverse=True)
-        theta_own = bin_counts(inverse, angle_bins(expanded.theta), len(unique))
-        phi_own = bin_counts(inverse, angle_bins(expanded.phi), len(unique))
-        memo: dict[tuple, int] = {}
-        pooled: dict[tuple, int] = {}
-
-        def theta_own_of(segment: int, grp: int) -> float:
-            i = int(np.searchsorted(unique, segment * n_groups + grp))
-            return float(theta_own[i].sum()) if i < len(unique) and unique[i] == segment * n_groups + grp else 0.0
-
-        seg = np.empty(len(pairs), dtype=np.int64)
-        for k, p in enumerate(pairs):
-            key_p = (stat[p.category], p.ref_category, p.scene_type, p.relation, p.surface_type)
-            if key_p not in memo:
-                memo[key_p] = int(priors.pair_segments([key_p[0]], *key_p[1:])[0])
-            seg[k] = memo[key_p]
-        # as if the own scene group were unseen: a category seen next to a reference in this room type only in
-        # its own group reads the statistics of all room types (as the engine does for one never seen there)
-        own_samples = np.bincount(inverse.reshape(-1), minlength=len(unique))
-        wide: dict[tuple, int] = {}
-        for k, p in enumerate(pairs):
-            if seg[k] < 0 or p.relation == "wall":
-                continue
-            i = int(np.searchsorted(unique, seg[k] * n_groups + pair_group[k]))
-            mine = own_samples[i] if i < len(unique) and unique[i] == seg[k] * n_groups + pair_group[k] else 0
-            if priors.seg_count[seg[k]] - mine <= 0 and priors.group_keys[priors.seg_group[seg[k]]][1] != \
-                    len(priors.scene_types) - 1:
-                key_w = (stat[p.category], p.ref_category, p.relation, p.surface_type)
-                if key_w not in wide:
-                    wide[key_w] = int(priors.pair_segments([key_w[0]], p.ref_category, None, p.relation,
-                                                           p.surface_type)[0])
-                seg[k] = wide[key_w]
-        # walls: a category seldom seen at one reads the statistics of all categories (as the engine does)
-        for k, p in enumerate(pairs):
-            if p.relation == "wall":
-                mine = priors.seg_theta_n[seg[k]].sum() - theta_own_of(seg[k], pair_group[k]) if seg[k] >= 0 else 0
-                if mine < MIN_OBSERVATIONS:
-                    seg[k] = pooled.setdefault((p.scene_type, p.surface_type), priors.pooled_segment(
-                        p.ref_category, p.scene_type, "wall", p.surface_type))
-        found = seg >= 0
-        where = np.searchsorted(unique, seg * n_groups + pair_group)
-        where = np.minimum(where, len(unique) - 1)
-        exact = found & (unique[where] == seg * n_groups + pair_group)
+        seg = _segments_as_unseen(priors, pairs, stat, pair_group, own)
         support = np.array([p.support for p in pairs], dtype=np.int64)
-        for angle_name, all_counts, own_counts, slot in (("theta", priors.seg_theta_n, theta_own, 0),
-                                                         ("phi", priors.seg_phi_n, phi_own, 1)):
+        found = seg >= 0
+        for angle_name, all_counts, slot in (("theta", priors.seg_theta_n, 0), ("phi", priors.seg_phi_n, 1)):
             rel = np.array([getattr(p, angle_name) for p in pairs], dtype=float)
             kinds = np.array([_or_minus_one(pair_kind_rows(p.relation, p.radial)[slot]) for p in pairs],
                              dtype=np.int64)
-            use = found & np.isfinite(rel) & np.isfinite(heading[support]) & (kinds >= 0)
-            if not use.any():
+            idx = np.flatnonzero(found & np.isfinite(rel) & np.isfinite(heading[support]) & (kinds >= 0))
+            if not len(idx):
                 continue
-            idx = np.flatnonzero(use)
-            c = all_counts[seg[idx]].astype(float) - np.where(exact[idx, None], own_counts[where[idx]], 0.0)
+            c = all_counts[seg[idx]].astype(float) - own.of(seg[idx], pair_group[idx])[1 + slot]
             values = turned(log_density(c), heading[support[idx]] - rel[idx])
-            kind = kinds[idx]
-            for k in np.unique(kind):
-                m = kind == k
+            for k in np.unique(kinds[idx]):
+                m = kinds[idx] == k
                 features[:, k] += mean_by(support[idx[m]], values[m], n)
 
     chains = [expand[supports[i].category] for i in usable]

@@ -131,9 +131,9 @@ def _zero_headings(normal: tuple[float, float, float]) -> tuple[float, ...]:
 
 
 def zero_headings(normal) -> np.ndarray:
-    """:func:`zero_heading` of every face (in ``frames.FACES`` order) on a plane with ``normal``; NaN where
+    """:func:`zero_heading` of every face (in ``frames.FACES`` order) on a plane with ``normal``; 0 where
     undefined. Memoised: a scene's clicks fall on few distinct planes."""
-    return np.array(_zero_headings(tuple(float(v) for v in np.asarray(normal, dtype=float).reshape(3))))
+    return np.nan_to_num(_zero_headings(tuple(float(v) for v in np.asarray(normal, dtype=float).reshape(3))))
 
 
 def placement(point, normal, face: str, size, alpha: float) -> np.ndarray:

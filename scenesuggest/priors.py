@@ -38,7 +38,7 @@ import numpy as np
 from . import frames
 from .errors import SceneSuggestError
 from .folds import similar_groups
-from .observations import RELATIONS, WALL, corpus_observations
+from .observations import POOLED, RELATIONS, WALL, corpus_observations
 from .orientation import BINS, KINDS, learn_orientation, smooth
 from .pair_priors import angle_bins, expand_pairs, pair_arrays
 from .scene import SURFACE_TYPES, Scene
@@ -52,8 +52,6 @@ ANY = "*"
 #: Stanford 0.234 with a hard mask (0), 0.239 at 0.2, 0.237 at 0.5; AI2-THOR 0.492 at 0 and at 0.2; on folds of
 #: another seed, not used to choose, 0.234 and 0.238).
 UNSEEN_IN_SCENE_TYPE = 0.2
-#: The entity that pools every category (wall statistics only, see :mod:`.pair_priors`).
-POOLED = "*"
 K_MAX = 8
 FACES = frames.FACES
 
@@ -292,7 +290,8 @@ class Priors:
         The query's scene type first; an entity never seen next to this reference in it reads the statistics of
         all scene types, weighted by UNSEEN_IN_SCENE_TYPE (the scene type is a soft prior, never a hard mask);
         when the scene type has no statistics of this reference (in this relation, on this surface type), all
-        scene types stand in, weighted by :meth:`borrowed`."""
+        scene types stand in, weighted by :meth:`borrowed`. Walls: an entity seen at one fewer than
+        MIN_OBSERVATIONS times reads the statistics of every category at walls (the POOLED entity)."""
         entities = np.asarray(entities, dtype=np.int64)
         seg = np.full(len(entities), -1, dtype=np.int64)
         trust = np.zeros(len(entities))
@@ -309,6 +308,11 @@ class Priors:
         elif wide is not None:
             weight = self.borrowed(entities, len(self.scene_types) - 1, scene_type)
             self._fill(wide, entities, seg, trust, np.broadcast_to(weight, entities.shape))
+        if relation == "wall" and wide is not None:
+            few = (seg < 0) | (self.seg_theta_n[np.maximum(seg, 0)].sum(axis=1) < MIN_OBSERVATIONS)
+            pooled_seg, pooled_trust = np.full(1, -1), np.zeros(1)
+            self._fill(wide, np.array([self.entity_index[POOLED]]), pooled_seg, pooled_trust, np.ones(1))
+            seg[few], trust[few] = pooled_seg[0], pooled_trust[0]
         seg[trust <= 0] = -1
         return seg, trust
 
@@ -326,15 +330,6 @@ class Priors:
                       surface_type: str, backoff: bool = True) -> np.ndarray:
         """The segments of :meth:`pair_sources`."""
         return self.pair_sources(entities, ref_category, scene_type, relation, surface_type, backoff)[0]
-
-    def pooled_segment(self, ref_category: str, scene_type: str | None, relation: str, surface_type: str) -> int:
-        """The segment pooling every category next to a reference (−1 where there is none)."""
-        g = self.group_for(ref_category, scene_type, relation, surface_type)
-        if g is None:
-            return -1
-        children, segs = self.segments(g)
-        pos = int(np.searchsorted(children, self.entity_index[POOLED]))
-        return int(segs[pos]) if pos < len(children) and children[pos] == self.entity_index[POOLED] else -1
 
     def describe(self) -> dict:
         return {"scenes": self.meta["scenes"], "supports": self.meta["supports"], "pairs": int(len(self.pair_xy)),

@@ -47,6 +47,15 @@ class ObjectInstance:
     def world_bbox(self) -> tuple[np.ndarray, np.ndarray]:
         return frames.world_bbox(self.transform, self.size)
 
+    def centre(self) -> np.ndarray:
+        """The world centre of the object's box."""
+        lo, hi = self.world_bbox()
+        return (lo + hi) / 2
+
+    def scaled_size(self) -> np.ndarray:
+        """The box's extent (x, y, z) in metres as the scene places it (``size`` times the transform's scale)."""
+        return np.asarray(self.size, dtype=float) * np.linalg.norm(self.transform[:3, :3], axis=0)
+
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, ObjectInstance):
             return NotImplemented

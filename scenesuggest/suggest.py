@@ -176,11 +176,6 @@ class Engine:
         self.weights = p.orient_weights[self.candidates].astype(float)  # (n, surface types, kinds)
         self._cache: dict[tuple, tuple] = {}
 
-    def _borrowed_mask(self, scene_index: int, scene_type: str) -> np.ndarray | float:
-        """1 for every candidate when statistics come from the query's own scene type; when they come from
-        all scene types (``*``), only candidates seen in the query's scene type keep them."""
-        return self.priors.borrowed(self.stat_entity, scene_index, scene_type)
-
     # --- per-category statistics after back-off -------------------------------------------------------------
     def _stat_entity(self, category: str) -> int:
         return self.priors.stat_entity(category, self.options.backoff)
@@ -238,7 +233,7 @@ class Engine:
         p = self.priors
         dense = p.occurrence_table(prep.parent_category, prep.scene_type, self.options.backoff)
         if dense is None:  # an unseen parent: how often each category rests on anything at all
-            return self.base_rate * self._borrowed_mask(len(p.scene_types) - 1, prep.scene_type)
+            return self.base_rate * p.borrowed(self.stat_entity, len(p.scene_types) - 1, prep.scene_type)
         k = np.zeros(len(p.entities), dtype=int)
         for child in prep.query.scene.children(prep.query.parent_id):
             k[self.priors.entity_chain(child.category)] += 1
@@ -263,30 +258,17 @@ class Engine:
         self._cache[key] = value
         return value
 
-    def _densities(self, prep: Prepared, ref, relation: str, points: np.ndarray) -> np.ndarray:
-        """(P, n) P_relpos of every candidate at each of ``points`` relative to one reference, scaled by the
-        category's back-off share and by 1 / (number of references)."""
-        xy, inv_bw, weight, owner, _ = self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)
-        n = len(self.candidates)
-        out = np.zeros((len(points), n))
-        if not len(owner):
-            return out
-        radial = is_radial(ref.size)
-        for k, point in enumerate(points):
-            delta = poses.plane_offset(point, prep.normal, ref.transform, radial)
-            q = (((delta - xy) * inv_bw) ** 2).sum(axis=1)
-            out[k] = np.bincount(owner, weights=weight * np.exp(-0.5 * q), minlength=n) * self.share
-        return out
-
-    def _reference_densities(self, prep: Prepared) -> list[np.ndarray]:
-        """:meth:`_densities` at the query's point for every reference at once (one array operation)."""
+    def _reference_densities(self, prep: Prepared, point: np.ndarray | None = None) -> list[np.ndarray]:
+        """For every reference: each candidate's P_relpos at ``point`` (default: the query's), scaled by the
+        category's back-off share — one kernel sum over every reference's samples."""
         refs = prep.references
         n = len(self.candidates)
         if not refs:
             return []
         resolved = [self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)
                     for ref, relation in refs]
-        delta = poses.plane_offsets(prep.point, prep.normal, np.array([ref.transform for ref, _ in refs]),
+        delta = poses.plane_offsets(prep.point if point is None else point, prep.normal,
+                                    np.array([ref.transform for ref, _ in refs]),
                                     np.array([is_radial(ref.size) for ref, _ in refs]))
         sizes = [len(r[3]) for r in resolved]
         if not sum(sizes):
@@ -302,30 +284,21 @@ class Engine:
 
     def position_at(self, prep: Prepared, points: np.ndarray) -> np.ndarray:
         """(P, n) position term Σ_r P_relpos of every candidate at each of ``points``."""
-        return sum((self._densities(prep, ref, relation, points) for ref, relation in prep.references),
-                   np.zeros((len(points), len(self.candidates))))
+        n = len(self.candidates)
+        return np.array([np.sum(self._reference_densities(prep, point), axis=0) if prep.references
+                         else np.zeros(n) for point in points]).reshape(len(points), n)
 
     # --- orientation ---------------------------------------------------------------------------------------
     def heading_scores(self, scores: Scores, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         """(m, BINS) score of each heading bin for candidates ``idx`` attached by ``faces`` (indices into
         FACES): the learned log-score, or the paper's Σ_r P_relpos · P_relori (by the orientation option)."""
         if self.options.orientation == "paper":
-            return self._paper_scores(scores, idx)
-        return self._learned_scores(scores.prepared, idx, faces)
-
-    def _paper_scores(self, scores: Scores, idx: np.ndarray) -> np.ndarray:
-        return headings.paper_scores(self, scores, idx)
+            return headings.paper_scores(self, scores, idx)
+        return headings.learned_scores(self, scores.prepared, idx, faces)
 
     def evidence(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         """(m, kinds, BINS) orientation evidence of candidates ``idx`` (:func:`.headings.evidence`)."""
         return headings.evidence(self, prep, idx, faces)
-
-    def _zero_headings(self, normal) -> np.ndarray:
-        """The canonical heading of every face on a plane with ``normal`` (0 where undefined)."""
-        return np.nan_to_num(poses.zero_headings(normal))
-
-    def _learned_scores(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        return headings.learned_scores(self, prep, idx, faces)
 
     # --- placement -----------------------------------------------------------------------------------------
     def geometric_face(self, size, surface_type: str) -> str:
@@ -355,7 +328,7 @@ class Engine:
         prep = scores.prepared
         idx = np.arange(len(self.candidates)) if idx is None else np.asarray(idx, dtype=np.int64)
         face_index = self.face_indices(prep, mode, idx)
-        zero = self._zero_headings(prep.normal)[face_index]
+        zero = poses.zero_headings(prep.normal)[face_index]
         if mode != "full":
             heading = zero
         elif self.options.orientation == "paper":
