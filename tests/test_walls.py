@@ -54,10 +54,16 @@ def test_scenes_carry_walls_through_the_native_format(tmp_path):
     with pytest.raises(SceneSuggestError) as info:
         scene_json.from_dict(doc)
     assert info.value.field == "along"
-    doc["walls"][0] = {"normal": [0.0, 1.0], "offset": "far", "along": [0, 1], "height": [0, 1]}
-    with pytest.raises(SceneSuggestError) as info:
-        scene_json.from_dict(doc)
-    assert info.value.field == "offset"
+    for wall, field in (({"normal": [0.0, 1.0], "offset": "far", "along": [0, 1], "height": [0, 1]}, "offset"),
+                        ({"normal": [0.0, 1.0], "offset": float("nan"), "along": [0, 1], "height": [0, 1]}, "offset"),
+                        ({"normal": [0.0, 1.0], "offset": True, "along": [0, 1], "height": [0, 1]}, "offset"),
+                        ({"normal": [0.0, 1.0], "offset": 0, "along": [0, 1], "height": [0, 1], "x": 1}, "x"),
+                        ({"normal": [0.0, 1.0], "offset": 0, "along": [0, 1]}, "height"),
+                        ("wall", "walls")):
+        doc["walls"] = [wall]
+        with pytest.raises(SceneSuggestError) as info:
+            scene_json.from_dict(doc)
+        assert info.value.field == field
 
 
 def test_stanford_rooms_have_the_walls_of_their_meshes(stanford):
