@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from scenesuggest.cells import unescape_cell
+
 from .errors import AnalysisError
 
 #: Condition order when the data does not state one (the paper's: no suggestions, basic, full).
@@ -74,6 +76,17 @@ def _normalise(data: StudyData) -> StudyData:
     return data
 
 
+def _unescape(frame: pd.DataFrame) -> pd.DataFrame:
+    """Text cells as stored: the export's spreadsheet-safety prefix removed (``scenesuggest.cells``)."""
+    for column in frame.columns:
+        values = frame[column]
+        if values.dtype == object:
+            escaped = values.str.startswith("'", na=False)
+            if escaped.any():
+                frame.loc[escaped, column] = values[escaped].map(unescape_cell)
+    return frame
+
+
 def read_export(folder: str | Path) -> StudyData:
     """Read the CSV tables and ``manifest.json`` of an export folder."""
     folder = Path(folder)
@@ -85,10 +98,10 @@ def read_export(folder: str | Path) -> StudyData:
         if not path.exists():
             raise AnalysisError("is missing from the export", str(path))
         try:
-            tables[name] = _check_columns(name, pd.read_csv(path, dtype={"payload": str, "answer": str},
-                                                            keep_default_na=False, na_values=[""]))
+            frame = pd.read_csv(path, dtype={"payload": str, "answer": str}, keep_default_na=False, na_values=[""])
         except pd.errors.ParserError as e:
             raise AnalysisError(f"is not valid CSV ({e})", str(path)) from None
+        tables[name] = _check_columns(name, _unescape(frame))
     manifest_path = folder / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
     manifest["source"] = str(folder)

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 MAX_TEXT = 2000
 MAX_LIST = 500
 MAX_BATCH = 500
+#: Largest seq (the column is a 32-bit integer on PostgreSQL).
+MAX_SEQ = 2**31 - 1
 SOURCES = ("context", "search", "fixed")
 
 
@@ -84,6 +86,25 @@ class EventError(ValueError):
         self.field = field
 
 
+def text_problem(value: str) -> str | None:
+    """Why a string cannot be stored as text (a lone surrogate is not Unicode; PostgreSQL refuses NUL), or None."""
+    if "\x00" in value:
+        return "must not contain NUL characters"
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        return "must be valid Unicode (it contains a lone surrogate)"
+    return None
+
+
+def _text(value, where: str, limit: int = MAX_TEXT) -> None:
+    if not isinstance(value, str) or len(value) > limit:
+        raise EventError(f"expected a string of at most {limit} characters", where)
+    problem = text_problem(value)
+    if problem:
+        raise EventError(problem, where)
+
+
 def _number(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
@@ -96,8 +117,7 @@ def _check_field(name: str, spec: Field, value, path: str) -> None:
         raise EventError("must not be null", where)
     k = spec.kind
     if k in ("str", "enum"):
-        if not isinstance(value, str) or len(value) > MAX_TEXT:
-            raise EventError(f"expected a string of at most {MAX_TEXT} characters", where)
+        _text(value, where)
         if k == "enum" and value not in spec.choices:
             raise EventError(f"must be one of {', '.join(spec.choices)}", where)
     elif k == "int":
@@ -112,9 +132,11 @@ def _check_field(name: str, spec: Field, value, path: str) -> None:
     elif k == "vec3":
         if not isinstance(value, list) or len(value) != 3 or not all(_number(v) for v in value):
             raise EventError("expected three finite numbers", where)
-    elif k == "strs" and (not isinstance(value, list) or len(value) > MAX_LIST or not all(
-            isinstance(v, str) and len(v) <= MAX_TEXT for v in value)):
-        raise EventError(f"expected a list of at most {MAX_LIST} strings", where)
+    elif k == "strs":
+        if not isinstance(value, list) or len(value) > MAX_LIST:
+            raise EventError(f"expected a list of at most {MAX_LIST} strings", where)
+        for i, v in enumerate(value):
+            _text(v, f"{where}[{i}]")
     if spec.minimum is not None and k in ("int", "num") and value < spec.minimum:
         raise EventError(f"must be at least {spec.minimum:g}", where)
 
@@ -127,8 +149,8 @@ def validate_event(event, path: str = "event") -> dict:
     if unknown:
         raise EventError("unknown field", f"{path}.{sorted(unknown)[0]}")
     seq = event.get("seq")
-    if isinstance(seq, bool) or not isinstance(seq, int) or seq < 0 or seq > 2**31:
-        raise EventError("expected an integer ≥ 0", f"{path}.seq")
+    if isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq <= MAX_SEQ:
+        raise EventError(f"expected an integer from 0 to {MAX_SEQ}", f"{path}.seq")
     if not _number(event.get("t")):
         raise EventError("expected a finite number (ms since the epoch)", f"{path}.t")
     kind = event.get("type")
@@ -199,7 +221,8 @@ def json_schema() -> dict:
         "additionalProperties": False,
         "required": ["seq", "t", "type"],
         "properties": {
-            "seq": {"type": "integer", "minimum": 0, "description": "per-participant sequence number, from 0"},
+            "seq": {"type": "integer", "minimum": 0, "maximum": MAX_SEQ,
+                    "description": "per-participant sequence number, from 0"},
             "t": {"type": "number", "description": "client time, ms since the epoch"},
             "type": {"type": "string", "enum": sorted(VOCABULARY)},
             "trial": {"anyOf": [{"type": "integer", "minimum": -1}, {"type": "null"}]},

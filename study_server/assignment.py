@@ -1,10 +1,12 @@
-"""Arrival and assignment: a platform id gets its one session, new ones the least-filled schedule row.
+"""Arrival and assignment: a platform id gets its one session; a participant who consents gets the least-filled
+schedule row. Arrivals that have not consented hold no row (``row = −1``) and have no trials yet.
 
 Concurrency assumptions (true with several threads, several gunicorn workers and several app servers on one
-PostgreSQL): :func:`arrive` is one short transaction whose *first* statement increments the study's row in
+PostgreSQL): :func:`assign` is one short transaction whose *first* statement increments the study's row in
 ``studies``. That write takes SQLite's database write lock (WAL, ``busy_timeout``) or PostgreSQL's row lock
-before anything is read, so concurrent arrivals run one after the other, each counting the rows as the
-previous one committed them. The unique constraint on (study, platform, platform id) backs this up.
+before anything is read, so concurrent assignments run one after the other, each counting the rows as the
+previous one committed them. :func:`arrive` only inserts; the unique constraint on (study, platform, platform
+id) makes a second arrival of one id (another tab, another server) find the first one's session.
 """
 
 from __future__ import annotations
@@ -61,39 +63,66 @@ def find(study: Study, platform: str, platform_id: str) -> Participant | None:
         Participant.study_id == study.id, Participant.platform == platform, Participant.platform_id == platform_id))
 
 
+class QuotaExceeded(Exception):
+    """Too many new participants from one client address within the hour."""
+
+
+def arrivals_from(study: Study, address: str, now: datetime) -> int:
+    return db.session.scalar(select(func.count()).select_from(Participant).where(
+        Participant.study_id == study.id, Participant.address == address,
+        Participant.created_at >= now - timedelta(hours=1))) or 0
+
+
 def arrive(study: Study, platform: str, platform_id: str, meta: dict | None = None, user_agent: str = "",
-           now: datetime | None = None) -> tuple[Participant, bool]:
-    """The participant of ``platform_id`` (created=False), or a new one in the least-filled row (created=True)."""
+           address: str | None = None, now: datetime | None = None) -> tuple[Participant, bool]:
+    """The participant of ``platform_id`` (created=False), or a new one without a row (created=True).
+    Raises :class:`QuotaExceeded` when ``address`` already brought the study's hourly quota of new arrivals."""
     now = now or utcnow()
     existing = find(study, platform, platform_id)
     if existing is not None:
         return existing, False
+    if address is not None and arrivals_from(study, address, now) >= study.arrivals_per_address_per_hour:
+        raise QuotaExceeded()
     ensure_study_record(study)
-    db.session.execute(update(StudyRecord).where(StudyRecord.id == study.id)
-                       .values(assignments=StudyRecord.assignments + 1))  # the lock: first statement
-    existing = find(study, platform, platform_id)
-    if existing is not None:  # it arrived in another tab while we waited for the lock
-        db.session.rollback()
-        return find(study, platform, platform_id), False
-    counts = row_counts(study, now)
-    row = min(range(len(counts)), key=lambda r: (counts[r], r))
-    seed = secrets.randbelow(2**31)
     p = Participant(study_id=study.id, study_hash=study.hash, platform=platform, platform_id=platform_id,
-                    platform_meta=meta or {}, token=secrets.token_urlsafe(32), row=row, seed=seed,
-                    status="in_progress", step="device", user_agent=user_agent[:512], created_at=now,
-                    last_seen_at=now)
+                    platform_meta=meta or {}, token=secrets.token_urlsafe(32), row=-1,
+                    seed=secrets.randbelow(2**31), status="in_progress", step="device", user_agent=user_agent[:512],
+                    created_at=now, last_seen_at=now, flags=[], address=address)
     db.session.add(p)
-    db.session.flush()
-    for position, t in enumerate(study.plan(row, seed)):
-        db.session.add(Trial(participant_id=p.id, position=position, index=t.index, kind=t.kind,
-                             condition=t.condition, scene_id=t.scene, period=t.period, block=t.block))
-    log("arrive", p, row=row, counts=counts, platform=platform)
     try:
+        db.session.flush()
+        log("arrive", p, platform=platform)
         db.session.commit()
-    except IntegrityError:  # the unique constraint caught a duplicate that slipped past: use the winner's
+    except IntegrityError:  # the same id arrived in another tab or on another server first: use that session
         db.session.rollback()
         winner = find(study, platform, platform_id)
         if winner is None:
             raise
         return winner, False
     return p, True
+
+
+def assign(study: Study, p: Participant, now: datetime | None = None) -> int:
+    """Give a consenting participant the least-filled schedule row and its trials (once); returns the row.
+    Ends the caller's transaction first and commits its own (see the module's concurrency assumptions)."""
+    now = now or utcnow()
+    participant_id = p.id
+    db.session.commit()
+    ensure_study_record(study)
+    db.session.execute(update(StudyRecord).where(StudyRecord.id == study.id)
+                       .values(assignments=StudyRecord.assignments + 1))  # the lock: first statement
+    row = db.session.scalar(select(Participant.row).where(Participant.id == participant_id))
+    if row is not None and row >= 0:  # assigned already (a second tab consented first)
+        db.session.rollback()
+        db.session.refresh(p)
+        return row
+    counts = row_counts(study, now)
+    row = min(range(len(counts)), key=lambda r: (counts[r], r))
+    db.session.execute(update(Participant).where(Participant.id == participant_id).values(row=row))
+    for position, t in enumerate(study.plan(row, p.seed)):
+        db.session.add(Trial(participant_id=participant_id, position=position, index=t.index, kind=t.kind,
+                             condition=t.condition, scene_id=t.scene, period=t.period, block=t.block))
+    log("assign", p, row=row, counts=counts)
+    db.session.commit()
+    db.session.refresh(p)
+    return row

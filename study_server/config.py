@@ -42,7 +42,7 @@ MIN_SECRET = 32
 def from_environment(instance: Path) -> dict:
     """The app's settings as a Flask config dict. In production the secret key must come from the environment
     (a generated one would differ between hosts and vanish with the instance folder) and cookies are Secure."""
-    instance.mkdir(parents=True, exist_ok=True)
+    instance.mkdir(mode=0o700, parents=True, exist_ok=True)
     studies = os.environ.get("SCENESUGGEST_STUDIES")
     env = os.environ.get("SCENESUGGEST_ENV", "development")
     if env not in ENVIRONMENTS:
@@ -99,5 +99,7 @@ def ensure_admin_password(instance: Path) -> Path | None:
         fd = os.open(instance / PASSWORD_FILE, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
         with os.fdopen(fd, "w") as f:
             f.write(password + "\n")
-        (instance / ADMIN_FILE).write_text(json.dumps({"password_hash": generate_password_hash(password)}))
+        fd = os.open(instance / ADMIN_FILE, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(fd, "w") as f:
+            f.write(json.dumps({"password_hash": generate_password_hash(password)}))
     return instance / PASSWORD_FILE if (instance / PASSWORD_FILE).exists() else None

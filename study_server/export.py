@@ -1,5 +1,12 @@
 """Export a study as tidy CSV tables plus ``manifest.json`` and a data dictionary.
 
+Cells are safe to open in a spreadsheet: a text cell that begins with ``=``, ``+``, ``-``, ``@``, a tab, a
+carriage return or ``'`` is written with a leading ``'`` (OWASP's advice against formula injection; numbers are
+written as they are). :func:`scenesuggest.cells.unescape_cell` undoes it, and the project's reader
+(``analysis.load``) applies it, so the tables load back to the stored values. Text that is not valid Unicode (a
+lone surrogate stored before the server refused it) is written with a backslash escape (``\\udfff``) rather
+than failing the export.
+
 Tables (one row per …): ``participants`` (participant), ``trials`` (trial), ``events`` (logged event),
 ``suggestions`` (item of a list the server showed: context suggestions and search results, with ranks),
 ``picks`` (model placed: insert/replace events with their rank and source), ``survey`` (answer),
@@ -20,6 +27,7 @@ from pathlib import Path
 from sqlalchemy import select, text
 
 import scenesuggest
+from scenesuggest.cells import safe_cell
 
 from .extensions import db
 from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial
@@ -36,6 +44,7 @@ DICTIONARY: dict[str, dict[str, str]] = {
         "excluded_reason": "why an experimenter excluded the participant", "created_at": "arrival (UTC)",
         "last_seen_at": "last request (UTC)", "finished_at": "completion or early end (UTC)",
         "acked_seq": "highest contiguous event seq stored",
+        "flags": "why the experimenter should review this participant (reasons separated by ' | '; empty: none)",
         "viewport_width": "browser window width at the device check (px)",
         "viewport_height": "height (px)", "user_agent": "browser user agent"},
     "trials": {
@@ -43,7 +52,8 @@ DICTIONARY: dict[str, dict[str, str]] = {
         "trial": "trial index (−1 = practice)", "kind": "practice | trial", "condition": "none | basic | full",
         "scene": "target scene id", "period": "period of the schedule row", "block": "block within the session",
         "started_at": "trial page first shown (UTC)", "done_at": "done acknowledged (UTC)",
-        "final_objects": "objects in the final scene"},
+        "final_objects": "objects in the final scene",
+        "review": "why the trial's events do not show the study's minimum work (empty: they do)"},
     "events": {
         "participant": "participant number", "seq": "per-participant event number from 0", "page_id":
         "page load that sent it", "type": "event type (see the event vocabulary in manifest.json)",
@@ -85,7 +95,8 @@ def _rows(study: Study) -> dict[str, list[dict]]:
             "platform_id": p.platform_id, "row": p.row, "status": p.status, "step": p.step,
             "consent_version": p.consent_version or "", "excluded_reason": p.excluded_reason or "",
             "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at), "finished_at": _iso(p.finished_at),
-            "acked_seq": p.acked_seq, "viewport_width": v.get("width", ""), "viewport_height": v.get("height", ""),
+            "acked_seq": p.acked_seq, "flags": " | ".join(f["reason"] for f in p.flags or []),
+            "viewport_width": v.get("width", ""), "viewport_height": v.get("height", ""),
             "user_agent": p.user_agent})
     if not ids:
         return out
@@ -95,7 +106,7 @@ def _rows(study: Study) -> dict[str, list[dict]]:
             "participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
             "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
             "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
-            "final_objects": len(t.final_scene["objects"]) if t.final_scene else ""})
+            "final_objects": len(t.final_scene["objects"]) if t.final_scene else "", "review": t.review or ""})
     for e in s.scalars(select(Event).where(Event.participant_id.in_(ids)).order_by(Event.participant_id, Event.seq)):
         out["events"].append({"participant": e.participant_id, "seq": e.seq, "page_id": e.page_id, "type": e.type,
                               "trial": "" if e.trial is None else e.trial, "client_t_ms": repr(e.client_t),
@@ -131,7 +142,7 @@ def _csv(rows: list[dict], columns: list[str]) -> str:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
     w.writeheader()
-    w.writerows(rows)
+    w.writerows({k: safe_cell(v) for k, v in row.items()} for row in rows)
     return buf.getvalue()
 
 
@@ -159,6 +170,11 @@ def export_files(study: Study) -> dict[str, str]:
     for name, columns in DICTIONARY.items():
         dictionary += [f"## {name}.csv", "", "| column | meaning |", "|---|---|"]
         dictionary += [f"| {c} | {m} |" for c, m in columns.items()] + [""]
+    dictionary += ["## Text cells", "",
+                   "A text cell beginning with `=`, `+`, `-`, `@`, a tab, a carriage return or `'` is written "
+                   "with one leading `'` so that spreadsheets show it as text instead of running it as a formula (OWASP's advice on CSV injection); numbers are written as they are. Remove that one "
+                   "`'` to get the stored value (`analysis.load.read_export` does). Text that was stored without "
+                   "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
     files["data_dictionary.md"] = "\n".join(dictionary)
     files["event_schema.json"] = json.dumps(json_schema(), indent=1)
     manifest = {

@@ -12,10 +12,10 @@ import math
 import re
 from datetime import timedelta
 
-from sqlalchemy import select
+from sqlalchemy import case, func, select
 
 from .extensions import db
-from .models import Participant, SurveyResponse, Trial, log, utcnow
+from .models import Event, Participant, SurveyResponse, Trial, flag, log, utcnow
 from .study_file import Question, Study
 
 MOBILE = re.compile(r"Mobi|Android|iPhone|iPad|iPod|Windows Phone", re.I)
@@ -33,6 +33,8 @@ def current_trial(p: Participant) -> Trial | None:
 
 
 def _finish(p: Participant, study: Study, status: str, code_key: str) -> None:
+    if p.status != "in_progress":  # an exclusion (or an earlier end) is final
+        raise ValueError(f"the session has already ended ({p.status})")
     p.status = status
     p.step = "done"
     p.code = study.codes[code_key]
@@ -172,8 +174,40 @@ def check_session_time(p: Participant, study: Study) -> None:
 
 
 def submit_exit(p: Participant, study: Study, answers: dict) -> None:
+    """Save the exit survey and complete: the completion code is given, and trials whose events do not show
+    the study's minimum work flag the participant for review (with the reason)."""
     save_survey(p, "exit", answers)
     _finish(p, study, "completed", "complete")
+    reasons = check_work(p, study)
+    if reasons:
+        flag(p, "completed without the minimum work: " + "; ".join(reasons))
+
+
+def check_work(p: Participant, study: Study) -> list[str]:
+    """Mark each (non-practice) trial whose events show fewer objects placed or a shorter time than the study's
+    minimum (``Trial.review``); returns the reasons. Time is the span of the trial's events on the client's
+    clock (simulated participants keep realistic clocks; the server's own times are in the trials table)."""
+    work = {trial: (placed or 0, ((last or 0) - (first or 0)) / 1000.0, n) for trial, placed, first, last, n in
+            db.session.execute(select(Event.trial, func.sum(case((Event.type.in_(("insert", "replace")), 1),
+                                                                     else_=0)),
+                                      func.min(Event.client_t), func.max(Event.client_t), func.count())
+                               .where(Event.participant_id == p.id).group_by(Event.trial))}
+    reasons = []
+    for t in trials(p):
+        if t.kind != "trial":
+            continue
+        placed, seconds, n = work.get(t.index, (0, 0.0, 0))
+        why = []
+        if t.done_at is None:
+            why.append("not done")
+        if placed < study.min_objects_placed:
+            why.append(f"{placed} object(s) placed < {study.min_objects_placed}")
+        if seconds < study.min_trial_seconds:
+            why.append(f"{seconds:.0f} s of events < {study.min_trial_seconds:g} s" if n else "no events")
+        t.review = ", ".join(why) or None
+        if why:
+            reasons.append(f"trial {t.index}: {t.review}")
+    return reasons
 
 
 def completion_url(study: Study, p: Participant) -> str | None:

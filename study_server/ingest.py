@@ -1,30 +1,72 @@
-"""Event ingestion: batches stored all or nothing, idempotent by (participant, seq).
+"""Event ingestion: batches stored all or nothing, idempotent by (participant, seq), never overwritten.
 
-Concurrency assumptions: a batch is one transaction of ``INSERT … ON CONFLICT DO NOTHING`` rows, so a batch
-sent twice (a retry after a lost answer, a second tab, a reload replaying its outbox) stores each event
-once, whichever copy wins; batches of one participant may arrive in any order and in parallel. The answer
-is the highest seq up to which every event is stored (``acked_seq``): the client may forget events up to it.
+Concurrency assumptions: a batch is one transaction of ``INSERT … ON CONFLICT DO NOTHING … RETURNING seq`` rows,
+so a batch sent twice (a retry after a lost answer, a second tab, a reload replaying its outbox under a new
+page id) stores each event once, whichever copy wins; batches of one participant may arrive in any order and in
+parallel. A seq that is already stored with *different* content (type, trial, client time or payload) is a
+conflict: nothing of the batch is stored, the conflict is logged, and the answer names the batch positions and
+the next free seq, under which the client sends those events again. The answer to a stored batch is the highest
+seq up to which every event is stored (``acked_seq``): the client may forget events up to it.
 """
 
 from __future__ import annotations
 
-from sqlalchemy import select, update
+import json
+import re
+
+from sqlalchemy import func, select, update
 
 from scenesuggest.events import EventError, validate_batch
 
 from .extensions import db
-from .models import Event, Participant, utcnow
+from .models import Event, Participant, log, utcnow
 
 PAGE_ID_MAX = 64
+PAGE_ID = re.compile(rf"[A-Za-z0-9_.-]{{1,{PAGE_ID_MAX}}}")
+#: Statuses whose events are still taken (a finished, excluded or returned session takes no more).
+OPEN = ("in_progress",)
 
 
-def insert_events(rows: list[dict]) -> None:
+class Conflict(Exception):
+    """Seqs of the batch are stored with different content; ``positions`` index the batch."""
+
+    def __init__(self, positions: list[int], seqs: list[int], next_seq: int):
+        super().__init__(f"seq {', '.join(map(str, seqs[:5]))} already stored with different content")
+        self.positions, self.seqs, self.next_seq = positions, seqs, next_seq
+
+
+class Closed(Exception):
+    """The session has ended (completed, excluded, …): it takes no more events."""
+
+
+class OverQuota(Exception):
+    """The participant's event or byte quota is used up."""
+
+
+def insert_events(rows: list[dict]) -> set[int]:
+    """Insert the rows that are new; returns the seqs inserted."""
     dialect = db.session.get_bind().dialect.name
     if dialect == "postgresql":
         from sqlalchemy.dialects.postgresql import insert
     else:
         from sqlalchemy.dialects.sqlite import insert
-    db.session.execute(insert(Event).on_conflict_do_nothing(index_elements=["participant_id", "seq"]), rows)
+    statement = insert(Event).on_conflict_do_nothing(index_elements=["participant_id", "seq"]).returning(Event.seq)
+    return set(db.session.scalars(statement, rows))
+
+
+def _same(stored: Event, e: dict) -> bool:
+    return (stored.type == e["type"] and stored.trial == e["trial"] and stored.client_t == e["t"]
+            and stored.payload == e["payload"])
+
+
+def _conflicts(participant_id: int, batch: list[dict], inserted: set[int]) -> list[int]:
+    """Positions of batch events whose seq was already stored with other content."""
+    rest = {e["seq"]: i for i, e in enumerate(batch) if e["seq"] not in inserted}
+    if not rest:
+        return []
+    stored = db.session.scalars(select(Event).where(Event.participant_id == participant_id,
+                                                    Event.seq.in_(list(rest))))
+    return sorted(rest[s.seq] for s in stored if not _same(s, batch[rest[s.seq]]))
 
 
 def contiguous_seq(participant_id: int, start: int) -> int:
@@ -39,17 +81,37 @@ def contiguous_seq(participant_id: int, start: int) -> int:
     return last
 
 
-def store(participant: Participant, page_id: str, events: list) -> int:
-    """Validate (raising :class:`scenesuggest.events.EventError`) and store a batch; returns acked_seq.
-    Commits."""
-    if not isinstance(page_id, str) or not page_id or len(page_id) > PAGE_ID_MAX:
-        raise EventError(f"expected a string of 1 to {PAGE_ID_MAX} characters", "page_id")
+def store(participant: Participant, page_id: str, events: list, quota: tuple[int, int] | None = None,
+          nbytes: int | None = None) -> int:
+    """Validate (raising :class:`scenesuggest.events.EventError`) and store a batch; returns acked_seq. Raises
+    :class:`Closed` for an ended session, :class:`Conflict` (nothing stored, the conflict logged) and
+    :class:`OverQuota` when ``quota`` = (events, bytes) per participant would be exceeded. ``nbytes`` is the
+    batch's size as sent (counted against the byte quota in proportion to the events it adds). Commits."""
+    if not isinstance(page_id, str) or not PAGE_ID.fullmatch(page_id):
+        raise EventError(f"expected 1 to {PAGE_ID_MAX} letters, digits, '.', '_' or '-'", "page_id")
     batch = validate_batch(events)
+    if participant.status not in OPEN:
+        raise Closed()
     now = utcnow()
     if batch:
-        insert_events([{"participant_id": participant.id, "seq": e["seq"], "page_id": page_id, "type": e["type"],
-                        "trial": e["trial"], "client_t": e["t"], "server_t": now, "payload": e["payload"]}
-                       for e in batch])
+        rows = [{"participant_id": participant.id, "seq": e["seq"], "page_id": page_id, "type": e["type"],
+                 "trial": e["trial"], "client_t": e["t"], "server_t": now, "payload": e["payload"]} for e in batch]
+        inserted = insert_events(rows)
+        if len(inserted) < len(batch):
+            positions = _conflicts(participant.id, batch, inserted)
+            if positions:
+                _refuse_conflict(participant, page_id, batch, positions)
+        if nbytes is None:
+            nbytes = sum(len(json.dumps(e["payload"])) for e in batch)
+        size = nbytes * len(inserted) // len(batch)
+        if quota is not None and inserted and (participant.events_stored + len(inserted) > quota[0]
+                                               or participant.bytes_stored + size > quota[1]):
+            db.session.rollback()
+            raise OverQuota()
+        if inserted:
+            db.session.execute(update(Participant).where(Participant.id == participant.id).values(
+                events_stored=Participant.events_stored + len(inserted),
+                bytes_stored=Participant.bytes_stored + size))
     acked = contiguous_seq(participant.id, participant.acked_seq + 1)
     # only ever move acked_seq forwards, even when a slower parallel batch commits after a faster one
     db.session.execute(update(Participant).where(Participant.id == participant.id, Participant.acked_seq < acked)
@@ -57,3 +119,13 @@ def store(participant: Participant, page_id: str, events: list) -> int:
     db.session.execute(update(Participant).where(Participant.id == participant.id).values(last_seen_at=now))
     db.session.commit()
     return participant.acked_seq  # reloaded after the commit
+
+
+def _refuse_conflict(participant: Participant, page_id: str, batch: list[dict], positions: list[int]):
+    db.session.rollback()
+    stored = db.session.scalar(select(func.max(Event.seq)).where(Event.participant_id == participant.id))
+    next_seq = max(-1 if stored is None else stored, *(e["seq"] for e in batch)) + 1
+    seqs = [batch[i]["seq"] for i in positions]
+    log("event_conflict", participant, page_id=page_id, seqs=seqs[:50], next_seq=next_seq)
+    db.session.commit()
+    raise Conflict(positions, seqs, next_seq)

@@ -41,7 +41,7 @@ class Participant(db.Model):
     platform_id: Mapped[str] = mapped_column(String(128))
     platform_meta: Mapped[dict] = mapped_column(JSON, default=dict)
     token: Mapped[str] = mapped_column(String(64), unique=True, index=True)
-    row: Mapped[int] = mapped_column(Integer, index=True)
+    row: Mapped[int] = mapped_column(Integer, index=True)  # −1 until consent (no schedule row held)
     seed: Mapped[int] = mapped_column(Integer)
     status: Mapped[str] = mapped_column(String(16), default="in_progress", index=True)
     step: Mapped[str] = mapped_column(String(24), default="device")
@@ -56,6 +56,12 @@ class Participant(db.Model):
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    #: Why the experimenter should look at this participant: [{"reason": text, "at": ISO time}, …].
+    flags: Mapped[list] = mapped_column(JSON, default=list)
+    #: Keyed hash of the client address at arrival (for per-address quotas; the address itself is not kept).
+    address: Mapped[str | None] = mapped_column(String(32), nullable=True, index=True)
+    events_stored: Mapped[int] = mapped_column(Integer, default=0)
+    bytes_stored: Mapped[int] = mapped_column(BigInteger, default=0)
 
 
 class Trial(db.Model):
@@ -73,6 +79,8 @@ class Trial(db.Model):
     started_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
     done_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
     final_scene: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    #: Why the trial's events do not show the study's minimum work (None: they do, or not yet checked).
+    review: Mapped[str | None] = mapped_column(Text, nullable=True)
 
 
 class Event(db.Model):
@@ -125,11 +133,24 @@ class SessionLog(db.Model):
 
 
 class LoginAttempt(db.Model):
+    """An admin login attempt, counted per client (``ip`` holds the client key: a device or an address).
+    ``ok`` is None while the password is being checked, so parallel guesses count before they are decided."""
+
     __tablename__ = "login_attempts"
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     ip: Mapped[str] = mapped_column(String(64), index=True)
-    ok: Mapped[bool] = mapped_column(db.Boolean)
+    ok: Mapped[bool | None] = mapped_column(db.Boolean, nullable=True)
     at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)
+
+
+class AdminSession(db.Model):
+    """A signed-in admin browser; its id is in the session cookie. Logout deletes the row, so a copied cookie
+    stops working; sessions also end after an idle and an absolute lifetime."""
+
+    __tablename__ = "admin_sessions"
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
 
 
 def log(kind: str, participant: Participant | None = None, study_id: str | None = None, **detail) -> None:
@@ -139,5 +160,11 @@ def log(kind: str, participant: Participant | None = None, study_id: str | None 
                               detail=detail))
 
 
-__all__ = ["Event", "LoginAttempt", "Participant", "SessionLog", "ShownList", "StudyRecord", "SurveyResponse",
-           "Trial", "log", "utcnow"]
+def flag(participant: Participant, reason: str) -> None:
+    """Mark a participant for the experimenter's review (shown in the admin, exported), and log it."""
+    participant.flags = [*(participant.flags or []), {"reason": reason, "at": utcnow().isoformat()}]
+    log("flagged", participant, reason=reason)
+
+
+__all__ = ["AdminSession", "Event", "LoginAttempt", "Participant", "SessionLog", "ShownList", "StudyRecord",
+           "SurveyResponse", "Trial", "flag", "log", "utcnow"]

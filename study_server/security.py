@@ -2,21 +2,28 @@
 
 from __future__ import annotations
 
+import hashlib
 import hmac
 import secrets
 from datetime import timedelta
 from functools import wraps
 
 from flask import abort, current_app, redirect, request, session, url_for
-from sqlalchemy import func, select
+from itsdangerous import BadSignature, URLSafeTimedSerializer
+from sqlalchemy import delete, func, or_, select
 from werkzeug.security import check_password_hash
 
 from .extensions import db
-from .models import LoginAttempt, utcnow
+from .models import AdminSession, LoginAttempt, utcnow
 
-#: Failed admin logins allowed per address within the window before answering 429.
+#: Failed admin logins allowed per client (device or address) within the window before answering 429.
 LOGIN_LIMIT = 5
 LOGIN_WINDOW = timedelta(minutes=15)
+#: An admin session ends after this long, or after this long without a request.
+ADMIN_LIFETIME = timedelta(hours=8)
+ADMIN_IDLE = timedelta(hours=1)
+DEVICE_COOKIE = "scenesuggest_admin_device"
+DEVICE_LIFETIME = timedelta(days=365)
 
 
 def csrf_token() -> str:
@@ -41,32 +48,102 @@ def client_ip() -> str:
     return (request.remote_addr or "unknown")[:64]
 
 
-def login_blocked(ip: str) -> bool:
-    since = utcnow() - LOGIN_WINDOW
-    failures = db.session.scalar(select(func.count()).select_from(LoginAttempt).where(
-        LoginAttempt.ip == ip, LoginAttempt.ok.is_(False), LoginAttempt.at >= since))
-    return failures >= LOGIN_LIMIT
+def address_key() -> str:
+    """A keyed hash of the client's address: enough to count arrivals per address, not the address itself."""
+    key = current_app.config["SECRET_KEY"].encode()
+    return hmac.new(key, client_ip().encode(), "sha256").hexdigest()[:32]
 
 
-def attempt_login(password: str) -> bool:
-    """Check the admin password (constant time via werkzeug), record the attempt, and on success start a
-    fresh admin session (a new session id: no fixation)."""
+class LoginBlocked(Exception):
+    """Too many failed logins from this client within the window."""
+
+
+def _client_key() -> str:
+    """Whom failed logins are counted against: a browser that has logged in before (its signed device cookie),
+    else the client's address. Guesses from one address (behind a proxy: everyone's) then never lock out an
+    admin's own browser (OWASP's device cookies)."""
+    device = request.cookies.get(DEVICE_COOKIE)
+    if device:
+        try:
+            return "device:" + _device_signer().loads(device, max_age=DEVICE_LIFETIME.total_seconds())[:48]
+        except (BadSignature, TypeError):
+            pass
+    return "ip:" + client_ip()
+
+
+def _device_signer() -> URLSafeTimedSerializer:
+    return URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt="scenesuggest-admin-device")
+
+
+def attempt_login(password: str) -> str | None:
+    """Check the admin password (constant time via werkzeug) and on success start a fresh admin session (a new
+    session id: no fixation); returns a device cookie value for the browser on success, None on failure. Raises
+    :class:`LoginBlocked` after ``LOGIN_LIMIT`` failures of this client in ``LOGIN_WINDOW``. The attempt is
+    recorded before the password is checked, so parallel guesses are counted, never given extra tries."""
+    key = _client_key()
+    attempt = LoginAttempt(ip=key, ok=None, at=utcnow())
+    db.session.add(attempt)
+    db.session.commit()
+    counted = db.session.scalar(select(func.count()).select_from(LoginAttempt).where(
+        LoginAttempt.ip == key, or_(LoginAttempt.ok.is_(False), LoginAttempt.ok.is_(None)),
+        LoginAttempt.at >= utcnow() - LOGIN_WINDOW))
+    if counted > LOGIN_LIMIT:
+        db.session.delete(attempt)
+        db.session.commit()
+        raise LoginBlocked()
     expected = current_app.config.get("ADMIN_PASSWORD_HASH")
     ok = bool(expected) and check_password_hash(expected, password)
-    db.session.add(LoginAttempt(ip=client_ip(), ok=ok))
+    attempt.ok = ok
+    if not ok:
+        db.session.commit()
+        return None
+    sid = secrets.token_urlsafe(32)
+    db.session.add(AdminSession(id=_digest(sid), created_at=utcnow(), last_seen_at=utcnow()))
     db.session.commit()
-    if ok:
-        session.clear()
-        session["admin"] = True
-        session["csrf"] = secrets.token_urlsafe(24)
-        session.permanent = False
-    return ok
+    session.clear()
+    session["admin"] = sid
+    session["csrf"] = secrets.token_urlsafe(24)
+    session.permanent = False
+    device = key.removeprefix("device:") if key.startswith("device:") else secrets.token_urlsafe(16)
+    return _device_signer().dumps(device)
+
+
+def _digest(sid: str) -> str:
+    return hashlib.sha256(sid.encode()).hexdigest()
+
+
+def admin_session() -> AdminSession | None:
+    """This browser's admin session if it is live (not logged out, not idle too long, not too old)."""
+    sid = session.get("admin")
+    if not isinstance(sid, str):
+        return None
+    row = db.session.get(AdminSession, _digest(sid))
+    now = utcnow()
+    if row is None or now - row.created_at > ADMIN_LIFETIME or now - row.last_seen_at > ADMIN_IDLE:
+        if row is not None:
+            db.session.delete(row)
+            db.session.commit()
+        return None
+    if now - row.last_seen_at > timedelta(minutes=1):
+        row.last_seen_at = now
+        db.session.commit()
+    return row
+
+
+def end_admin_session() -> None:
+    """Log out: the server forgets the session, so a copy of the cookie is worthless."""
+    sid = session.get("admin")
+    if isinstance(sid, str):
+        db.session.execute(delete(AdminSession).where(AdminSession.id == _digest(sid)))
+        db.session.commit()
+    session.clear()
 
 
 def admin_required(view):
     @wraps(view)
     def wrapped(*args, **kwargs):
-        if not session.get("admin"):
+        if admin_session() is None:
+            session.pop("admin", None)
             return redirect(url_for("admin.login", next=request.path))
         return view(*args, **kwargs)
     return wrapped

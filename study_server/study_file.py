@@ -91,6 +91,16 @@ class Study:
     desktop_only: bool
     min_width: int
     min_height: int
+    #: Prolific's id of this study: arrivals whose STUDY_ID differs are refused (None: not checked).
+    platform_study_id: str | None = None
+    #: What a trial's events must show for it to count as work (else the participant is flagged for review):
+    #: objects placed (insert/replace events) and seconds between its first and last event (client clock).
+    min_objects_placed: int = 0
+    min_trial_seconds: float = 0.0
+    #: Quotas: new arrivals per client address per hour; events and megabytes stored per participant.
+    arrivals_per_address_per_hour: int = 100
+    max_events_per_participant: int = 100_000
+    max_mb_per_participant: float = 32.0
     raw: dict = field(repr=False, default_factory=dict)
 
     def condition(self, condition_id: str) -> Condition:
@@ -267,7 +277,8 @@ def load_study(path: str | Path) -> Study:
         practice = (sid, r.choice(practice_doc, "condition", "practice.condition", [c.id for c in conditions]))
 
     platform = r.table(doc, "platform", "platform")
-    r.unknown(platform, ("kind", "codes", "completion_url"), "platform")
+    r.unknown(platform, ("kind", "codes", "completion_url", "study_id"), "platform")
+    platform_study_id = r.string(platform, "study_id", "platform.study_id") if "study_id" in platform else None
     codes_doc = r.table(platform, "codes", "platform.codes")
     r.unknown(codes_doc, CODES, "platform.codes")
     codes = {k: r.string(codes_doc, k, f"platform.codes.{k}") for k in CODES}
@@ -283,7 +294,9 @@ def load_study(path: str | Path) -> Study:
         instructions.append((r.string(page, "title", f"instructions[{i}].title"),
                              r.string(page, "body", f"instructions[{i}].body")))
     limits = r.table(doc, "limits", "limits", required=False)
-    r.unknown(limits, ("trial_minutes", "session_minutes", "stale_after_minutes"), "limits")
+    r.unknown(limits, ("trial_minutes", "session_minutes", "stale_after_minutes", "min_objects_placed",
+                       "min_trial_seconds", "arrivals_per_address_per_hour", "max_events_per_participant",
+                       "max_mb_per_participant"), "limits")
     device = r.table(doc, "device", "device", required=False)
     r.unknown(device, ("desktop_only", "min_width", "min_height"), "device")
 
@@ -308,6 +321,15 @@ def load_study(path: str | Path) -> Study:
         desktop_only=r.boolean(device, "desktop_only", "device.desktop_only", True),
         min_width=int(r.number(device, "min_width", "device.min_width", 1024)),
         min_height=int(r.number(device, "min_height", "device.min_height", 600)),
+        platform_study_id=platform_study_id,
+        min_objects_placed=int(r.number(limits, "min_objects_placed", "limits.min_objects_placed", 0)),
+        min_trial_seconds=r.number(limits, "min_trial_seconds", "limits.min_trial_seconds", 0),
+        arrivals_per_address_per_hour=int(r.number(limits, "arrivals_per_address_per_hour",
+                                                   "limits.arrivals_per_address_per_hour", 100, minimum=1)),
+        max_events_per_participant=int(r.number(limits, "max_events_per_participant",
+                                                "limits.max_events_per_participant", 100_000, minimum=100)),
+        max_mb_per_participant=r.number(limits, "max_mb_per_participant", "limits.max_mb_per_participant", 32,
+                                        minimum=0.1),
         raw=doc,
     )
     if study.design == "williams" and len(conditions) < 2:

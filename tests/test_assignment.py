@@ -1,7 +1,9 @@
-"""Assignment to schedule rows: least-filled first, atomic under concurrent arrivals (threads, processes,
-gunicorn workers), on SQLite and on PostgreSQL; one session per platform id."""
+"""Assignment to schedule rows: at consent, least-filled first, atomic under concurrent arrivals (threads,
+processes, gunicorn workers), on SQLite and on PostgreSQL; one session per platform id; arrivals that have not
+consented hold no row."""
 
 import multiprocessing
+import re
 import signal
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
@@ -11,7 +13,7 @@ import pytest
 import requests
 from conftest import DEMO_STUDY, make_app
 
-from study_server.assignment import arrive, row_counts
+from study_server.assignment import arrive, assign, row_counts
 from study_server.extensions import db
 from study_server.models import Participant, Trial, utcnow
 
@@ -20,12 +22,30 @@ def study_of(app):
     return app.extensions["studies"]["demo"].study
 
 
+def enrol(study, pid):
+    """Arrival and consent: the participant with its row."""
+    p, created = arrive(study, "link", pid)
+    assign(study, p)
+    return p, created
+
+
+def test_arrivals_without_consent_hold_no_row_and_have_no_trials(app):
+    with app.app_context():
+        study = study_of(app)
+        visitors = [arrive(study, "link", f"v{i}")[0] for i in range(8)]
+        assert {p.row for p in visitors} == {-1} and db.session.query(Trial).count() == 0
+        assert row_counts(study, utcnow()) == [0] * 6
+        p, _ = enrol(study, "w0")
+        assert p.row == 0 and db.session.query(Trial).filter_by(participant_id=p.id).count() == 10
+        assert assign(study, p) == 0 and db.session.query(Trial).filter_by(participant_id=p.id).count() == 10
+
+
 def test_least_filled_row_and_one_session_per_platform_id(app):
     with app.app_context():
         study = study_of(app)
-        rows = [arrive(study, "link", f"w{i}")[0].row for i in range(12)]
+        rows = [enrol(study, f"w{i}")[0].row for i in range(12)]
         assert sorted(Counter(rows).values()) == [2] * 6 and rows[:6] == [0, 1, 2, 3, 4, 5]
-        again, created = arrive(study, "link", "w3")
+        again, created = enrol(study, "w3")
         assert not created and again.row == rows[3]
         assert db.session.query(Participant).count() == 12
         trials = db.session.query(Trial).filter_by(participant_id=again.id).order_by(Trial.position).all()
@@ -35,7 +55,7 @@ def test_least_filled_row_and_one_session_per_platform_id(app):
 def test_stale_returned_and_excluded_sessions_free_their_row(app):
     with app.app_context():
         study = study_of(app)
-        people = [arrive(study, "link", f"w{i}")[0] for i in range(6)]
+        people = [enrol(study, f"w{i}")[0] for i in range(6)]
         people[2].last_seen_at = utcnow() - timedelta(minutes=study.stale_after_minutes + 1)
         people[4].status = "excluded"
         people[5].status = "completed"
@@ -43,14 +63,14 @@ def test_stale_returned_and_excluded_sessions_free_their_row(app):
         db.session.commit()
         counts = row_counts(study, utcnow())
         assert counts == [0, 1, 0, 1, 0, 1]
-        assert arrive(study, "link", "new1")[0].row == 0
-        assert arrive(study, "link", "new2")[0].row == 2
+        assert enrol(study, "new1")[0].row == 0
+        assert enrol(study, "new2")[0].row == 2
 
 
 def concurrent_threads(app, pids):
     def one(pid):
         with app.app_context():
-            p, _ = arrive(study_of(app), "link", pid)
+            p, _ = enrol(study_of(app), pid)
             return pid, p.id, p.row
     with ThreadPoolExecutor(max_workers=16) as pool:
         return list(pool.map(one, pids))
@@ -110,9 +130,15 @@ def test_concurrent_arrivals_over_http_with_several_gunicorn_workers(tmp_path, r
         f"sqlite:///{tmp_path / 'study.sqlite3'}"
     base, app = gunicorn_server(url)
 
-    def one(pid):
-        r = requests.get(f"{base}/study/demo/start?pid={pid}", allow_redirects=False, timeout=30)
-        assert r.status_code == 302, r.text
+    def one(pid):  # each a browser of its own: the entry link, the device check, consent
+        browser = requests.Session()
+        r = browser.get(f"{base}/study/demo/start?pid={pid}", timeout=30)
+        assert r.status_code in (200, 409), r.text  # 409: the same id is already open in another browser
+        if r.status_code == 409:
+            return pid
+        form = {"csrf_token": re.search(r'name="csrf_token" value="([^"]+)"', r.text).group(1)}
+        browser.post(f"{base}/study/demo/device", data={**form, "width": "1400", "height": "900"}, timeout=30)
+        assert browser.post(f"{base}/study/demo/consent", data={**form, "agree": "yes"}, timeout=30).ok
         return pid
     with ThreadPoolExecutor(max_workers=12) as pool:
         list(pool.map(one, [f"h{i}" for i in range(36)] + ["dup"] * 6))

@@ -144,16 +144,22 @@ def platform_app(tmp_path, demo_resources):
     return make
 
 
+PID, STUDY, SESSION = "5f3a" + "0" * 20, "6a1b" + "1" * 20, "7c2d" + "2" * 20  # Prolific ids: 24 hex digits
+
+
 def test_prolific_parameters_are_required_and_stored(platform_app):
     app = platform_app("prolific")
     c = app.test_client()
-    r = c.get("/study/demo/start?STUDY_ID=s")
-    assert r.status_code == 400 and b"link on your crowdsourcing platform" in r.data
-    page = enter(c, query="PROLIFIC_PID=abc123&STUDY_ID=s1&SESSION_ID=x9")
+    r = c.get(f"/study/demo/start?STUDY_ID={STUDY}")
+    assert r.status_code == 422 and b"PROLIFIC_PID is missing" in r.data
+    page = enter(c, query=f"PROLIFIC_PID={PID}&STUDY_ID={STUDY}&SESSION_ID={SESSION}")
     assert b"device-form" in page.data
     with app.app_context():
         p = db.session.query(Participant).one()
-        assert (p.platform, p.platform_id, p.platform_meta["SESSION_ID"]) == ("prolific", "abc123", "x9")
+        assert (p.platform, p.platform_id, p.platform_meta["SESSION_ID"]) == ("prolific", PID, SESSION)
+
+
+WORKER, ASSIGNMENT, HIT = "A1B2C3D4E5F6G7", "3AMW0RGHOD1P" + "0" * 18, "3HYA4D452RIC" + "1" * 18
 
 
 def test_mturk_preview_mode_creates_nobody(platform_app):
@@ -163,9 +169,9 @@ def test_mturk_preview_mode_creates_nobody(platform_app):
     assert r.status_code == 200 and b"Accept the HIT" in r.data
     with app.app_context():
         assert db.session.query(Participant).count() == 0
-    enter(c, query="workerId=W1&assignmentId=A1&hitId=H1&turkSubmitTo=https://www.mturk.com")
+    enter(c, query=f"workerId={WORKER}&assignmentId={ASSIGNMENT}&hitId={HIT}&turkSubmitTo=https://www.mturk.com")
     with app.app_context():
-        assert db.session.query(Participant).one().platform_meta["assignmentId"] == "A1"
+        assert db.session.query(Participant).one().platform_meta["assignmentId"] == ASSIGNMENT
 
 
 def test_failures_show_a_friendly_page_and_are_logged(client, app, monkeypatch):

@@ -1,9 +1,16 @@
 // The event outbox: every interaction gets a per-session sequence number, is kept in localStorage until
 // the server acknowledges it, and is sent in batches, retried with backoff, and flushed when the page is
 // hidden or closed. After a reload the page picks up whatever the server has not acknowledged.
+//
+// Nothing is dropped. The page also keeps its own events in memory until the server acknowledges them, so a
+// second tab that overwrites the shared storage cannot erase them; when two pages number an event alike, the
+// page renumbers its own at once, and when the server already holds a different event under a seq (409), the
+// events are sent again under the seqs the server hands out. An ended session (410) stops the outbox.
 
 const MAX_BATCH = 200;
 const MAX_BACKOFF_MS = 30000;
+/** What tells two events apart when their seqs change: the client time (sub-millisecond) and type. */
+const identity = (e) => `${e.t}|${e.type}`;
 
 export class Outbox {
   constructor({ api, token, pageId, study, onStatus = () => {} }) {
@@ -15,6 +22,7 @@ export class Outbox {
     this.backoff = 1000;
     this.sending = null;
     this.timer = null;
+    this.mine = new Map();  // identity → this page's event, until the server acknowledges it
     const saved = this.read();
     this.nextSeq = saved.nextSeq;
     this.acked = saved.acked;
@@ -25,18 +33,41 @@ export class Outbox {
     addEventListener("online", () => this.flush());
   }
 
+  /** The shared state, with every event of this page that the storage lost or numbered twice put back. */
   read() {
+    let state = null;
     try {
       const saved = JSON.parse(localStorage.getItem(this.key) || "null");
-      if (saved && Array.isArray(saved.pending)) return saved;
+      if (saved && Array.isArray(saved.pending)) state = saved;
     } catch (e) { /* a corrupt entry starts afresh */ }
-    return { nextSeq: 0, acked: -1, pending: [] };
+    state = state || { nextSeq: 0, acked: -1, pending: [] };
+    if (!this.mine || !this.mine.size) return state;
+    const held = new Map(state.pending.map((e) => [identity(e), e]));
+    const taken = new Set(state.pending.map((e) => e.seq));
+    for (const [id, event] of this.mine) {
+      if (held.has(id)) { this.mine.set(id, held.get(id)); continue; }
+      if (taken.has(event.seq)) event.seq = state.nextSeq;  // another page used this seq for its own event
+      state.nextSeq = Math.max(state.nextSeq, event.seq + 1);
+      state.pending.push(event);
+      taken.add(event.seq);
+    }
+    state.pending.sort((a, b) => a.seq - b.seq);
+    return state;
   }
 
   write(state) {
+    this.nextSeq = state.nextSeq;
     try {
       localStorage.setItem(this.key, JSON.stringify(state));
     } catch (e) { /* storage full or blocked: events stay in memory for this page */ }
+  }
+
+  /** Forget events the server acknowledged (``acked``: every seq up to it is stored) among those ``sent``. */
+  acknowledge(state, sent, acked) {
+    state.acked = Math.max(state.acked, acked);
+    const done = new Set(sent.filter((e) => e.seq <= acked).map(identity));
+    state.pending = state.pending.filter((e) => !done.has(identity(e)) && e.seq > state.acked);
+    for (const id of done) this.mine.delete(id);
   }
 
   /** Continue numbering after what the server already holds (a new browser, cleared storage). */
@@ -44,13 +75,14 @@ export class Outbox {
     const state = this.read();
     state.nextSeq = Math.max(state.nextSeq, serverAcked + 1);
     state.acked = Math.max(state.acked, serverAcked);
-    state.pending = state.pending.filter((e) => e.seq > state.acked);
-    this.nextSeq = state.nextSeq;
+    // events at or below the server's seq stay: if the server holds them they are acknowledged on sending,
+    // if it holds others there, they are renumbered
     this.write(state);
   }
 
   /** Stop logging and sending (another page of the session has taken over). */
   stop() {
+    this.write(this.read());  // this page's unacknowledged events stay in the shared storage for the next page
     this.stopped = true;
     clearTimeout(this.timer);
   }
@@ -61,7 +93,7 @@ export class Outbox {
     const event = { seq: state.nextSeq, t: performance.timeOrigin + performance.now(), type, trial, payload };
     state.nextSeq += 1;
     state.pending.push(event);
-    this.nextSeq = state.nextSeq;
+    this.mine.set(identity(event), event);
     this.write(state);
     this.schedule(1000);
     return event.seq;
@@ -102,21 +134,46 @@ export class Outbox {
       if (response.status === 422) {  // a malformed event would block the queue forever: set it aside
         const problem = await response.json().catch(() => ({}));
         const bad = /^events\[(\d+)\]/.exec(problem.field || "");
-        const index = bad ? Number(bad[1]) : 0;
+        const rejected = batch[bad ? Number(bad[1]) : 0];
         const now = this.read();
+        const index = now.pending.findIndex((e) => identity(e) === identity(rejected));
+        if (index < 0) continue;
         const [dropped] = now.pending.splice(index, 1);
-        now.pending.push({ seq: dropped.seq, t: dropped.t, type: "client_error", trial: dropped.trial,
-          payload: { message: `rejected ${dropped.type}: ${problem.field} ${problem.error}`.slice(0, 1900) } });
+        this.mine.delete(identity(dropped));
+        const note = { seq: dropped.seq, t: dropped.t, type: "client_error", trial: dropped.trial,
+          payload: { message: `rejected ${dropped.type}: ${problem.field} ${problem.error}`.slice(0, 1900) } };
+        now.pending.push(note);
+        this.mine.set(identity(note), note);
         now.pending.sort((a, b) => a.seq - b.seq);
         this.write(now);
         continue;
       }
+      if (response.status === 409) {  // the server holds other events under some of these seqs: renumber ours
+        const problem = await response.json().catch(() => ({}));
+        if (!Array.isArray(problem.conflicts)) { this.retryLater(); return false; }
+        const moved = new Set(problem.conflicts.map((i) => identity(batch[i])));
+        const now = this.read();
+        now.nextSeq = Math.max(now.nextSeq, problem.next_seq || 0);
+        for (const e of now.pending) if (moved.has(identity(e))) { e.seq = now.nextSeq; now.nextSeq += 1; }
+        now.pending.sort((a, b) => a.seq - b.seq);
+        this.write(now);
+        continue;
+      }
+      if (response.status === 410) {  // the session has ended: nothing more is taken
+        this.stop();
+        this.onStatus("ended");
+        return false;
+      }
+      if (response.status === 429) {  // over a quota: wait as long as the server asks
+        const wait = Number(response.headers.get("Retry-After")) || 60;
+        this.onStatus("offline");
+        this.timer = setTimeout(() => { this.timer = null; this.flush(); }, wait * 1000);
+        return false;
+      }
       if (!response.ok) { this.retryLater(); return false; }
       const { acked_seq: acked } = await response.json();
       const now = this.read();
-      now.acked = Math.max(now.acked, acked);
-      const sent = new Set(batch.map((e) => e.seq));
-      now.pending = now.pending.filter((e) => e.seq > now.acked && !(sent.has(e.seq) && e.seq <= acked));
+      this.acknowledge(now, batch, acked);
       this.write(now);
       this.backoff = 1000;
       this.onStatus(now.pending.length ? "saving" : "saved");

@@ -31,6 +31,7 @@ function say(text, { action = null, onAction = null } = {}) {
 const outbox = new Outbox({ api: boot.api, token: boot.token, pageId: boot.page_id, study: boot.study,
   onStatus: (s) => {
     if (s === "offline") say(strings.offline);
+    else if (s === "ended") say(strings.ended, { action: strings.continue, onAction: () => location.assign(boot.next) });
     else if (banner.dataset.kind !== "model") say("");
     banner.dataset.state = s;
   } });
@@ -332,7 +333,7 @@ async function finish(scene) {
   for (let attempt = 0; ; attempt += 1) {
     try {
       const r = await api("/trial/done", { method: "POST", body: JSON.stringify({ trial: trial.index, scene: scene.objectsJSON() }) });
-      if (r.ok || r.status === 409) {
+      if (r.ok || r.status === 409 || r.status === 410) {  // done, done before, or the session has ended
         localStorage.removeItem(sceneKey);
         location.assign(boot.next);
         return;

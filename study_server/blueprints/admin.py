@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import secrets
 from collections import Counter
 from datetime import timedelta
@@ -17,7 +18,6 @@ from flask import (
     render_template,
     request,
     send_file,
-    session,
     url_for,
 )
 from sqlalchemy import func, select
@@ -30,10 +30,24 @@ from ..export import export_zip
 from ..extensions import db
 from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
 from ..runtime import runtime
-from ..security import admin_required, attempt_login, check_csrf, client_ip, csrf_ok, csrf_token, login_blocked
+from ..security import (
+    DEVICE_COOKIE,
+    DEVICE_LIFETIME,
+    LoginBlocked,
+    admin_required,
+    attempt_login,
+    check_csrf,
+    csrf_ok,
+    csrf_token,
+    end_admin_session,
+)
 from .api import ApiError, preview_token
 
 bp = Blueprint("admin", __name__, url_prefix="/admin")
+
+
+#: Where a login may send the admin next: an admin path, nothing that could leave the site or split a header.
+NEXT = re.compile(r"/admin/[A-Za-z0-9_./-]*")
 
 
 @bp.route("/login", methods=["GET", "POST"])
@@ -42,12 +56,18 @@ def login():
     status = 200
     if request.method == "POST":
         check_csrf()
-        if login_blocked(client_ip()):
-            error, status = "Too many failed attempts. Try again in 15 minutes.", 429
-        elif attempt_login(request.form.get("password", "")):
+        try:
+            device = attempt_login(request.form.get("password", ""))
+        except LoginBlocked:
+            device, error, status = None, "Too many failed attempts. Try again in 15 minutes.", 429
+        if device:
             target = request.args.get("next", "")
-            return redirect(target if target.startswith("/admin/") else url_for(".dashboard"))
-        else:
+            response = redirect(target if NEXT.fullmatch(target) and ".." not in target else url_for(".dashboard"))
+            response.set_cookie(DEVICE_COOKIE, device, max_age=int(DEVICE_LIFETIME.total_seconds()), path="/admin",
+                                httponly=True, secure=current_app.config.get("SESSION_COOKIE_SECURE", False),
+                                samesite="Strict")
+            return response
+        if status == 200:
             error, status = "Wrong password.", 401
     configured = bool(current_app.config.get("ADMIN_PASSWORD_HASH"))
     return render_template("admin/login.html", error=error, configured=configured), status
@@ -57,7 +77,7 @@ def login():
 @admin_required
 def logout():
     check_csrf()
-    session.clear()
+    end_admin_session()
     return redirect(url_for(".login"))
 
 
@@ -191,9 +211,9 @@ def author(study_id: str, scene_id: str):
 
 
 def _frozen(study_id: str) -> int:
-    """How many participants have started the study (its targets are then frozen)."""
+    """How many participants have consented (hold a schedule row): the study's targets are then frozen."""
     return db.session.scalar(select(func.count()).select_from(Participant)
-                             .where(Participant.study_id == study_id)) or 0
+                             .where(Participant.study_id == study_id, Participant.row >= 0)) or 0
 
 
 def _authoring_request(study_id: str, scene_id: str, key: str):

@@ -6,6 +6,7 @@ preview token and writes nothing. Errors are ``{"error": message, "field": name}
 
 from __future__ import annotations
 
+import re
 import uuid
 from dataclasses import dataclass
 
@@ -16,12 +17,12 @@ from werkzeug.exceptions import HTTPException
 
 from scenesuggest import frames, scene_json
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.events import EventError, json_schema
+from scenesuggest.events import EventError, json_schema, text_problem
 from scenesuggest.suggest import ContextQuery
 
 from .. import flow, ingest, storage
 from ..extensions import db
-from ..models import Participant, ShownList, Trial, utcnow
+from ..models import Participant, ShownList, Trial, log, utcnow
 from ..openapi import openapi_document
 from ..runtime import runtime
 
@@ -31,14 +32,15 @@ PREVIEW_SALT = "scenesuggest-preview"
 
 
 class ApiError(Exception):
-    def __init__(self, status: int, message: str, field: str | None = None):
+    def __init__(self, status: int, message: str, field: str | None = None, headers: dict | None = None, **extra):
         super().__init__(message)
         self.status, self.message, self.field = status, message, field
+        self.headers, self.extra = headers or {}, extra
 
 
 @bp.errorhandler(ApiError)
 def _api_error(e: ApiError):
-    return jsonify({"error": e.message, "field": e.field}), e.status
+    return jsonify({"error": e.message, "field": e.field, **e.extra}), e.status, e.headers
 
 
 @bp.errorhandler(HTTPException)
@@ -88,6 +90,25 @@ def caller() -> Participant | Preview:
     return p
 
 
+#: A JSON escape that may decode to text no database can store: a surrogate (paired ones are fine) or NUL.
+SUSPECT_ESCAPE = re.compile(rb"\\u(?:[dD][89a-fA-F]|0000)")
+
+
+def _check_strings(value, path: str) -> None:
+    """Every string (and key) of a body must be storable text; 422 names the first that is not."""
+    if isinstance(value, str):
+        problem = text_problem(value)
+        if problem:
+            raise ApiError(422, problem, path)
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            _check_strings(k, path)
+            _check_strings(v, f"{path}.{k}" if path != "body" else str(k))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _check_strings(v, f"{path}[{i}]")
+
+
 def body() -> dict:
     try:
         data = request.get_json(silent=True)
@@ -95,6 +116,8 @@ def body() -> dict:
         raise ApiError(400, "the JSON is nested too deeply", "body") from None
     if not isinstance(data, dict):
         raise ApiError(400, "expected a JSON object body", "body")
+    if SUSPECT_ESCAPE.search(request.get_data(cache=True)):  # rare: only then walk the document
+        _check_strings(data, "body")
     return data
 
 
@@ -113,10 +136,17 @@ def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
             "started": t.started_at is not None}
 
 
+def _open(who) -> None:
+    """A session that has ended (completed, excluded, declined …) changes nothing any more."""
+    if isinstance(who, Participant) and who.status not in ingest.OPEN:
+        raise ApiError(410, f"this session has ended (status {who.status!r})", "status", status=who.status)
+
+
 def _current(who) -> tuple[str, str, int]:
     """(condition, scene, trial index) of the caller's current trial."""
     if isinstance(who, Preview):
         return who.condition, who.scene, 0
+    _open(who)
     t = flow.current_trial(who)
     if t is None:
         raise ApiError(409, f"no trial in progress (the session is at step {who.step!r})", "trial")
@@ -178,11 +208,24 @@ def events():
         except EventError as e:
             raise ApiError(422, e.message, e.field) from None
         return jsonify({"acked_seq": max((e["seq"] for e in batch), default=-1), "stored": False})
+    study = runtime(who.study_id).study
+    quota = (study.max_events_per_participant, int(study.max_mb_per_participant * 1024 * 1024))
     try:
-        acked = ingest.store(who, data.get("page_id"), data.get("events"))
+        acked = ingest.store(who, data.get("page_id"), data.get("events"), quota, request.content_length)
     except EventError as e:
         db.session.rollback()
         raise ApiError(422, e.message, e.field) from None
+    except ingest.Closed:
+        raise ApiError(410, f"this session has ended (status {who.status!r}); no more events are taken",
+                       "status", status=who.status) from None
+    except ingest.Conflict as e:
+        raise ApiError(409, f"{e}: send these events again from seq {e.next_seq}",
+                       f"events[{e.positions[0]}].seq", conflicts=e.positions, next_seq=e.next_seq) from None
+    except ingest.OverQuota:
+        log("quota", who, what="events")
+        db.session.commit()
+        raise ApiError(429, "this session has stored as many events as a study allows", "events",
+                       {"Retry-After": "300"}) from None
     return jsonify({"acked_seq": acked, "stored": True})
 
 
@@ -245,6 +288,7 @@ def search():
     text = request.args.get("q", "")
     if len(text) > 200:
         raise ApiError(400, "at most 200 characters", "q")
+    _open(who)
     try:
         limit = int(request.args.get("limit", 60))
     except ValueError:
@@ -297,6 +341,7 @@ def trial_done():
     index = data.get("trial")
     if isinstance(index, bool) or not isinstance(index, int):
         raise ApiError(400, "expected the trial index", "trial")
+    _open(who)
     t = db.session.scalar(select(Trial).where(Trial.participant_id == who.id, Trial.index == index))
     if t is None:
         raise ApiError(409, f"trial {index} is not in this session", "trial")

@@ -4,6 +4,9 @@ the back button and second tabs resume where they were (logged as ``resume``).""
 
 from __future__ import annotations
 
+import hmac
+import posixpath
+import re
 import secrets
 
 from flask import Blueprint, current_app, redirect, render_template, request, send_from_directory, session, url_for
@@ -12,9 +15,9 @@ from werkzeug.exceptions import HTTPException, NotFound
 
 from .. import assignment, flow, storage
 from ..extensions import db
-from ..models import Participant, SessionLog, log, utcnow
+from ..models import Participant, SessionLog, flag, log, utcnow
 from ..runtime import runtime
-from ..security import check_csrf
+from ..security import address_key, check_csrf
 
 bp = Blueprint("participant", __name__, url_prefix="/study/<study_id>")
 MTURK_PREVIEW = "ASSIGNMENT_ID_NOT_AVAILABLE"
@@ -62,16 +65,56 @@ def _remember(study_id: str, p: Participant) -> None:
     session.permanent = True
 
 
-def _platform_identity(study, args) -> tuple[str, dict] | None:
-    """(platform id, platform metadata) from the entry URL's parameters, or None when they are missing."""
+#: Ids as the platforms issue them: Prolific's are 24 hex digits, MTurk's upper-case letters and digits.
+PROLIFIC_ID = re.compile(r"[0-9a-fA-F]{24}")
+MTURK_ID = re.compile(r"[A-Z0-9]{10,64}")
+#: The only hosts an MTurk HIT may be submitted to (``turkSubmitTo``).
+MTURK_SUBMIT = ("https://www.mturk.com", "https://workersandbox.mturk.com")
+LINK_ID = re.compile(r"[^\x00-\x1f\x7f]{1,128}")
+
+
+class EntryError(Exception):
+    """An entry link whose parameters this study cannot accept; the message names the parameter."""
+
+
+def _platform_identity(study, args) -> tuple[str, dict]:
+    """(platform id, platform metadata) from the entry URL's parameters ("" for an anonymous link); raises
+    :class:`EntryError` naming a missing or malformed parameter."""
+    def value(name: str, pattern: re.Pattern, required: bool = True) -> str:
+        v = args.get(name, "")
+        if not v and not required:
+            return ""
+        if not pattern.fullmatch(v):
+            raise EntryError(f"{name} is missing" if not v else f"{name} is not a valid {study.platform} id")
+        return v
+
     if study.platform == "prolific":
-        meta = {k: args.get(k, "")[:128] for k in ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")}
-        return (meta["PROLIFIC_PID"], meta) if meta["PROLIFIC_PID"] else None
+        meta = {"PROLIFIC_PID": value("PROLIFIC_PID", PROLIFIC_ID), "STUDY_ID": value("STUDY_ID", PROLIFIC_ID),
+                "SESSION_ID": value("SESSION_ID", PROLIFIC_ID, required=False)}
+        if study.platform_study_id and meta["STUDY_ID"] != study.platform_study_id:
+            raise EntryError("STUDY_ID is not this study's Prolific id")
+        return meta["PROLIFIC_PID"], meta
     if study.platform == "mturk":
-        meta = {k: args.get(k, "")[:256] for k in ("workerId", "assignmentId", "hitId", "turkSubmitTo")}
-        return (meta["workerId"], meta) if meta["workerId"] else None
-    pid = args.get("pid", "")[:128]
-    return (pid, {"pid": pid}) if pid else ("", {})
+        meta = {k: value(k, MTURK_ID) for k in ("workerId", "assignmentId", "hitId")}
+        submit = args.get("turkSubmitTo", "").rstrip("/")
+        if submit not in MTURK_SUBMIT:
+            raise EntryError("turkSubmitTo is not one of MTurk's submit hosts")
+        meta["turkSubmitTo"] = submit
+        return meta["workerId"], meta
+    pid = value("pid", LINK_ID, required=False)
+    return pid, ({"pid": pid} if pid else {})
+
+
+def _proves(p: Participant, meta: dict) -> bool:
+    """Whether an entry link carries what only this participant's platform session has: Prolific's
+    SESSION_ID or MTurk's assignmentId, as first seen. A bare id (or a plain link's pid) proves nothing."""
+    key = {"prolific": "SESSION_ID", "mturk": "assignmentId"}.get(p.platform)
+    mine = (p.platform_meta or {}).get(key) if key else None
+    return bool(mine) and hmac.compare_digest(mine, meta.get(key) or "")
+
+
+def _entry_page(study, message: str, status: int):
+    return render_template("message.html", title=study.title, message=message), status
 
 
 @bp.get("/start")
@@ -80,24 +123,57 @@ def start(study_id: str):
     study = rt.study
     if study.platform == "mturk" and request.args.get("assignmentId") == MTURK_PREVIEW:
         return render_template("mturk_preview.html", study=study)
-    identity = _platform_identity(study, request.args)
-    if identity is None:
-        return render_template("message.html", title=study.title,
-                               message="Please open this study from the link on your crowdsourcing platform."), 400
-    platform_id, meta = identity
+    try:
+        platform_id, meta = _platform_identity(study, request.args)
+    except EntryError as e:
+        log("entry_refused", study_id=study_id, reason=str(e))
+        db.session.commit()
+        return _entry_page(study, f"This link cannot start the study: {e}. Please open the study from the link "
+                                  "on your crowdsourcing platform.", 422)
+    if study.platform != "link" and not platform_id:
+        return _entry_page(study, "Please open this study from the link on your crowdsourcing platform.", 400)
     mine = _participant(study_id)
     if mine is not None and (not platform_id or mine.platform_id == platform_id):
         log("resume", mine, via="entry link")
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
+    existing = assignment.find(study, study.platform, platform_id) if platform_id else None
+    if existing is not None:
+        return _resume_elsewhere(study, existing, meta)
     if not platform_id:  # an anonymous link: a new id, remembered by this browser
         platform_id = "link-" + secrets.token_hex(8)
-    p, created = assignment.arrive(study, study.platform, platform_id, meta, request.headers.get("User-Agent", ""))
-    if not created:
-        log("resume", p, via="platform id")
+    try:
+        p, created = assignment.arrive(study, study.platform, platform_id, meta,
+                                       request.headers.get("User-Agent", ""), address_key())
+    except assignment.QuotaExceeded:
+        log("quota", study_id=study_id, what="arrivals")
         db.session.commit()
+        return _entry_page(study, "Too many people have started this study from your network in the last hour. "
+                                  "Please try again later.", 429)
+    if created and mine is not None:  # one browser, a second id: flag both for the experimenter
+        reason = (f"this browser already took part as participant {mine.id} ({mine.status}, id "
+                  f"{mine.platform_id[:40]!r})")
+        flag(p, reason)
+        flag(mine, f"this browser came back as participant {p.id} under another id")
+        db.session.commit()
+    elif not created:  # the same id arrived a moment earlier (another tab, another server)
+        return _resume_elsewhere(study, p, meta)
     _remember(study_id, p)
     return redirect(url_for(".current", study_id=study_id))
+
+
+def _resume_elsewhere(study, existing: Participant, meta: dict):
+    """A browser without this participant's cookie: it resumes only with the platform's session id."""
+    if not _proves(existing, meta):  # someone else's id, or the participant in a new browser: never a takeover
+        flag(existing, "the study was opened with this participant's id in another browser without the "
+                       "platform's session id (refused)")
+        db.session.commit()
+        return _entry_page(study, "This study is already in progress in another browser. Please continue there; "
+                                  "if you cannot, contact the researcher through your platform.", 409)
+    log("resume", existing, via="platform session")
+    db.session.commit()
+    _remember(study.id, existing)
+    return redirect(url_for(".current", study_id=study.id))
 
 
 def _log_view(p: Participant) -> None:
@@ -122,6 +198,8 @@ def current(study_id: str):
     _log_view(p)
     db.session.commit()
     context = {"study": study, "p": p}
+    if p.status != "in_progress":  # finished, declined, screened out or excluded: only the end page
+        return render_template("done.html", completion_url=flow.completion_url(study, p), **context)
     if p.step == "device":
         return render_template("device.html", **context)
     if p.step == "consent":
@@ -157,11 +235,16 @@ def _trial_page(rt, p: Participant):
                            boot=boot, scene_title=rt.study.scenes[t.scene_id].title)
 
 
-def _post_participant(study_id: str) -> Participant:
+def _post_participant(study_id: str) -> Participant | None:
+    """The posting participant, or None when their session has ended (the caller shows the end page)."""
     check_csrf()
     p = _participant(study_id)
     if p is None:
         raise NotFound()
+    if p.status != "in_progress":
+        log("refused", p, path=request.path, status=p.status)
+        db.session.commit()
+        return None
     p.last_seen_at = utcnow()
     return p
 
@@ -170,7 +253,7 @@ def _post_participant(study_id: str) -> Participant:
 def device(study_id: str):
     study = runtime(study_id).study
     p = _post_participant(study_id)
-    if p.step == "device":
+    if p is not None and p.step == "device":
         flow.check_device(p, study, request.form)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
@@ -180,8 +263,11 @@ def device(study_id: str):
 def consent(study_id: str):
     study = runtime(study_id).study
     p = _post_participant(study_id)
-    if p.step == "consent":
-        flow.give_consent(p, study, request.form.get("agree") == "yes")
+    if p is not None and p.step == "consent":
+        agree = request.form.get("agree") == "yes"
+        if agree:
+            assignment.assign(study, p)  # a schedule row and trials only now (commits)
+        flow.give_consent(p, study, agree)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
 
@@ -189,7 +275,7 @@ def consent(study_id: str):
 def _survey(study_id: str, name: str, questions, submit, heading: str):
     study = runtime(study_id).study
     p = _post_participant(study_id)
-    if p.step != name:
+    if p is None or p.step != name:
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
     answers, errors = flow.validate_answers(questions, request.form)
@@ -213,7 +299,7 @@ def demographics(study_id: str):
 def instructions(study_id: str):
     study = runtime(study_id).study
     p = _post_participant(study_id)
-    if p.step == "instructions":
+    if p is not None and p.step == "instructions":
         flow.turn_instructions(p, study, request.form.get("go", "next"))
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
@@ -244,6 +330,7 @@ def exit_survey(study_id: str):
 def asset(study_id: str, filename: str):
     """GLB models and thumbnails of the study's library (public, long-cached; no path escapes the library)."""
     rt = runtime(study_id)
+    filename = posixpath.normpath(filename)  # the folder check after normalising: models/../x is x
     if not (filename.startswith("models/") or filename.startswith("thumbnails/")):
         raise NotFound()
     response = send_from_directory(rt.study.library, filename, max_age=7 * 24 * 3600)
