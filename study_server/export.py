@@ -172,7 +172,8 @@ def export_files(study: Study) -> dict[str, str]:
         dictionary += [f"| {c} | {m} |" for c, m in columns.items()] + [""]
     dictionary += ["## Text cells", "",
                    "A text cell beginning with `=`, `+`, `-`, `@`, a tab, a carriage return or `'` is written "
-                   "with one leading `'` so that spreadsheets show it as text instead of running it as a formula (OWASP's advice on CSV injection); numbers are written as they are. Remove that one "
+                   "with one leading `'` so that spreadsheets show it as text instead of running it as a formula "
+                   "(OWASP's advice on CSV injection); numbers are written as they are. Remove that one "
                    "`'` to get the stored value (`analysis.load.read_export` does). Text that was stored without "
                    "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
     files["data_dictionary.md"] = "\n".join(dictionary)

@@ -47,16 +47,21 @@ def auth(b: dict) -> dict:
 
 
 def finish_all_trials(client, b: dict, study="demo") -> list[dict]:
-    """Send a trial_start and trial_done event and 'done' for every trial; returns each trial's boot data."""
+    """Work through every trial: a trial_start, one object inserted, a trial_done 12 s later, and 'done';
+    returns each trial's boot data."""
     seen, seq = [], 0
     while True:
         seen.append(b)
         t = b["trial"]
-        events = [{"seq": seq, "t": 1.0e12 + seq, "type": "trial_start", "trial": t["index"],
+        t0 = 1.0e12 + seq * 1.0e5
+        events = [{"seq": seq, "t": t0, "type": "trial_start", "trial": t["index"],
                    "payload": {"scene": t["scene"], "condition": t["condition"]}},
-                  {"seq": seq + 1, "t": 1.0e12 + seq + 1, "type": "trial_done", "trial": t["index"],
-                   "payload": {"objects": 0}}]
-        seq += 2
+                  {"seq": seq + 1, "t": t0 + 5000, "type": "insert", "trial": t["index"],
+                   "payload": {"object": f"o{seq}", "model": "m", "category": "Chair", "rank": None,
+                               "source": "fixed"}},
+                  {"seq": seq + 2, "t": t0 + 12000, "type": "trial_done", "trial": t["index"],
+                   "payload": {"objects": 1}}]
+        seq += 3
         r = client.post("/api/events", headers=auth(b), json={"page_id": b["page_id"], "events": events})
         assert r.status_code == 200 and r.json["acked_seq"] == seq - 1, r.json
         r = client.post("/api/trial/done", headers=auth(b), json={"trial": t["index"]})

@@ -32,10 +32,11 @@ PREVIEW_SALT = "scenesuggest-preview"
 
 
 class ApiError(Exception):
-    def __init__(self, status: int, message: str, field: str | None = None, headers: dict | None = None, **extra):
+    def __init__(self, status: int, message: str, field: str | None = None, headers: dict | None = None,
+                 extra: dict | None = None):
         super().__init__(message)
         self.status, self.message, self.field = status, message, field
-        self.headers, self.extra = headers or {}, extra
+        self.headers, self.extra = headers or {}, extra or {}
 
 
 @bp.errorhandler(ApiError)
@@ -139,7 +140,8 @@ def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
 def _open(who) -> None:
     """A session that has ended (completed, excluded, declined …) changes nothing any more."""
     if isinstance(who, Participant) and who.status not in ingest.OPEN:
-        raise ApiError(410, f"this session has ended (status {who.status!r})", "status", status=who.status)
+        raise ApiError(410, f"this session has ended (status {who.status!r})", "status",
+                       extra={"status": who.status})
 
 
 def _current(who) -> tuple[str, str, int]:
@@ -217,10 +219,11 @@ def events():
         raise ApiError(422, e.message, e.field) from None
     except ingest.Closed:
         raise ApiError(410, f"this session has ended (status {who.status!r}); no more events are taken",
-                       "status", status=who.status) from None
+                       "status", extra={"status": who.status}) from None
     except ingest.Conflict as e:
         raise ApiError(409, f"{e}: send these events again from seq {e.next_seq}",
-                       f"events[{e.positions[0]}].seq", conflicts=e.positions, next_seq=e.next_seq) from None
+                       f"events[{e.positions[0]}].seq",
+                       extra={"conflicts": e.positions, "next_seq": e.next_seq}) from None
     except ingest.OverQuota:
         log("quota", who, what="events")
         db.session.commit()
