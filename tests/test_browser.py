@@ -427,6 +427,63 @@ def test_a_second_tab_takes_over_and_nothing_is_numbered_twice(page, server):
     assert len(logged) == len(set(s for s in logged if s >= 0))
 
 
+def db_event_times(database: Path, pid: str) -> list[tuple[int, str, float]]:
+    with sqlite3.connect(database) as conn:
+        return conn.execute("SELECT e.seq, e.type, e.client_t FROM events e JOIN participants p ON "
+                            "p.id = e.participant_id WHERE p.platform_id = ? ORDER BY e.seq", (pid,)).fetchall()
+
+
+def test_events_whose_seqs_another_sender_took_are_renumbered_never_lost(page, server):
+    """Someone (another browser with the token, a tab that numbered alike) stores other events under the seqs
+    the page is about to use: the server answers 409, the page sends its events under the seqs it is given."""
+    import requests
+
+    base, database = server
+    pid = "browser-conflict"
+    start(page, base, pid)
+    until(page, "window.sceneSuggestTest.pending() === 0")
+    token = page.evaluate("() => JSON.parse(document.getElementById('boot').textContent).token")
+    acked = len(db_event_times(database, pid)) - 1
+    foreign = [{"seq": acked + 1 + i, "t": 1.0 + i, "type": "search", "trial": -1, "payload": {"text": f"x{i}"}}
+               for i in range(4)]
+    r = requests.post(f"{base}/api/events", json={"page_id": "elsewhere", "events": foreign},
+                      headers={"Authorization": f"Bearer {token}"}, timeout=10)
+    assert r.ok
+    place_with_suggestions(page)  # the page numbers these from acked + 1: taken
+    until(page, "window.sceneSuggestTest.pending() === 0", timeout=60)
+    stored = db_event_times(database, pid)
+    assert [s for s, _, _ in stored] == list(range(len(stored)))
+    logged = hook(page, "events.map(e => e.type)")
+    mine = [t for _, t, client_t in stored if client_t > 1000]  # the page's own events (real clock)
+    assert sorted(mine) == sorted(logged) and len([t for t in stored if t[2] < 1000]) == 4
+    with sqlite3.connect(database) as conn:
+        assert conn.execute("SELECT COUNT(*) FROM session_log WHERE kind = 'event_conflict'").fetchone()[0] >= 1
+
+
+def test_a_tab_that_overwrites_the_shared_outbox_cannot_erase_this_pages_events(page, server):
+    """Two tabs read and write one localStorage entry: the other tab's write drops this page's pending events
+    from it. The page still holds its own events in memory until the server acknowledges them."""
+    base, database = server
+    pid = "browser-overwrite"
+    start(page, base, pid)
+    until(page, "window.sceneSuggestTest.pending() === 0")
+    page.route("**/api/events", lambda route: route.abort())  # nothing reaches the server for a while
+    place_with_suggestions(page)
+    assert hook(page, "pending()") > 0
+    page.evaluate("""() => {
+      const boot = JSON.parse(document.getElementById('boot').textContent);
+      const key = `scenesuggest-outbox-${boot.study}-${boot.token.slice(-12)}`;
+      const state = JSON.parse(localStorage.getItem(key));
+      localStorage.setItem(key, JSON.stringify({ nextSeq: state.nextSeq, acked: state.acked, pending: [] }));
+    }""")
+    page.unroute("**/api/events")
+    page.evaluate("() => window.dispatchEvent(new Event('online'))")
+    until(page, "window.sceneSuggestTest.pending() === 0", timeout=60)
+    stored = db_event_times(database, pid)
+    assert [s for s, _, _ in stored] == list(range(len(stored)))
+    assert sorted(t for _, t, _ in stored) == sorted(hook(page, "events.map(e => e.type)"))
+
+
 # --- the replication study and the admin's scene editor --------------------------------------------------------
 @pytest.fixture(scope="module")
 def replication_server(tmp_path_factory, replication):
