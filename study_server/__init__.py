@@ -73,6 +73,7 @@ def create_app(config: dict | None = None) -> Flask:
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token
     app.jinja_env.globals["import_map"] = vendor.IMPORT_MAP
+    app.jinja_env.globals["mturk_submit_hosts"] = participant.MTURK_SUBMIT
     app.register_error_handler(HTTPException, _http_error)
     return app
 

@@ -41,15 +41,18 @@ def openapi_document() -> dict:
             "/api/heartbeat": {"post": {"summary": "Keep the session fresh", "security": auth,
                                         "responses": {**_ok({"type": "object"}), **_errors(401)}}},
             "/api/events": {"post": {
-                "summary": "Store a batch of events (idempotent by seq); answers the highest contiguous seq stored",
+                "summary": "Store a batch of events (idempotent by seq); answers the highest contiguous seq stored. "
+                           "409: seqs already hold other events (``conflicts``: batch positions, ``next_seq``: send "
+                           "them again from there; nothing stored); 410: the session has ended; 429: over a "
+                           "quota (wait ``Retry-After``)",
                 "security": auth,
                 "requestBody": _body({"type": "object", "required": ["page_id", "events"], "properties": {
-                    "page_id": {"type": "string", "minLength": 1, "maxLength": 64},
+                    "page_id": {"type": "string", "pattern": "^[A-Za-z0-9_.-]{1,64}$"},
                     "events": {"type": "array", "maxItems": MAX_BATCH, "items": {"$ref": "#/components/schemas/Event"}},
                 }}),
                 "responses": {**_ok({"type": "object", "required": ["acked_seq"],
                                      "properties": {"acked_seq": {"type": "integer"}}}),
-                              **_errors(400, 401, 413, 422)}}},
+                              **_errors(400, 401, 409, 410, 413, 422, 429)}}},
             "/api/suggest": {"post": {
                 "summary": "Contextual suggestions for a click in the current trial (not in the 'none' condition)",
                 "security": auth,

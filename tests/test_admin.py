@@ -62,7 +62,7 @@ def test_progress_timeline_exclusion_and_xss(admin_app):
     b = to_trials(participant)
     finish_all_trials(participant, b)
     page = participant.get("/study/demo/")
-    participant.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "19", "attempt": "0"})
+    participant.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "29", "attempt": "0"})
     to_trials(admin_app.test_client(), query="pid=second")
     c = admin_app.test_client()
     login(c)

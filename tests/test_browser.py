@@ -484,6 +484,26 @@ def test_a_tab_that_overwrites_the_shared_outbox_cannot_erase_this_pages_events(
     assert sorted(t for _, t, _ in stored) == sorted(hook(page, "events.map(e => e.type)"))
 
 
+def test_an_excluded_participants_page_says_the_session_has_ended(page, server):
+    """The experimenter excludes a participant mid-trial: the page's next query and events get 410, it stops
+    sending and says so, and its Continue leads to the calm end page."""
+    base, database = server
+    pid = "browser-excluded"
+    start(page, base, pid)
+    until(page, "window.sceneSuggestTest.pending() === 0")
+    with sqlite3.connect(database) as conn:
+        conn.execute("UPDATE participants SET status = 'excluded', excluded_reason = 'test' WHERE platform_id = ?",
+                     (pid,))
+    x, y = floor_pixel(page, -0.6, 0.4)
+    page.keyboard.down("Shift")
+    page.mouse.click(x, y)  # a query (410) and its events (410)
+    page.keyboard.up("Shift")
+    until(page, "document.getElementById('banner').textContent.includes('This session has ended')", timeout=30)
+    page.click("#banner button")
+    page.wait_for_selector("text=This session has ended")
+    assert "Traceback" not in page.content()
+
+
 # --- the replication study and the admin's scene editor --------------------------------------------------------
 @pytest.fixture(scope="module")
 def replication_server(tmp_path_factory, replication):

@@ -15,7 +15,7 @@ def test_export_command_writes_tidy_tables(app, tmp_path):
     b = to_trials(c)
     finish_all_trials(c, b)
     page = c.get("/study/demo/")
-    c.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "19", "attempt": "0"})
+    c.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "29", "attempt": "0"})
     out = tmp_path / "export"
     env = {**os.environ, "SCENESUGGEST_INSTANCE": str(tmp_path / "instance")}
     proc = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "export", "--study", "demo", "--db",
@@ -23,7 +23,7 @@ def test_export_command_writes_tidy_tables(app, tmp_path):
                           capture_output=True, text=True, env=env)
     assert proc.returncode == 0, proc.stderr
     manifest = json.loads(proc.stdout)
-    assert manifest["row_counts"]["events"] == 20 and manifest["row_counts"]["trials"] == 10
+    assert manifest["row_counts"]["events"] == 30 and manifest["row_counts"]["trials"] == 10
     assert manifest["row_counts"]["participants"] == 1 and manifest["schema_version"]
     assert manifest["study_hash"] == app.extensions["studies"]["demo"].study.hash
     for name, digest in manifest["files"].items():

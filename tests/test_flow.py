@@ -16,15 +16,15 @@ def test_a_whole_run_of_the_demo_study(client, app):
     assert sorted(conditions) == sorted(["none", "basic", "full"] * 3)
     page = client.get("/study/demo/")
     assert b"Almost done" in page.data
-    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "19", "attempt": "0"})
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "29", "attempt": "0"})
     assert r.status_code == 302
     done = client.get("/study/demo/")
     assert b"DEMO-DONE-7F3A" in done.data
     with app.app_context():
         p = db.session.query(Participant).one()
-        assert p.status == "completed" and p.code == "DEMO-DONE-7F3A" and p.acked_seq == 19
+        assert p.status == "completed" and p.code == "DEMO-DONE-7F3A" and p.acked_seq == 29 and p.flags == []
         assert p.consent_version == "demo-2026-11" and p.study_hash == app.extensions["studies"]["demo"].study.hash
-        assert db.session.query(Event).count() == 20
+        assert db.session.query(Event).count() == 30
         assert all(t.done_at is not None for t in db.session.query(Trial).filter_by(participant_id=p.id))
         answers = {s.survey: s.answers for s in db.session.query(SurveyResponse)}
         assert answers["demographics"] == {"age": 31, "experience_3d": "Never", "pointing_device": "Trackpad"}
@@ -35,12 +35,12 @@ def test_the_completion_code_waits_for_the_last_events(client, app):
     b = to_trials(client)
     finish_all_trials(client, b)
     page = client.get("/study/demo/")
-    # the client says its last event is seq 25, but the server holds up to 19: not complete yet
-    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "25", "attempt": "0"})
+    # the client says its last event is seq 35, but the server holds up to 29: not complete yet
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "35", "attempt": "0"})
     assert r.status_code == 202 and b"Saving your work" in r.data and b'name="attempt" value="1"' in r.data
-    events = [{"seq": s, "t": 1.0, "type": "focus", "trial": None, "payload": {"state": "blur"}} for s in range(20, 26)]
+    events = [{"seq": s, "t": 1.0, "type": "focus", "trial": None, "payload": {"state": "blur"}} for s in range(30, 36)]
     client.post("/api/events", headers=auth(b), json={"page_id": "exit", "events": events})
-    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "25", "attempt": "1"})
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "35", "attempt": "1"})
     assert r.status_code == 302 and b"DEMO-DONE" in client.get("/study/demo/").data
 
 

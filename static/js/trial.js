@@ -177,6 +177,7 @@ async function main() {
       r = await api("/suggest", { method: "POST", body: JSON.stringify({ trial: trial.index, parent: hit.objectId,
         point: hit.point.toArray(), normal: hit.normal.toArray(), scene: scene.objectsJSON() }) });
     } catch (err) { say(strings.suggestOffline); return; }
+    if (r.status === 410) { say(strings.ended, { action: strings.continue, onAction: () => location.assign(boot.next) }); return; }
     if (!r.ok) { say(strings.suggestOffline); return; }
     const data = await r.json();
     window.sceneSuggestTest.lastSuggest = { ...data, hit: { parent: hit.objectId, point: hit.point.toArray(), normal: hit.normal.toArray() } };
