@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import re
 
-from sqlalchemy import func, select, update
+from sqlalchemy import case, func, select, update
 
 from scenesuggest.events import EventError, validate_batch
 
@@ -108,15 +108,14 @@ def store(participant: Participant, page_id: str, events: list, quota: tuple[int
                                                or participant.bytes_stored + size > quota[1]):
             db.session.rollback()
             raise OverQuota()
-        if inserted:
-            db.session.execute(update(Participant).where(Participant.id == participant.id).values(
-                events_stored=Participant.events_stored + len(inserted),
-                bytes_stored=Participant.bytes_stored + size))
+    else:
+        inserted, size = set(), 0
     acked = contiguous_seq(participant.id, participant.acked_seq + 1)
-    # only ever move acked_seq forwards, even when a slower parallel batch commits after a faster one
-    db.session.execute(update(Participant).where(Participant.id == participant.id, Participant.acked_seq < acked)
-                       .values(acked_seq=acked))
-    db.session.execute(update(Participant).where(Participant.id == participant.id).values(last_seen_at=now))
+    # one statement: acked_seq only ever moves forwards (a slower parallel batch may commit after a faster one)
+    db.session.execute(update(Participant).where(Participant.id == participant.id).values(
+        acked_seq=case((Participant.acked_seq < acked, acked), else_=Participant.acked_seq),
+        events_stored=Participant.events_stored + len(inserted), bytes_stored=Participant.bytes_stored + size,
+        last_seen_at=now))
     db.session.commit()
     return participant.acked_seq  # reloaded after the commit
 
