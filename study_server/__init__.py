@@ -30,8 +30,13 @@ def _sqlite_pragmas(dbapi_connection, _record) -> None:
 def _private_sqlite_file(url: str) -> None:
     """Create the SQLite database file readable by its owner only (0600); SQLite gives its WAL and shared-memory
     files the database file's permissions."""
+    import sqlite3
+
     from sqlalchemy.engine import make_url
 
+    if sqlite3.sqlite_version_info < (3, 35, 0):  # ingestion needs INSERT … RETURNING
+        raise settings.ConfigError(f"SQLite {sqlite3.sqlite_version} is too old (3.35 or newer is needed); use a "
+                                   "newer Python or PostgreSQL", field="DATABASE_URL")
     name = make_url(url).database
     if not name or name == ":memory:" or name.startswith("file:"):
         return

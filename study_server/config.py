@@ -91,9 +91,12 @@ def ensure_admin_password(instance: Path) -> Path | None:
     path is printed by ``make serve``); returns the password file when one was created or still exists."""
     from werkzeug.security import generate_password_hash
 
-    instance.mkdir(parents=True, exist_ok=True)
+    instance.mkdir(mode=0o700, parents=True, exist_ok=True)
     if os.environ.get("SCENESUGGEST_ADMIN_PASSWORD_HASH"):
         return None
+    for secret in (instance / ADMIN_FILE, instance / PASSWORD_FILE):  # made by an older version: keep them private
+        if secret.exists() and secret.stat().st_uid == os.getuid():
+            secret.chmod(0o600)
     if not (instance / ADMIN_FILE).exists():
         password = secrets.token_urlsafe(12)
         fd = os.open(instance / PASSWORD_FILE, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)

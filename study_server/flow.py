@@ -12,7 +12,7 @@ import math
 import re
 from datetime import timedelta
 
-from sqlalchemy import case, func, select
+from sqlalchemy import case, func, select, update
 
 from .extensions import db
 from .models import Event, Participant, SurveyResponse, Trial, flag, log, utcnow
@@ -33,12 +33,15 @@ def current_trial(p: Participant) -> Trial | None:
 
 
 def _finish(p: Participant, study: Study, status: str, code_key: str) -> None:
-    if p.status != "in_progress":  # an exclusion (or an earlier end) is final
-        raise ValueError(f"the session has already ended ({p.status})")
-    p.status = status
-    p.step = "done"
-    p.code = study.codes[code_key]
-    p.finished_at = utcnow()
+    """End the session, only if it is still in progress as stored now: an exclusion (or an earlier end) that
+    committed meanwhile is final."""
+    values = {"status": status, "step": "done", "code": study.codes[code_key], "finished_at": utcnow()}
+    ended = db.session.execute(update(Participant).where(Participant.id == p.id, Participant.status == "in_progress")
+                               .values(**values))
+    if ended.rowcount != 1:
+        raise ValueError("the session has already ended")
+    for key, value in values.items():
+        setattr(p, key, value)
     log("finish", p, status=status)
 
 

@@ -16,7 +16,7 @@ import re
 
 from sqlalchemy import case, func, select, update
 
-from scenesuggest.events import EventError, validate_batch
+from scenesuggest.events import MAX_SEQ, EventError, validate_batch
 
 from .extensions import db
 from .models import Event, Participant, log, utcnow
@@ -60,13 +60,20 @@ def _same(stored: Event, e: dict) -> bool:
 
 
 def _conflicts(participant_id: int, batch: list[dict], inserted: set[int]) -> list[int]:
-    """Positions of batch events whose seq was already stored with other content."""
+    """Positions of batch events whose seq was already stored with other content, and that are not stored
+    under another seq either (a copy renumbered by another tab counts as stored)."""
     rest = {e["seq"]: i for i, e in enumerate(batch) if e["seq"] not in inserted}
     if not rest:
         return []
     stored = db.session.scalars(select(Event).where(Event.participant_id == participant_id,
                                                     Event.seq.in_(list(rest))))
-    return sorted(rest[s.seq] for s in stored if not _same(s, batch[rest[s.seq]]))
+    differing = sorted(rest[s.seq] for s in stored if not _same(s, batch[rest[s.seq]]))
+    if not differing:
+        return []
+    times = {batch[i]["t"] for i in differing}
+    elsewhere = list(db.session.scalars(select(Event).where(Event.participant_id == participant_id,
+                                                            Event.client_t.in_(list(times)))))
+    return [i for i in differing if not any(_same(s, batch[i]) for s in elsewhere)]
 
 
 def contiguous_seq(participant_id: int, start: int) -> int:
@@ -104,18 +111,21 @@ def store(participant: Participant, page_id: str, events: list, quota: tuple[int
         if nbytes is None:
             nbytes = sum(len(json.dumps(e["payload"])) for e in batch)
         size = nbytes * len(inserted) // len(batch)
-        if quota is not None and inserted and (participant.events_stored + len(inserted) > quota[0]
-                                               or participant.bytes_stored + size > quota[1]):
-            db.session.rollback()
-            raise OverQuota()
     else:
         inserted, size = set(), 0
     acked = contiguous_seq(participant.id, participant.acked_seq + 1)
-    # one statement: acked_seq only ever moves forwards (a slower parallel batch may commit after a faster one)
-    db.session.execute(update(Participant).where(Participant.id == participant.id).values(
+    # one statement: acked_seq only ever moves forwards (a slower parallel batch may commit after a faster one);
+    # the quota is checked on the row as it is now, so parallel batches cannot each slip under it
+    where = [Participant.id == participant.id]
+    if quota is not None and inserted:
+        where += [Participant.events_stored + len(inserted) <= quota[0], Participant.bytes_stored + size <= quota[1]]
+    counted = db.session.execute(update(Participant).where(*where).values(
         acked_seq=case((Participant.acked_seq < acked, acked), else_=Participant.acked_seq),
         events_stored=Participant.events_stored + len(inserted), bytes_stored=Participant.bytes_stored + size,
         last_seen_at=now))
+    if counted.rowcount != 1:
+        db.session.rollback()
+        raise OverQuota()
     db.session.commit()
     return participant.acked_seq  # reloaded after the commit
 
@@ -124,6 +134,8 @@ def _refuse_conflict(participant: Participant, page_id: str, batch: list[dict], 
     db.session.rollback()
     stored = db.session.scalar(select(func.max(Event.seq)).where(Event.participant_id == participant.id))
     next_seq = max(-1 if stored is None else stored, *(e["seq"] for e in batch)) + 1
+    if next_seq + len(positions) > MAX_SEQ:  # someone stored the largest seqs: fill from the first gap instead
+        next_seq = contiguous_seq(participant.id, participant.acked_seq + 1) + 1
     seqs = [batch[i]["seq"] for i in positions]
     log("event_conflict", participant, page_id=page_id, seqs=seqs[:50], next_seq=next_seq)
     db.session.commit()

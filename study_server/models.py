@@ -161,7 +161,10 @@ def log(kind: str, participant: Participant | None = None, study_id: str | None 
 
 
 def flag(participant: Participant, reason: str) -> None:
-    """Mark a participant for the experimenter's review (shown in the admin, exported), and log it."""
+    """Mark a participant for the experimenter's review (shown in the admin, exported), and log it. A reason
+    is recorded once (whoever repeats a refused request cannot grow the list)."""
+    if any(f.get("reason") == reason for f in participant.flags or []):
+        return
     participant.flags = [*(participant.flags or []), {"reason": reason, "at": utcnow().isoformat()}]
     log("flagged", participant, reason=reason)
 

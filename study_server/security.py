@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import ipaddress
 import secrets
 from datetime import timedelta
 from functools import wraps
@@ -19,6 +20,8 @@ from .models import AdminSession, LoginAttempt, utcnow
 #: Failed admin logins allowed per client (device or address) within the window before answering 429.
 LOGIN_LIMIT = 5
 LOGIN_WINDOW = timedelta(minutes=15)
+#: Failed logins from all clients without a device cookie together, within the window.
+ANONYMOUS_LOGIN_LIMIT = 50
 #: An admin session ends after this long, or after this long without a request.
 ADMIN_LIFETIME = timedelta(hours=8)
 ADMIN_IDLE = timedelta(hours=1)
@@ -35,7 +38,7 @@ def csrf_token() -> str:
 
 def csrf_ok(sent: str | None) -> bool:
     """Whether ``sent`` is this browser session's form token."""
-    return bool(sent) and hmac.compare_digest(sent, session.get("csrf", ""))
+    return bool(sent) and hmac.compare_digest(sent.encode(), session.get("csrf", "").encode())
 
 
 def check_csrf() -> None:
@@ -48,10 +51,24 @@ def client_ip() -> str:
     return (request.remote_addr or "unknown")[:64]
 
 
+def client_network() -> str:
+    """The client's address as limits count it: an IPv6 client by its /64 (one subscriber's whole block)."""
+    address = client_ip()
+    try:
+        ip = ipaddress.ip_address(address)
+    except ValueError:
+        return address
+    if ip.version == 6:
+        if ip.ipv4_mapped is not None:
+            return str(ip.ipv4_mapped)
+        return str(ipaddress.ip_network(f"{ip}/64", strict=False))
+    return str(ip)
+
+
 def address_key() -> str:
     """A keyed hash of the client's address: enough to count arrivals per address, not the address itself."""
     key = current_app.config["SECRET_KEY"].encode()
-    return hmac.new(key, client_ip().encode(), "sha256").hexdigest()[:32]
+    return hmac.new(key, client_network().encode(), "sha256").hexdigest()[:32]
 
 
 class LoginBlocked(Exception):
@@ -68,7 +85,7 @@ def _client_key() -> str:
             return "device:" + _device_signer().loads(device, max_age=DEVICE_LIFETIME.total_seconds())[:48]
         except (BadSignature, TypeError):
             pass
-    return "ip:" + client_ip()
+    return "ip:" + client_network()
 
 
 def _device_signer() -> URLSafeTimedSerializer:
@@ -84,10 +101,12 @@ def attempt_login(password: str) -> str | None:
     attempt = LoginAttempt(ip=key, ok=None, at=utcnow())
     db.session.add(attempt)
     db.session.commit()
-    counted = db.session.scalar(select(func.count()).select_from(LoginAttempt).where(
-        LoginAttempt.ip == key, or_(LoginAttempt.ok.is_(False), LoginAttempt.ok.is_(None)),
-        LoginAttempt.at >= utcnow() - LOGIN_WINDOW))
-    if counted > LOGIN_LIMIT:
+    failing = (or_(LoginAttempt.ok.is_(False), LoginAttempt.ok.is_(None)), LoginAttempt.at >= utcnow() - LOGIN_WINDOW)
+    counted = db.session.scalar(select(func.count()).select_from(LoginAttempt).where(LoginAttempt.ip == key, *failing))
+    # clients without a device cookie also share one cap, so that many addresses do not buy many guesses
+    anonymous = db.session.scalar(select(func.count()).select_from(LoginAttempt).where(
+        LoginAttempt.ip.like("ip:%"), *failing)) if key.startswith("ip:") else 0
+    if counted > LOGIN_LIMIT or anonymous > ANONYMOUS_LOGIN_LIMIT:
         db.session.delete(attempt)
         db.session.commit()
         raise LoginBlocked()

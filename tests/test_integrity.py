@@ -410,3 +410,77 @@ def test_database_files_and_admin_secrets_are_private(tmp_path, demo_resources):
         assert f.exists(), f
         assert stat.S_IMODE(f.stat().st_mode) == 0o600, (f, oct(f.stat().st_mode))
     assert stat.S_IMODE((tmp_path / "instance").stat().st_mode) == 0o700
+
+
+# --- after review: the same attacks by other routes -----------------------------------------------------------------
+def test_surrogates_sent_as_raw_bytes_and_deep_bodies_are_refused_not_stored(app_on):
+    c = app_on.test_client()
+    b = to_trials(c)
+    head = {**auth(b), "Content-Type": "application/json"}
+    raw = b'{"trial": -1, "scene": {"objects": [{"id": "x\xed\xa0\x80y"}]}}'  # a surrogate as (invalid) UTF-8
+    r = c.post("/api/trial/done", data=raw, headers=head)
+    assert r.status_code == 422 and r.json["field"] == "scene.objects[0].id"
+    r = c.post("/api/suggest", data=b'{"trial": -1, "parent": "\xed\xbf\xbf"}', headers=head)
+    assert r.status_code == 422 and r.json["field"] == "parent"
+    deep = b'{"trial": -1, "scene": ' + b"[" * 980 + b'"\\udfff"' + b"]" * 980 + b"}"
+    r = c.post("/api/trial/done", data=deep, headers=head)
+    assert r.status_code in (400, 422) and "Traceback" not in r.get_data(as_text=True)
+    assert c.get("/api/search?q=a%00b", headers=auth(b)).status_code == 400
+    with app_on.app_context():
+        assert db.session.query(Trial).filter(Trial.done_at.is_not(None)).count() == 0
+
+
+def test_a_form_token_that_is_not_ascii_is_an_expired_form_not_a_crash(client):
+    enter(client)
+    r = client.post("/study/demo/consent", data={"csrf_token": "é", "agree": "yes"})
+    assert r.status_code == 400 and b"expired" in r.data
+
+
+def test_an_event_another_tab_already_stored_under_a_new_seq_is_acknowledged(app_on):
+    c = app_on.test_client()
+    b = to_trials(c)
+    mine = event(0, text="mine")
+    assert post_events(c, b, [event(0, text="theirs"), dict(mine, seq=1)]).json["acked_seq"] == 1
+    r = post_events(c, b, [mine])  # this page still holds it under its first seq
+    assert r.status_code == 200 and r.json["acked_seq"] == 1
+    with app_on.app_context():
+        assert db.session.query(Event).count() == 2
+
+
+def test_a_study_without_its_prolific_id_configured_takes_links_without_study_id(tmp_path, demo_resources):
+    path = study_copy(tmp_path, platform="prolific")
+    path.write_text(path.read_text().replace(f'study_id = "{STUDY}"', ""))
+    app = make_app(tmp_path, studies=[path])
+    assert app.test_client().get(f"/study/demo/start?PROLIFIC_PID={PID}").status_code == 302
+
+
+def test_login_limits_count_an_ipv6_block_as_one_client_and_cap_all_anonymous_clients(app_on, monkeypatch):
+    from study_server import security
+
+    def guess(address, password="guess"):
+        c = app_on.test_client()
+        c.environ_base["REMOTE_ADDR"] = address
+        page = c.get("/admin/login")
+        return c.post("/admin/login", data={"csrf_token": csrf(page), "password": password}).status_code
+    codes = [guess(f"2001:db8:0:1::{i}") for i in range(1, 8)]  # one /64: one client
+    assert codes == [401] * 5 + [429] * 2
+    assert guess("2001:db8:0:2::1", PASSWORD) == 302  # the next /64 is another client
+    monkeypatch.setattr(security, "ANONYMOUS_LOGIN_LIMIT", 8)
+    codes = [guess(f"10.0.0.{i}") for i in range(1, 6)]  # every address new: the shared cap stops them
+    assert codes.count(429) >= 2 and guess("10.0.1.1", PASSWORD) == 429
+
+
+def test_an_exclusion_committed_while_the_exit_survey_is_submitted_wins(app_on):
+    from study_server import flow
+
+    c = app_on.test_client()
+    to_trials(c)
+    with app_on.app_context():
+        study = app_on.extensions["studies"]["demo"].study
+        p = db.session.query(Participant).one()  # loaded as in progress …
+        with db.engine.begin() as other:  # … while the experimenter's exclusion commits
+            other.execute(Participant.__table__.update().values(status="excluded"))
+        with pytest.raises(ValueError):
+            flow.submit_exit(p, study, {})
+        db.session.rollback()
+        assert db.session.query(Participant).one().status == "excluded"

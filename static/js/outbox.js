@@ -9,8 +9,12 @@
 
 const MAX_BATCH = 200;
 const MAX_BACKOFF_MS = 30000;
-/** What tells two events apart when their seqs change: the client time (sub-millisecond) and type. */
-const identity = (e) => `${e.t}|${e.type}`;
+/** What tells two events apart when their seqs change: a random id kept with the event in this browser (never
+ * sent); entries stored by an older page without one fall back to their client time and type. */
+const identity = (e) => e.uid || `${e.t}|${e.type}`;
+const newId = () => (crypto.randomUUID ? crypto.randomUUID() : `${Date.now()}-${Math.random()}`);
+/** The event as the server takes it (the local id stays here). */
+const wire = ({ uid, ...event }) => event;
 
 export class Outbox {
   constructor({ api, token, pageId, study, onStatus = () => {} }) {
@@ -39,7 +43,8 @@ export class Outbox {
     try {
       const saved = JSON.parse(localStorage.getItem(this.key) || "null");
       if (saved && Array.isArray(saved.pending)) state = saved;
-    } catch (e) { /* a corrupt entry starts afresh */ }
+    } catch (e) { /* blocked or corrupt: this page's own copy below */ }
+    if (!state && this.memory) state = JSON.parse(JSON.stringify(this.memory));  // storage blocked or cleared
     state = state || { nextSeq: 0, acked: -1, pending: [] };
     if (!this.mine || !this.mine.size) return state;
     const held = new Map(state.pending.map((e) => [identity(e), e]));
@@ -57,16 +62,19 @@ export class Outbox {
 
   write(state) {
     this.nextSeq = state.nextSeq;
+    this.memory = state;
     try {
       localStorage.setItem(this.key, JSON.stringify(state));
     } catch (e) { /* storage full or blocked: events stay in memory for this page */ }
   }
 
-  /** Forget events the server acknowledged (``acked``: every seq up to it is stored) among those ``sent``. */
+  /** Forget the events of ``sent`` that the server acknowledged (``acked``: every seq up to it is stored).
+   * Others stay, even under an acknowledged seq: sent again, the server acknowledges them if it holds them
+   * and asks for new seqs if it holds something else there. */
   acknowledge(state, sent, acked) {
     state.acked = Math.max(state.acked, acked);
     const done = new Set(sent.filter((e) => e.seq <= acked).map(identity));
-    state.pending = state.pending.filter((e) => !done.has(identity(e)) && e.seq > state.acked);
+    state.pending = state.pending.filter((e) => !done.has(identity(e)));
     for (const id of done) this.mine.delete(id);
   }
 
@@ -90,7 +98,8 @@ export class Outbox {
   log(type, payload = {}, trial = null) {
     if (this.stopped) return -1;
     const state = this.read();
-    const event = { seq: state.nextSeq, t: performance.timeOrigin + performance.now(), type, trial, payload };
+    const event = { seq: state.nextSeq, t: performance.timeOrigin + performance.now(), type, trial, payload,
+      uid: newId() };
     state.nextSeq += 1;
     state.pending.push(event);
     this.mine.set(identity(event), event);
@@ -125,7 +134,7 @@ export class Outbox {
         response = await fetch(`${this.api}/events`, {
           method: "POST", keepalive,
           headers: { "Content-Type": "application/json", Authorization: `Bearer ${this.token}` },
-          body: JSON.stringify({ page_id: this.pageId, events: batch }),
+          body: JSON.stringify({ page_id: this.pageId, events: batch.map(wire) }),
         });
       } catch (e) {
         this.retryLater();
@@ -133,14 +142,15 @@ export class Outbox {
       }
       if (response.status === 422) {  // a malformed event would block the queue forever: set it aside
         const problem = await response.json().catch(() => ({}));
-        const bad = /^events\[(\d+)\]/.exec(problem.field || "");
-        const rejected = batch[bad ? Number(bad[1]) : 0];
+        const bad = /^events\[(\d+)\]\.(payload|type)/.exec(problem.field || "");
+        if (!bad) { this.retryLater(); return false; }  // not one event's content: nothing to set aside
+        const rejected = batch[Number(bad[1])];
         const now = this.read();
         const index = now.pending.findIndex((e) => identity(e) === identity(rejected));
         if (index < 0) continue;
         const [dropped] = now.pending.splice(index, 1);
         this.mine.delete(identity(dropped));
-        const note = { seq: dropped.seq, t: dropped.t, type: "client_error", trial: dropped.trial,
+        const note = { seq: dropped.seq, t: dropped.t, type: "client_error", trial: dropped.trial, uid: newId(),
           payload: { message: `rejected ${dropped.type}: ${problem.field} ${problem.error}`.slice(0, 1900) } };
         now.pending.push(note);
         this.mine.set(identity(note), note);

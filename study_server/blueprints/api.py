@@ -91,8 +91,9 @@ def caller() -> Participant | Preview:
     return p
 
 
-#: A JSON escape that may decode to text no database can store: a surrogate (paired ones are fine) or NUL.
-SUSPECT_ESCAPE = re.compile(rb"\\u(?:[dD][89a-fA-F]|0000)")
+#: What may decode to text no database can store: a JSON escape of a surrogate (paired ones are fine) or of NUL,
+#: or a surrogate encoded as raw bytes (Python's json decoder lets those through).
+SUSPECT_ESCAPE = re.compile(rb"\\u(?:[dD][89a-fA-F]|0000)|\xed[\xa0-\xbf]")
 
 
 def _check_strings(value, path: str) -> None:
@@ -118,7 +119,10 @@ def body() -> dict:
     if not isinstance(data, dict):
         raise ApiError(400, "expected a JSON object body", "body")
     if SUSPECT_ESCAPE.search(request.get_data(cache=True)):  # rare: only then walk the document
-        _check_strings(data, "body")
+        try:
+            _check_strings(data, "body")
+        except RecursionError:
+            raise ApiError(400, "the JSON is nested too deeply", "body") from None
     return data
 
 
@@ -291,6 +295,8 @@ def search():
     text = request.args.get("q", "")
     if len(text) > 200:
         raise ApiError(400, "at most 200 characters", "q")
+    if text_problem(text):
+        raise ApiError(400, text_problem(text), "q")
     _open(who)
     try:
         limit = int(request.args.get("limit", 60))

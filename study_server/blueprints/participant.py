@@ -89,7 +89,8 @@ def _platform_identity(study, args) -> tuple[str, dict]:
         return v
 
     if study.platform == "prolific":
-        meta = {"PROLIFIC_PID": value("PROLIFIC_PID", PROLIFIC_ID), "STUDY_ID": value("STUDY_ID", PROLIFIC_ID),
+        meta = {"PROLIFIC_PID": value("PROLIFIC_PID", PROLIFIC_ID),
+                "STUDY_ID": value("STUDY_ID", PROLIFIC_ID, required=bool(study.platform_study_id)),
                 "SESSION_ID": value("SESSION_ID", PROLIFIC_ID, required=False)}
         if study.platform_study_id and meta["STUDY_ID"] != study.platform_study_id:
             raise EntryError("STUDY_ID is not this study's Prolific id")
@@ -110,7 +111,7 @@ def _proves(p: Participant, meta: dict) -> bool:
     SESSION_ID or MTurk's assignmentId, as first seen. A bare id (or a plain link's pid) proves nothing."""
     key = {"prolific": "SESSION_ID", "mturk": "assignmentId"}.get(p.platform)
     mine = (p.platform_meta or {}).get(key) if key else None
-    return bool(mine) and hmac.compare_digest(mine, meta.get(key) or "")
+    return bool(mine) and hmac.compare_digest(str(mine).encode(), (meta.get(key) or "").encode())
 
 
 def _entry_page(study, message: str, status: int):
@@ -125,9 +126,8 @@ def start(study_id: str):
         return render_template("mturk_preview.html", study=study)
     try:
         platform_id, meta = _platform_identity(study, request.args)
-    except EntryError as e:
-        log("entry_refused", study_id=study_id, reason=str(e))
-        db.session.commit()
+    except EntryError as e:  # the application log, not the database: anyone can send these
+        current_app.logger.info("entry refused for study %s: %s", study_id, e)
         return _entry_page(study, f"This link cannot start the study: {e}. Please open the study from the link "
                                   "on your crowdsourcing platform.", 422)
     if study.platform != "link" and not platform_id:
@@ -146,8 +146,7 @@ def start(study_id: str):
         p, created = assignment.arrive(study, study.platform, platform_id, meta,
                                        request.headers.get("User-Agent", ""), address_key())
     except assignment.QuotaExceeded:
-        log("quota", study_id=study_id, what="arrivals")
-        db.session.commit()
+        current_app.logger.warning("arrival quota reached for an address in study %s", study_id)
         return _entry_page(study, "Too many people have started this study from your network in the last hour. "
                                   "Please try again later.", 429)
     if created and mine is not None:  # one browser, a second id: flag both for the experimenter
@@ -235,6 +234,14 @@ def _trial_page(rt, p: Participant):
                            boot=boot, scene_title=rt.study.scenes[t.scene_id].title)
 
 
+def _unless_ended(step, p: Participant, *args) -> None:
+    """Run a step that may end the session; when an exclusion committed meanwhile, change nothing."""
+    try:
+        step(p, *args)
+    except ValueError:
+        db.session.rollback()
+
+
 def _post_participant(study_id: str) -> Participant | None:
     """The posting participant, or None when their session has ended (the caller shows the end page)."""
     check_csrf()
@@ -254,7 +261,7 @@ def device(study_id: str):
     study = runtime(study_id).study
     p = _post_participant(study_id)
     if p is not None and p.step == "device":
-        flow.check_device(p, study, request.form)
+        _unless_ended(flow.check_device, p, study, request.form)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
 
@@ -266,8 +273,9 @@ def consent(study_id: str):
     if p is not None and p.step == "consent":
         agree = request.form.get("agree") == "yes"
         if agree:
-            assignment.assign(study, p)  # a schedule row and trials only now (commits)
-        flow.give_consent(p, study, agree)
+            assignment.assign(study, p)  # a schedule row and trials only now (commits; p is fresh after it)
+        if p.step == "consent" and p.status == "in_progress":  # another tab may have moved on meanwhile
+            _unless_ended(flow.give_consent, p, study, agree)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
 
@@ -320,7 +328,7 @@ def exit_survey(study_id: str):
                                    last_seq=last_seq), 202
         if p.acked_seq < last_seq:  # documented fallback: the network is gone, complete anyway
             log("completed_with_missing_events", p, acked_seq=p.acked_seq, last_seq=last_seq)
-        flow.submit_exit(p, study, answers)
+        _unless_ended(flow.submit_exit, p, study, answers)
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
     return _survey(study_id, "exit", runtime(study_id).study.exit_survey, submit, "Almost done")
