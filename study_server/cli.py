@@ -1,0 +1,138 @@
+"""``scenesuggest schedule …`` and ``scenesuggest study …``: study files, the study server and its data from the
+command line. Registered lazily by the main command (``scenesuggest.cli``), so the engine never imports the server.
+Errors (:class:`scenesuggest.errors.SceneSuggestError`) print ``Error: …`` and exit with 2 through its handler.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import click
+
+from scenesuggest.cli import emit
+from scenesuggest.errors import SceneSuggestError
+
+from . import config, create_app, upgrade_database
+from .export import export_to
+from .runtime import load_studies
+from .schedule import williams_square
+
+
+@click.group()
+def schedule() -> None:
+    """Balanced orders for within-subject designs."""
+
+
+@schedule.command("williams")
+@click.argument("n", type=click.IntRange(min=1, max=26))
+@click.option("--json", "as_json", is_flag=True)
+def schedule_williams_cmd(n: int, as_json: bool) -> None:
+    """The rows of a Williams design for N conditions (0-based condition indices)."""
+    rows = williams_square(n)
+    letters = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
+    emit({"n": n, "rows": rows}, as_json,
+         "\n".join(f"row {i:>2}: " + " ".join(letters[c] for c in r) for i, r in enumerate(rows)))
+
+
+@click.group()
+def study() -> None:
+    """Study files, the study server and its data."""
+
+
+@study.command("validate")
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--resources/--no-resources", default=True, help="Also check the priors file and model library.")
+@click.option("--json", "as_json", is_flag=True)
+def study_validate_cmd(file: str, resources: bool, as_json: bool) -> None:
+    """Check a study file (keys, scenes, and optionally its priors and library); errors name the key."""
+    rt = next(iter(load_studies([Path(file)], check=resources).values()))
+    s = rt.study
+    info = {"id": s.id, "hash": s.hash, "conditions": [c.id for c in s.conditions], "rows": s.n_rows,
+            "trials_per_participant": len([t for t in s.plan(0) if t.kind == "trial"]), "scenes": list(s.scenes)}
+    emit(info, as_json, f"{file}: study {s.id!r} is valid — {len(s.conditions)} conditions, {s.n_rows} schedule "
+                        f"rows, {info['trials_per_participant']} trials per participant")
+
+
+@study.command("migrate")
+def study_migrate_cmd() -> None:
+    """Create or upgrade the database schema (DATABASE_URL, default: SQLite in the instance folder)."""
+    upgrade_database(create_app({"CHECK_RESOURCES": False}))
+    click.echo("database is at the newest schema revision")
+
+
+@study.command("serve")
+@click.option("--host", default="127.0.0.1", show_default=True)
+@click.option("--port", default=5000, show_default=True)
+@click.option("--workers", default=2, show_default=True)
+def study_serve_cmd(host: str, port: int, workers: int) -> None:
+    """Migrate, then serve the configured studies with gunicorn (SCENESUGGEST_STUDIES, DATABASE_URL)."""
+    app = create_app()
+    upgrade_database(app)
+    password_file = config.ensure_admin_password(config.instance_path())
+    base = f"http://{host}:{port}"
+    for study_id in app.extensions["studies"]:
+        click.echo(f"participant link: {base}/study/{study_id}/start?pid=YOUR-TEST-ID")
+    click.echo(f"admin:            {base}/admin/  (password in {password_file})" if password_file else
+               f"admin:            {base}/admin/  (password: the one whose hash is in "
+               "SCENESUGGEST_ADMIN_PASSWORD_HASH)")
+    sys.stdout.flush()
+    os.execv(sys.executable, [sys.executable, "-m", "gunicorn", "--workers", str(workers), "--bind",
+                              f"{host}:{port}", "--access-logfile", "-", "study_server:create_app()"])
+
+
+@study.command("export")
+@click.option("--study", "study_id", required=True, help="Study id.")
+@click.option("--out", "out", required=True, type=click.Path(file_okay=False))
+@click.option("--db", "database_url", default=None, help="Database URL (default: DATABASE_URL or the instance DB).")
+@click.option("--json", "as_json", is_flag=True)
+def study_export_cmd(study_id: str, out: str, database_url: str | None, as_json: bool) -> None:
+    """Write the study's tidy CSV tables, manifest.json and data dictionary to OUT."""
+    overrides = {"CHECK_RESOURCES": False}
+    if database_url:
+        overrides["SQLALCHEMY_DATABASE_URI"] = database_url
+    app = create_app(overrides)
+    if study_id not in app.extensions["studies"]:
+        raise SceneSuggestError(f"no study {study_id!r} among {', '.join(app.extensions['studies'])}",
+                                field="study")
+    with app.app_context():
+        manifest = export_to(app.extensions["studies"][study_id].study, Path(out))
+    emit(manifest, as_json, f"exported {study_id} to {out}: " + ", ".join(f"{n} {k}" for k, n in
+                                                                        manifest["row_counts"].items()))
+
+
+@study.command("simulate")
+@click.option("--participants", default=20, show_default=True, type=click.IntRange(min=1))
+@click.option("--seed", default=0, show_default=True)
+@click.option("--url", default=None, help="A running server (default: in process, on DATABASE_URL).")
+@click.option("--study", "study_id", default=None, help="Study id (default: the only configured study).")
+@click.option("--mix", is_flag=True, help="Mix in reloads, second tabs, repeated arrivals, resent batches and "
+                                          "drop-outs.")
+@click.option("--json", "as_json", is_flag=True)
+def study_simulate_cmd(participants: int, seed: int, url: str | None, study_id: str | None, mix: bool,
+                       as_json: bool) -> None:
+    """Simulated participants take the whole study through its HTTP interface; their operation times follow
+    the keystroke-level model applied to what the engine returns."""
+    from .bots import Behaviours
+    from .simulate import simulate
+
+    app = None
+    if url is None:
+        app = create_app()
+        upgrade_database(app)
+        if study_id is not None and study_id not in app.extensions["studies"]:
+            raise SceneSuggestError(f"no study {study_id!r} among {', '.join(app.extensions['studies'])}",
+                                    field="study")
+    elif study_id is None:
+        raise SceneSuggestError("name the study (--study) when simulating against --url", field="study")
+    summary = simulate(participants, seed, url=url, study=study_id, app=app,
+                       behaviours=Behaviours.mixed() if mix else None,
+                       progress=lambda label: click.echo(label, err=True))
+    means = ", ".join(f"{c} {s:.0f} s" for c, s in summary["mean_seconds"].items())
+    emit(summary, as_json, f"{summary['completed']}/{participants} participants completed {summary['trials']} "
+                           f"trials, {summary['events']} events ({summary['dropped_out']} dropped out); "
+                           f"mean trial time {means}"
+                           + "".join(f"\nfailed: {f['participant']}: {f['error']}" for f in summary["failures"]))
+    if summary["failures"]:
+        raise SceneSuggestError(f"{len(summary['failures'])} simulated participant(s) could not finish")
