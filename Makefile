@@ -10,7 +10,7 @@ NPM_STAMP := node_modules/.installed
 DEMO_LIBRARY := var/library/ai2thor/library.json
 DEMO_PRIORS := var/priors/ai2thor.npz
 
-.PHONY: setup demo demo-report demo-power replication serve-replication test lint audit pytest serve bench clean
+.PHONY: setup demo demo-report demo-power replication serve-replication test test-fast lint audit pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
@@ -52,6 +52,10 @@ pytest: setup
 	$(BIN)/pytest
 
 test: demo lint audit pytest
+
+# The inner loop: no browser, no PostgreSQL, no kill test (the whole suite is `make test`).
+test-fast: demo
+	$(BIN)/pytest -q -m "not browser and not postgresql and not slow"
 
 # A study of the demo with 20 simulated participants, exported and analysed (var/demo-report/report/README.md).
 DEMO_REPORT := var/demo-report

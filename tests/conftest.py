@@ -16,6 +16,18 @@ IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 sys.path.insert(0, str(ROOT / "benchmarks"))  # serverproc: the server as a subprocess, shared with the benchmarks
 
 
+def pytest_collection_modifyitems(config, items) -> None:
+    """Mark what needs Chromium (``browser``) or a PostgreSQL server (``postgresql``), so that ``make test-fast``
+    can leave them out; ``slow`` is set by hand on the longest tests."""
+    for item in items:
+        if item.path.name == "test_browser.py":
+            item.add_marker(pytest.mark.browser)
+        names = set(getattr(item, "fixturenames", ()))
+        params = getattr(getattr(item, "callspec", None), "params", {})
+        if {"postgres_url", "postgres_db"} & names or "postgresql" in params.values():
+            item.add_marker(pytest.mark.postgresql)
+
+
 def require(path: Path, what: str) -> Path:
     if not path.exists():
         message = f"{what} not found at {path} (set SCENESUGGEST_SHARED_DATA)"

@@ -51,6 +51,7 @@ def test_a_bot_completes_the_demo_and_everything_it_logged_is_stored(tmp_path, d
     assert survey["preference"] in {"The model list", "Suggestions", "Suggestions, oriented"}
 
 
+@pytest.mark.slow
 def test_simulated_study_over_real_http_feeds_the_report(tmp_path, demo_resources):
     with gunicorn(tmp_path) as (base, database):
         summary = simulate(3, seed=5, url=base, study="demo")
@@ -72,6 +73,7 @@ def test_simulation_is_reproducible_from_its_seed(tmp_path, demo_resources):
     assert a == b and a["completed"] == 2
 
 
+@pytest.mark.slow
 def test_cli_simulate_then_export_then_report(tmp_path, demo_resources):
     env = {**os.environ, "DATABASE_URL": f"sqlite:///{tmp_path / 's.sqlite3'}",
            "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"), "SCENESUGGEST_STUDIES": str(DEMO_STUDY)}
@@ -106,6 +108,7 @@ def test_replaced_picks_are_not_final():
     assert picks.loc[picks["final"], "rank"].tolist() == [3, 2]
 
 
+@pytest.mark.slow
 def test_mixed_behaviours_lose_nothing_and_duplicate_nothing(tmp_path, demo_resources):
     from study_server.bots import Behaviours
 

@@ -11,6 +11,8 @@ from scenesuggest.folds import grouped_folds, similar_groups
 from scenesuggest.priors import Priors
 from scenesuggest.suggest import ContextQuery, Engine
 
+pytestmark = pytest.mark.slow  # five grouped folds of the Stanford corpus
+
 
 @pytest.fixture(scope="module")
 def held_out(stanford):

@@ -53,6 +53,7 @@ def test_evaluation_on_a_synthetic_corpus():
     assert "ungrouped" not in plain and plain["grouping"]["group_similar"] is False
 
 
+@pytest.mark.slow
 def test_what_each_prior_buys_on_the_stanford_corpus(stanford):
     """A quick two-fold run on 60 scenes: the full score beats P(C | parent) alone, which beats frequency."""
     corpus = Corpus(stanford.source, stanford.scenes[:60], stanford.models, stanford.taxonomy)

@@ -7,9 +7,11 @@ import json
 import subprocess
 import sys
 
+import pytest
 from conftest import ROOT
 
 
+@pytest.mark.slow
 def test_participants_survive_repeated_kill_9_of_the_server(demo_resources):
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_kill.py"), "--participants", "6",
                            "--kills", "5", "--seed", "1"], capture_output=True, text=True, timeout=600, cwd=ROOT)

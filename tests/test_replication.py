@@ -138,6 +138,7 @@ def test_the_study_file_loads_with_two_periods_in_a_williams_design(replication)
     assert {"enjoy_list", "competent_list", "enjoy_suggestions", "competent_suggestions", "preference"} <= surveys
 
 
+@pytest.mark.slow
 def test_simulated_participants_complete_the_replication(replication, tmp_path):
     from study_server.simulate import simulate
 
