@@ -68,7 +68,9 @@ def create_app(config: dict | None = None) -> Flask:
 
     app.extensions["studies"] = load_studies(app.config["STUDY_FILES"], check=app.config.get("CHECK_RESOURCES", True))
 
+    from . import errors
     from .blueprints import admin, api, participant, vendor
+    from .importmap import IMPORT_MAP
     from .security import csrf_token, security_headers
 
     app.register_blueprint(vendor.bp)
@@ -77,22 +79,12 @@ def create_app(config: dict | None = None) -> Flask:
     app.register_blueprint(admin.bp)
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token
-    app.jinja_env.globals["import_map"] = vendor.IMPORT_MAP
+    app.jinja_env.globals["import_map"] = IMPORT_MAP
     app.jinja_env.globals["mturk_submit_hosts"] = participant.MTURK_SUBMIT
-    app.register_error_handler(HTTPException, _http_error)
+    app.register_error_handler(errors.RequestError, errors.answer)
+    app.register_error_handler(HTTPException, errors.http_error)
+    app.register_error_handler(Exception, errors.unexpected)
     return app
-
-
-def _http_error(e: HTTPException):
-    """Errors outside the blueprints' own handlers (unknown URLs, wrong methods): JSON under /api/, a calm
-    page everywhere else."""
-    from flask import jsonify, render_template, request
-
-    if request.path.startswith("/api/"):
-        return jsonify({"error": e.description or e.name, "field": None}), e.code
-    message = "This page does not exist. Please use the link you were given." if e.code in (404, 405) else \
-        (e.description or e.name)
-    return render_template("message.html", title="Sorry", message=message, study=None), e.code
 
 
 def upgrade_database(app: Flask) -> None:

@@ -17,7 +17,7 @@ from scenesuggest import scene_json
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.scene import Scene
 
-from .blueprints.api import ApiError
+from .errors import RequestError
 
 MAX_IMAGE_BYTES = 8 * 1024 * 1024
 MAX_IMAGE_PX = 4096
@@ -32,20 +32,20 @@ def checked_scene(doc, scene_id: str, library: dict) -> Scene:
     """A posted scene (native JSON) as ``scene_id``, after checking it parses, has a room and objects, and uses
     only models of the study's library."""
     if not isinstance(doc, dict):
-        raise ApiError(400, "expected a scene object (the native scene JSON)", "scene")
+        raise RequestError(400, "expected a scene object (the native scene JSON)", "scene")
     doc = {**doc, "id": scene_id}
     try:
         scene = scene_json.from_dict(doc, file="scene")
     except SceneSuggestError as e:
-        raise ApiError(400, e.message, f"scene.{e.field}" if e.field else "scene") from None
+        raise RequestError(400, e.message, f"scene.{e.field}" if e.field else "scene") from None
     objects = [o for o in scene if o.parent is not None]
     if not scene.roots():
-        raise ApiError(400, "the scene has no room (an object without a parent)", "scene.objects")
+        raise RequestError(400, "the scene has no room (an object without a parent)", "scene.objects")
     if not objects:
-        raise ApiError(400, "a target scene needs at least one object besides the room", "scene.objects")
+        raise RequestError(400, "a target scene needs at least one object besides the room", "scene.objects")
     for i, o in enumerate(doc.get("objects", [])):
         if o.get("parent") is not None and o.get("model_id") not in library:
-            raise ApiError(400, f"model {o.get('model_id')!r} is not in the study's model library",
+            raise RequestError(400, f"model {o.get('model_id')!r} is not in the study's model library",
                                  f"scene.objects[{i}].model_id")
     return scene
 
@@ -55,20 +55,20 @@ def checked_png(data_url) -> tuple[bytes, tuple[int, int]]:
     from PIL import Image, UnidentifiedImageError
 
     if not isinstance(data_url, str) or not data_url.startswith(PNG_PREFIX):
-        raise ApiError(400, f"expected a PNG data URL ({PNG_PREFIX}…)", "png")
+        raise RequestError(400, f"expected a PNG data URL ({PNG_PREFIX}…)", "png")
     if len(data_url) > MAX_IMAGE_BYTES * 4 // 3 + len(PNG_PREFIX) + 4:
-        raise ApiError(413, f"the image is larger than {MAX_IMAGE_BYTES // 2**20} MB", "png")
+        raise RequestError(413, f"the image is larger than {MAX_IMAGE_BYTES // 2**20} MB", "png")
     try:
         data = base64.b64decode(data_url[len(PNG_PREFIX):], validate=True)
         with Image.open(io.BytesIO(data)) as image:
             if image.format != "PNG":
-                raise ApiError(400, "not a PNG image", "png")
+                raise RequestError(400, "not a PNG image", "png")
             size = image.size
             image.verify()
     except (binascii.Error, ValueError):
-        raise ApiError(400, "the image is not valid base64", "png") from None
+        raise RequestError(400, "the image is not valid base64", "png") from None
     except (UnidentifiedImageError, OSError, SyntaxError):
-        raise ApiError(400, "not a readable PNG image", "png") from None
+        raise RequestError(400, "not a readable PNG image", "png") from None
     if max(size) > MAX_IMAGE_PX:
-        raise ApiError(400, f"the image is larger than {MAX_IMAGE_PX} px on a side", "png")
+        raise RequestError(400, f"the image is larger than {MAX_IMAGE_PX} px on a side", "png")
     return data, size

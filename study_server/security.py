@@ -1,4 +1,4 @@
-"""Tokens, CSRF, admin login and HTTP security headers."""
+"""Tokens (participants' CSRF, admin previews), admin login and sessions, and HTTP security headers."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from sqlalchemy import delete, func, or_, select
 from werkzeug.security import check_password_hash
 
 from .extensions import db
+from .importmap import IMPORT_MAP_HASH
 from .models import AdminSession, LoginAttempt, utcnow
 
 #: Failed admin logins allowed per client (device or address) within the window before answering 429.
@@ -69,6 +70,28 @@ def address_key() -> str:
     """A keyed hash of the client's address: enough to count arrivals per address, not the address itself."""
     key = current_app.config["SECRET_KEY"].encode()
     return hmac.new(key, client_network().encode(), "sha256").hexdigest()[:32]
+
+
+PREVIEW_SALT = "scenesuggest-preview"
+#: How long an admin's preview link works.
+PREVIEW_LIFETIME = timedelta(hours=12)
+
+
+def preview_token(study_id: str, condition: str, scene: str) -> str:
+    """A signed token that lets the admin's preview page use the API for one condition × scene, storing nothing."""
+    s = URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=PREVIEW_SALT)
+    return "preview." + s.dumps([study_id, condition, scene])
+
+
+def read_preview_token(token: str) -> tuple[str, str, str] | None:
+    """(study, condition, scene) of a valid preview token, else None."""
+    s = URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=PREVIEW_SALT)
+    try:
+        study_id, condition, scene = s.loads(token.removeprefix("preview."),
+                                             max_age=PREVIEW_LIFETIME.total_seconds())
+    except (BadSignature, ValueError, TypeError):
+        return None
+    return study_id, condition, scene
 
 
 class LoginBlocked(Exception):
@@ -171,8 +194,6 @@ def admin_required(view):
 def security_headers(response):
     """CSP allowing only this origin's scripts (and the one import map, by hash); frame-ancestors as configured
     for embedding platforms."""
-    from .blueprints.vendor import IMPORT_MAP_HASH
-
     ancestors = current_app.config.get("FRAME_ANCESTORS", "'self'")
     response.headers.setdefault(
         "Content-Security-Policy",

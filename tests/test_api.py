@@ -180,7 +180,7 @@ def test_trial_done_is_idempotent_and_keeps_the_final_scene(client, app):
 
 
 def test_preview_tokens_work_and_write_nothing(app):
-    from study_server.blueprints.api import preview_token
+    from study_server.security import preview_token
 
     c = app.test_client()
     with app.test_request_context():

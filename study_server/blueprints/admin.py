@@ -26,6 +26,7 @@ from scenesuggest import scene_json
 from scenesuggest.atomic import write_atomically
 
 from ..authoring import checked_png, checked_scene, image_path
+from ..errors import RequestError
 from ..export import export_zip
 from ..extensions import db
 from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
@@ -40,8 +41,8 @@ from ..security import (
     csrf_ok,
     csrf_token,
     end_admin_session,
+    preview_token,
 )
-from .api import ApiError, preview_token
 
 bp = Blueprint("admin", __name__, url_prefix="/admin")
 
@@ -218,23 +219,18 @@ def _frozen(study_id: str) -> int:
 
 def _authoring_request(study_id: str, scene_id: str, key: str):
     if not csrf_ok(request.headers.get("X-CSRF-Token")):
-        raise ApiError(400, "the page has expired; reload it and save again", "X-CSRF-Token")
+        raise RequestError(400, "the page has expired; reload it and save again", "X-CSRF-Token")
     rt = runtime(study_id)
     if scene_id not in rt.study.scenes:
-        raise ApiError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
+        raise RequestError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
     started = _frozen(study_id)
     if started:
-        raise ApiError(409, f"{started} participant(s) have started this study: its target scenes are frozen "
+        raise RequestError(409, f"{started} participant(s) have started this study: its target scenes are frozen "
                                   "(author on a copy of the study)", "scene_id")
     doc = request.get_json(silent=True)
     if not isinstance(doc, dict) or key not in doc:
-        raise ApiError(400, f"expected a JSON object with {key!r}", key)
+        raise RequestError(400, f"expected a JSON object with {key!r}", key)
     return rt, doc[key]
-
-
-@bp.errorhandler(ApiError)
-def _authoring_error(e: ApiError):
-    return jsonify({"error": e.message, "field": e.field}), e.status
 
 
 @bp.post("/<study_id>/author/<scene_id>")

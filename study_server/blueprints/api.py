@@ -10,53 +10,24 @@ import re
 import uuid
 from dataclasses import dataclass
 
-from flask import Blueprint, current_app, jsonify, request, url_for
-from itsdangerous import BadSignature, URLSafeTimedSerializer
+from flask import Blueprint, jsonify, request, url_for
 from sqlalchemy import select
-from werkzeug.exceptions import HTTPException
 
 from scenesuggest import frames, scene_json
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.events import EventError, json_schema, text_problem
 from scenesuggest.suggest import ContextQuery
 
-from .. import flow, ingest, storage
+from .. import flow, ingest
+from ..errors import RequestError
 from ..extensions import db
 from ..models import Participant, ShownList, Trial, log, utcnow
 from ..openapi import openapi_document
 from ..runtime import runtime
+from ..security import read_preview_token
 
 bp = Blueprint("api", __name__, url_prefix="/api")
 SUGGESTIONS_SHOWN = 40
-PREVIEW_SALT = "scenesuggest-preview"
-
-
-class ApiError(Exception):
-    def __init__(self, status: int, message: str, field: str | None = None, headers: dict | None = None,
-                 extra: dict | None = None):
-        super().__init__(message)
-        self.status, self.message, self.field = status, message, field
-        self.headers, self.extra = headers or {}, extra or {}
-
-
-@bp.errorhandler(ApiError)
-def _api_error(e: ApiError):
-    return jsonify({"error": e.message, "field": e.field, **e.extra}), e.status, e.headers
-
-
-@bp.errorhandler(HTTPException)
-def _http_error(e: HTTPException):
-    return jsonify({"error": e.description or e.name, "field": None}), e.code
-
-
-@bp.errorhandler(Exception)
-def _unexpected(e: Exception):  # never expected: logged, answered without a stack trace
-    db.session.rollback()
-    if storage.unavailable(e):
-        current_app.logger.error("database unavailable: %s", e)
-        return jsonify({"error": storage.MESSAGE, "field": None}), 503, {"Retry-After": str(storage.RETRY_AFTER_S)}
-    current_app.logger.exception("API failure")
-    return jsonify({"error": "internal error; the request was not applied", "field": None}), 500
 
 
 @dataclass
@@ -68,26 +39,19 @@ class Preview:
     scene: str
 
 
-def preview_token(study_id: str, condition: str, scene: str) -> str:
-    s = URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=PREVIEW_SALT)
-    return "preview." + s.dumps([study_id, condition, scene])
-
-
 def caller() -> Participant | Preview:
     header = request.headers.get("Authorization", "")
     if not header.startswith("Bearer ") or not header[7:].strip():
-        raise ApiError(401, "missing session token (Authorization: Bearer …)", "Authorization")
+        raise RequestError(401, "missing session token (Authorization: Bearer …)", "Authorization")
     token = header[7:].strip()
     if token.startswith("preview."):
-        s = URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=PREVIEW_SALT)
-        try:
-            study_id, condition, scene = s.loads(token[8:], max_age=12 * 3600)
-        except (BadSignature, ValueError, TypeError):
-            raise ApiError(401, "invalid preview token", "Authorization") from None
-        return Preview(study_id, condition, scene)
+        preview = read_preview_token(token)
+        if preview is None:
+            raise RequestError(401, "invalid preview token", "Authorization")
+        return Preview(*preview)
     p = db.session.scalar(select(Participant).where(Participant.token == token)) if len(token) <= 64 else None
     if p is None:
-        raise ApiError(401, "unknown session token", "Authorization")
+        raise RequestError(401, "unknown session token", "Authorization")
     return p
 
 
@@ -101,7 +65,7 @@ def _check_strings(value, path: str) -> None:
     if isinstance(value, str):
         problem = text_problem(value)
         if problem:
-            raise ApiError(422, problem, path)
+            raise RequestError(422, problem, path)
     elif isinstance(value, dict):
         for k, v in value.items():
             _check_strings(k, path)
@@ -115,14 +79,14 @@ def body() -> dict:
     try:
         data = request.get_json(silent=True)
     except RecursionError:  # json raises this, not a ValueError, for arrays nested thousands deep
-        raise ApiError(400, "the JSON is nested too deeply", "body") from None
+        raise RequestError(400, "the JSON is nested too deeply", "body") from None
     if not isinstance(data, dict):
-        raise ApiError(400, "expected a JSON object body", "body")
+        raise RequestError(400, "expected a JSON object body", "body")
     if SUSPECT_ESCAPE.search(request.get_data(cache=True)):  # rare: only then walk the document
         try:
             _check_strings(data, "body")
         except RecursionError:
-            raise ApiError(400, "the JSON is nested too deeply", "body") from None
+            raise RequestError(400, "the JSON is nested too deeply", "body") from None
     return data
 
 
@@ -144,7 +108,7 @@ def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
 def _open(who) -> None:
     """A session that has ended (completed, excluded, declined …) changes nothing any more."""
     if isinstance(who, Participant) and who.status not in ingest.OPEN:
-        raise ApiError(410, f"this session has ended (status {who.status!r})", "status",
+        raise RequestError(410, f"this session has ended (status {who.status!r})", "status",
                        extra={"status": who.status})
 
 
@@ -155,14 +119,14 @@ def _current(who) -> tuple[str, str, int]:
     _open(who)
     t = flow.current_trial(who)
     if t is None:
-        raise ApiError(409, f"no trial in progress (the session is at step {who.step!r})", "trial")
+        raise RequestError(409, f"no trial in progress (the session is at step {who.step!r})", "trial")
     return t.condition, t.scene_id, t.index
 
 
 def _check_trial(who, data: dict) -> tuple[str, str, int]:
     condition, scene, index = _current(who)
     if data.get("trial") != index:
-        raise ApiError(409, f"trial {data.get('trial')!r} is not the current trial ({index})", "trial")
+        raise RequestError(409, f"trial {data.get('trial')!r} is not the current trial ({index})", "trial")
     return condition, scene, index
 
 
@@ -212,7 +176,7 @@ def events():
         try:
             batch = validate_batch(data.get("events"))
         except EventError as e:
-            raise ApiError(422, e.message, e.field) from None
+            raise RequestError(422, e.message, e.field) from None
         return jsonify({"acked_seq": max((e["seq"] for e in batch), default=-1), "stored": False})
     study = runtime(who.study_id).study
     quota = (study.max_events_per_participant, int(study.max_mb_per_participant * 1024 * 1024))
@@ -220,31 +184,31 @@ def events():
         acked = ingest.store(who, data.get("page_id"), data.get("events"), quota, request.content_length)
     except EventError as e:
         db.session.rollback()
-        raise ApiError(422, e.message, e.field) from None
+        raise RequestError(422, e.message, e.field) from None
     except ingest.Closed:
-        raise ApiError(410, f"this session has ended (status {who.status!r}); no more events are taken",
+        raise RequestError(410, f"this session has ended (status {who.status!r}); no more events are taken",
                        "status", extra={"status": who.status}) from None
     except ingest.Conflict as e:
-        raise ApiError(409, f"{e}: send these events again from seq {e.next_seq}",
+        raise RequestError(409, f"{e}: send these events again from seq {e.next_seq}",
                        f"events[{e.positions[0]}].seq",
                        extra={"conflicts": e.positions, "next_seq": e.next_seq}) from None
     except ingest.OverQuota:
         log("quota", who, what="events")
         db.session.commit()
-        raise ApiError(429, "this session has stored as many events as a study allows", "events",
+        raise RequestError(429, "this session has stored as many events as a study allows", "events",
                        {"Retry-After": "300"}) from None
     return jsonify({"acked_seq": acked, "stored": True})
 
 
 def _live_scene(doc, scene_type: str):
     if not isinstance(doc, dict) or not isinstance(doc.get("objects"), list):
-        raise ApiError(400, "expected {\"objects\": [...]} in the native scene format", "scene")
+        raise RequestError(400, "expected {\"objects\": [...]} in the native scene format", "scene")
     full = {"format": scene_json.FORMAT, "version": scene_json.VERSION, "id": "live", "scene_type": scene_type,
             "source": "editor", "objects": doc["objects"]}
     try:
         return scene_json.from_dict(full, file="scene")
     except SceneSuggestError as e:
-        raise ApiError(400, e.message, f"scene.objects.{e.field}" if e.field else "scene") from None
+        raise RequestError(400, e.message, f"scene.objects.{e.field}" if e.field else "scene") from None
 
 
 @bp.post("/suggest")
@@ -253,7 +217,7 @@ def suggest():
     data = body()
     condition, scene_id, index = _check_trial(who, data)
     if condition == "none":
-        raise ApiError(403, "this trial's interface has no suggestions", "trial")
+        raise RequestError(403, "this trial's interface has no suggestions", "trial")
     rt = runtime(who.study_id)
     target_type = rt.scene(scene_id).get("scene_type", "Room")
     scene = _live_scene(data.get("scene"), target_type)
@@ -264,7 +228,7 @@ def suggest():
         found = engine.suggest(query, mode, top=SUGGESTIONS_SHOWN, only=rt.placeable(condition))
         surface = engine.prepare(query).surface_type
     except SceneSuggestError as e:
-        raise ApiError(400, e.message, e.field) from None
+        raise RequestError(400, e.message, e.field) from None
     items = []
     for s in found:
         models = [rt.library[m] for m in s.models if m in rt.library] or rt.by_category.get(s.category, [])
@@ -294,16 +258,16 @@ def search():
     who = caller()
     text = request.args.get("q", "")
     if len(text) > 200:
-        raise ApiError(400, "at most 200 characters", "q")
+        raise RequestError(400, "at most 200 characters", "q")
     if text_problem(text):
-        raise ApiError(400, text_problem(text), "q")
+        raise RequestError(400, text_problem(text), "q")
     _open(who)
     try:
         limit = int(request.args.get("limit", 60))
     except ValueError:
-        raise ApiError(400, "expected an integer", "limit") from None
+        raise RequestError(400, "expected an integer", "limit") from None
     if not 1 <= limit <= 200:
-        raise ApiError(400, "must be between 1 and 200", "limit")
+        raise RequestError(400, "must be between 1 and 200", "limit")
     rt = runtime(who.study_id)
     hits = rt.search_index.search(text, limit)
     list_id = uuid.uuid4().hex
@@ -332,10 +296,10 @@ def scene(scene_id: str):
     rt = runtime(who.study_id)
     allowed = {who.scene} if isinstance(who, Preview) else {t.scene_id for t in flow.trials(who)}
     if scene_id not in allowed or scene_id not in rt.study.scenes:
-        raise ApiError(404, "no such scene in this session", "scene_id")
+        raise RequestError(404, "no such scene in this session", "scene_id")
     which = request.args.get("which", "target")
     if which not in ("target", "start"):
-        raise ApiError(400, "must be 'target' or 'start'", "which")
+        raise RequestError(400, "must be 'target' or 'start'", "which")
     return jsonify(rt.scene(scene_id, which))
 
 
@@ -349,11 +313,11 @@ def trial_done():
         return jsonify({"step": "trial", "preview": True})
     index = data.get("trial")
     if isinstance(index, bool) or not isinstance(index, int):
-        raise ApiError(400, "expected the trial index", "trial")
+        raise RequestError(400, "expected the trial index", "trial")
     _open(who)
     t = db.session.scalar(select(Trial).where(Trial.participant_id == who.id, Trial.index == index))
     if t is None:
-        raise ApiError(409, f"trial {index} is not in this session", "trial")
+        raise RequestError(409, f"trial {index} is not in this session", "trial")
     rt = runtime(who.study_id)
     final = data.get("scene")
     if final is not None:
@@ -361,7 +325,7 @@ def trial_done():
     try:
         flow.finish_trial(who, rt.study, index, final)
     except ValueError as e:
-        raise ApiError(409, str(e), "trial") from None
+        raise RequestError(409, str(e), "trial") from None
     db.session.commit()
     return jsonify({"step": who.step, "position": who.position, "trial": trial_json(flow.current_trial(who)),
                     "next": url_for("participant.current", study_id=who.study_id)})

@@ -11,9 +11,9 @@ import secrets
 
 from flask import Blueprint, current_app, redirect, render_template, request, send_from_directory, session, url_for
 from sqlalchemy import select
-from werkzeug.exceptions import HTTPException, NotFound
+from werkzeug.exceptions import NotFound
 
-from .. import assignment, flow, storage
+from .. import assignment, flow
 from ..extensions import db
 from ..models import Participant, SessionLog, flag, log, utcnow
 from ..runtime import runtime
@@ -23,32 +23,6 @@ bp = Blueprint("participant", __name__, url_prefix="/study/<study_id>")
 MTURK_PREVIEW = "ASSIGNMENT_ID_NOT_AVAILABLE"
 #: Attempts the exit page makes to get the last events acknowledged before completing anyway.
 SAVE_ATTEMPTS = 5
-
-
-@bp.errorhandler(Exception)
-def _friendly(e: Exception):
-    """No error page reaches a participant: a calm message, and the failure in the log."""
-    if isinstance(e, HTTPException) and e.code and e.code < 500:
-        status = e.code
-        message = e.description if e.code == 400 else "This page does not exist. Please use the link you were given."
-    elif storage.unavailable(e):
-        current_app.logger.error("database unavailable: %s", e)
-        status = 503
-        message = ("We cannot save anything for a moment. Your work is kept in this browser; please wait a "
-                   "minute and reload this page.")
-    else:
-        current_app.logger.exception("participant page failure")
-        status = 500
-        message = "Something went wrong on our side. Your work is saved; please reload this page in a moment."
-    db.session.rollback()
-    reference = secrets.token_hex(4)
-    try:
-        log("error", None, study_id=request.view_args.get("study_id") if request.view_args else None,
-            reference=reference, path=request.path, status=status, error=type(e).__name__)
-        db.session.commit()
-    except Exception:  # the database itself may be what failed
-        db.session.rollback()
-    return render_template("message.html", title="Sorry", message=message, reference=reference), status
 
 
 def _participant(study_id: str) -> Participant | None:

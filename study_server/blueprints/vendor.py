@@ -1,25 +1,17 @@
 """three.js from node_modules (installed from the npm registry at the version package-lock.json pins).
 
 Served under /vendor/three/: ``build/`` (three.module.js imports ./three.core.js) and ``examples/jsm/`` (the
-loaders and controls, which import the bare specifier ``three`` — resolved by the page's import map, whose
-hash the Content-Security-Policy allows)."""
+loaders and controls, which import the bare specifier ``three`` — resolved by the page's import map,
+:mod:`study_server.importmap`)."""
 
 from __future__ import annotations
-
-import base64
-import hashlib
-import json
 
 from flask import Blueprint, send_from_directory
 from werkzeug.exceptions import NotFound
 
-from ..config import ROOT
+from ..importmap import THREE
 
 bp = Blueprint("vendor", __name__, url_prefix="/vendor")
-THREE = ROOT / "node_modules" / "three"
-IMPORT_MAP = json.dumps({"imports": {"three": "/vendor/three/build/three.module.js",
-                                     "three/addons/": "/vendor/three/examples/jsm/"}})
-IMPORT_MAP_HASH = "sha256-" + base64.b64encode(hashlib.sha256(IMPORT_MAP.encode()).digest()).decode()
 
 
 @bp.get("/three/<path:filename>")

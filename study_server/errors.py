@@ -1,0 +1,99 @@
+"""The one error a request can end with on purpose: a status, a message and the field it is about.
+
+Raised by services and routes alike; ``create_app`` maps it once — ``{"error": message, "field": name, …}`` as
+JSON under ``/api/`` and for JSON requests (the admin's scene editor), the calm message page everywhere else. The
+same place answers HTTP errors and unexpected failures (never a stack trace; participant pages get a reference
+that is in the session log).
+"""
+
+from __future__ import annotations
+
+
+class RequestError(Exception):
+    """A request that cannot be applied: ``status`` (4xx), ``message``, the ``field`` it names, extra response
+    ``headers`` (e.g. Retry-After) and ``extra`` keys for the JSON answer."""
+
+    def __init__(self, status: int, message: str, field: str | None = None, headers: dict | None = None,
+                 extra: dict | None = None):
+        super().__init__(message)
+        self.status, self.message, self.field = status, message, field
+        self.headers, self.extra = headers or {}, extra or {}
+
+
+def answer(e: RequestError):
+    """The response for ``e``: JSON for the API and JSON requests, the calm page otherwise."""
+    from flask import jsonify
+
+    if _is_api():
+        return jsonify({"error": e.message, "field": e.field, **e.extra}), e.status, e.headers
+    return (*_page(e.status, e.message), e.headers)
+
+
+def _is_api() -> bool:
+    from flask import request
+
+    return request.path.startswith("/api/") or request.is_json
+
+
+def _page(status: int, message: str, reference: str | None = None):
+    from flask import render_template
+
+    return render_template("message.html", title="Sorry", message=message, reference=reference, study=None), status
+
+
+def _log_participant_failure(status: int, e: BaseException) -> str | None:
+    """On a participant page, a session-log row the participant can quote (its reference is on the page)."""
+    import secrets
+
+    from flask import request
+
+    from .extensions import db
+    from .models import log
+
+    if not request.path.startswith("/study/"):
+        return None
+    reference = secrets.token_hex(4)
+    try:
+        log("error", None, study_id=(request.view_args or {}).get("study_id"), reference=reference,
+            path=request.path, status=status, error=type(e).__name__)
+        db.session.commit()
+    except Exception:  # the database itself may be what failed
+        db.session.rollback()
+    return reference
+
+
+def http_error(e):
+    """Werkzeug's HTTP errors (unknown URLs, wrong methods, aborts): JSON for the API, a calm page elsewhere."""
+    from flask import jsonify
+
+    from .extensions import db
+
+    if _is_api():
+        return jsonify({"error": e.description or e.name, "field": None}), e.code
+    db.session.rollback()
+    message = e.description if e.code == 400 else (
+        "This page does not exist. Please use the link you were given." if e.code in (404, 405)
+        else (e.description or e.name))
+    return _page(e.code, message, _log_participant_failure(e.code, e))
+
+
+def unexpected(e: Exception):
+    """A failure nobody meant: logged, answered without a stack trace. A database that cannot store anything
+    right now is a 503 (the API adds Retry-After; the outbox sends again), anything else a 500."""
+    from flask import current_app, jsonify
+
+    from . import storage
+    from .extensions import db
+
+    db.session.rollback()
+    if storage.unavailable(e):
+        current_app.logger.error("database unavailable: %s", e)
+        if _is_api():
+            return jsonify({"error": storage.MESSAGE, "field": None}), 503, {"Retry-After": str(storage.RETRY_AFTER_S)}
+        return _page(503, "We cannot save anything for a moment. Your work is kept in this browser; please wait a "
+                          "minute and reload this page.", _log_participant_failure(503, e))
+    current_app.logger.exception("request failure")
+    if _is_api():
+        return jsonify({"error": "internal error; the request was not applied", "field": None}), 500
+    return _page(500, "Something went wrong on our side. Your work is saved; please reload this page in a moment.",
+                 _log_participant_failure(500, e))
