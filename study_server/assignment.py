@@ -17,7 +17,7 @@ from datetime import datetime, timedelta
 from sqlalchemy import func, or_, select, update
 from sqlalchemy.exc import IntegrityError
 
-from .extensions import db
+from .extensions import db, insert_ignore
 from .models import Participant, StudyRecord, Trial, log, utcnow
 from .study_file import Study
 
@@ -25,25 +25,20 @@ from .study_file import Study
 HOLDING = ("completed", "in_progress")
 
 
-def insert_ignore(model, values: dict) -> None:
-    """INSERT … ON CONFLICT DO NOTHING on SQLite and PostgreSQL."""
-    dialect = db.session.get_bind().dialect.name
-    if dialect == "postgresql":
-        from sqlalchemy.dialects.postgresql import insert
-    else:
-        from sqlalchemy.dialects.sqlite import insert
-    db.session.execute(insert(model).values(**values).on_conflict_do_nothing())
-
-
 def ensure_study_record(study: Study) -> None:
-    insert_ignore(StudyRecord, {"id": study.id, "title": study.title, "hash": study.hash, "assignments": 0,
-                                "registered_at": utcnow()})
+    db.session.execute(insert_ignore(StudyRecord), [{"id": study.id, "title": study.title, "hash": study.hash,
+                                                     "assignments": 0, "registered_at": utcnow()}])
     db.session.commit()
+
+
+def fresh_after(study: Study, now: datetime) -> datetime:
+    """A participant in progress whose last request is older than this is stale: their row is free again."""
+    return now - timedelta(minutes=study.stale_after_minutes)
 
 
 def row_counts(study: Study, now: datetime) -> list[int]:
     """Participants holding each row: completed, plus in progress with a heartbeat newer than stale-after."""
-    fresh = now - timedelta(minutes=study.stale_after_minutes)
+    fresh = fresh_after(study, now)
     rows = db.session.execute(
         select(Participant.row, func.count()).where(
             Participant.study_id == study.id,

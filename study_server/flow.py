@@ -176,6 +176,22 @@ def check_session_time(p: Participant, study: Study) -> None:
         p.step = "exit"
 
 
+#: Attempts the exit page makes to get the last events acknowledged before completing anyway.
+SAVE_ATTEMPTS = 5
+
+
+def may_complete(p: Participant, last_seq: int, attempt: int) -> bool:
+    """The completion-code rule: a participant completes once the server holds every event up to the last one
+    the page logged (``last_seq``); after ``SAVE_ATTEMPTS`` tries (the network is gone) they complete anyway,
+    and the missing events are logged."""
+    if p.acked_seq >= last_seq:
+        return True
+    if attempt < SAVE_ATTEMPTS:
+        return False
+    log("completed_with_missing_events", p, acked_seq=p.acked_seq, last_seq=last_seq)
+    return True
+
+
 def submit_exit(p: Participant, study: Study, answers: dict) -> None:
     """Save the exit survey and complete: the completion code is given, and trials whose events do not show
     the study's minimum work flag the participant for review (with the reason)."""

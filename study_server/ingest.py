@@ -18,7 +18,7 @@ from sqlalchemy import case, func, select, update
 
 from scenesuggest.events import MAX_SEQ, EventError, validate_batch
 
-from .extensions import db
+from .extensions import db, insert_ignore
 from .models import Event, Participant, log, utcnow
 
 PAGE_ID_MAX = 64
@@ -45,12 +45,7 @@ class OverQuota(Exception):
 
 def insert_events(rows: list[dict]) -> set[int]:
     """Insert the rows that are new; returns the seqs inserted."""
-    dialect = db.session.get_bind().dialect.name
-    if dialect == "postgresql":
-        from sqlalchemy.dialects.postgresql import insert
-    else:
-        from sqlalchemy.dialects.sqlite import insert
-    statement = insert(Event).on_conflict_do_nothing(index_elements=["participant_id", "seq"]).returning(Event.seq)
+    statement = insert_ignore(Event, ["participant_id", "seq"]).returning(Event.seq)
     return set(db.session.scalars(statement, rows))
 
 

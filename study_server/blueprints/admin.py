@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import json
 import re
-import secrets
 from collections import Counter
-from datetime import timedelta
 
 from flask import (
     Blueprint,
@@ -25,7 +23,9 @@ from sqlalchemy import func, select
 from scenesuggest import scene_json
 from scenesuggest.atomic import write_atomically
 
+from ..assignment import fresh_after
 from ..authoring import checked_png, checked_scene, image_path
+from ..boot import trial_boot
 from ..errors import RequestError
 from ..export import export_zip
 from ..extensions import db
@@ -84,7 +84,7 @@ def logout():
 
 def progress(study) -> dict:
     """Counts per schedule row and per condition of completed / in progress / stale / excluded / other."""
-    fresh = utcnow() - timedelta(minutes=study.stale_after_minutes)
+    fresh = fresh_after(study, utcnow())
     people = db.session.execute(select(Participant.row, Participant.status, Participant.last_seen_at)
                                 .where(Participant.study_id == study.id)).all()
     rows = [Counter() for _ in range(study.n_rows)]
@@ -119,7 +119,7 @@ def participants(study_id: str):
     people = list(db.session.scalars(select(Participant).where(Participant.study_id == study_id)
                                      .order_by(Participant.id.desc())))
     return render_template("admin/participants.html", study=study, people=people,
-                           stale_before=utcnow() - timedelta(minutes=study.stale_after_minutes))
+                           stale_before=fresh_after(study, utcnow()))
 
 
 @bp.get("/<study_id>/participants/<int:pid>")
@@ -180,11 +180,9 @@ def preview(study_id: str, condition: str, scene_id: str):
 
 
 def _preview_boot(study, condition: str, scene_id: str, back: str) -> dict:
-    return {"study": study.id, "token": preview_token(study.id, condition, scene_id), "preview": True,
-            "trial": {"index": 0, "kind": "preview", "condition": condition, "scene": scene_id, "block": 0,
-                      "number": 1, "of": 1}, "page_id": secrets.token_hex(8),
-            "api": url_for("api.session_state").rsplit("/", 1)[0], "next": back,
-            "limits": {"trial_minutes": study.trial_minutes}}
+    return trial_boot(study, preview_token(study.id, condition, scene_id),
+                      {"index": 0, "kind": "preview", "condition": condition, "scene": scene_id, "block": 0,
+                       "number": 1, "of": 1}, back, preview=True)
 
 
 def _authoring_condition(study) -> str:

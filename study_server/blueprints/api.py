@@ -7,27 +7,24 @@ preview token and writes nothing. Errors are ``{"error": message, "field": name}
 from __future__ import annotations
 
 import re
-import uuid
 from dataclasses import dataclass
 
 from flask import Blueprint, jsonify, request, url_for
 from sqlalchemy import select
 
-from scenesuggest import frames, scene_json
+from scenesuggest import scene_json
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.events import EventError, json_schema, text_problem
-from scenesuggest.suggest import ContextQuery
 
-from .. import flow, ingest
+from .. import flow, ingest, lists
 from ..errors import RequestError
 from ..extensions import db
-from ..models import Participant, ShownList, Trial, log, utcnow
+from ..models import Participant, Trial, log, utcnow
 from ..openapi import openapi_document
 from ..runtime import runtime
 from ..security import read_preview_token
 
 bp = Blueprint("api", __name__, url_prefix="/api")
-SUGGESTIONS_SHOWN = 40
 
 
 @dataclass
@@ -219,36 +216,22 @@ def suggest():
     if condition == "none":
         raise RequestError(403, "this trial's interface has no suggestions", "trial")
     rt = runtime(who.study_id)
-    target_type = rt.scene(scene_id).get("scene_type", "Room")
-    scene = _live_scene(data.get("scene"), target_type)
-    engine = rt.engine(condition)
-    mode = "full" if condition == "full" else "basic"
+    scene = _live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
     try:
-        query = ContextQuery(scene, data.get("parent"), data.get("point"), data.get("normal"))
-        found = engine.suggest(query, mode, top=SUGGESTIONS_SHOWN, only=rt.placeable(condition))
-        surface = engine.prepare(query).surface_type
+        items, surface = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
+                                            data.get("normal"), lambda m: model_json(who.study_id, m))
     except SceneSuggestError as e:
         raise RequestError(400, e.message, e.field) from None
-    items = []
-    for s in found:
-        models = [rt.library[m] for m in s.models if m in rt.library] or rt.by_category.get(s.category, [])
-        if not models:
-            continue  # a category without a model in this study's library cannot be placed
-        items.append({"rank": len(items) + 1, "category": s.category, "score": s.score,
-                      "placement": frames.to_column_major(s.placement), "attachment_face": s.attachment_face,
-                      "heading_deg": s.heading_deg, "notes": list(s.notes),
-                      "models": [model_json(who.study_id, m) for m in models[:12]]})
-        if len(items) >= SUGGESTIONS_SHOWN:
-            break
-    list_id = uuid.uuid4().hex
-    if isinstance(who, Participant):
-        db.session.add(ShownList(id=list_id, participant_id=who.id, trial=index, source="context",
-                                 query={"parent": data.get("parent"), "point": data.get("point"),
-                                        "normal": data.get("normal"), "surface_type": surface},
-                                 items=[{"rank": i["rank"], "category": i["category"], "score": i["score"],
-                                         "models": [m["id"] for m in i["models"]]} for i in items]))
+    participant = who.id if isinstance(who, Participant) else None
+    list_id = lists.record(participant, index, "context",
+                           {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),
+                            "surface_type": surface},
+                           [{"rank": i["rank"], "category": i["category"], "score": i["score"],
+                             "models": [m["id"] for m in i["models"]]} for i in items])
+    if participant is not None:
         who.last_seen_at = utcnow()
         db.session.commit()
+    mode = "full" if condition == "full" else "basic"
     return jsonify({"list_id": list_id, "condition": condition, "mode": mode, "surface_type": surface,
                     "suggestions": items})
 
@@ -270,13 +253,11 @@ def search():
         raise RequestError(400, "must be between 1 and 200", "limit")
     rt = runtime(who.study_id)
     hits = rt.search_index.search(text, limit)
-    list_id = uuid.uuid4().hex
-    if isinstance(who, Participant):
-        trial = flow.current_trial(who)
-        db.session.add(ShownList(id=list_id, participant_id=who.id, trial=trial.index if trial else None,
-                                 source="search", query={"text": text},
-                                 items=[{"rank": i + 1, "model": h.model_id, "category": h.category}
-                                        for i, h in enumerate(hits)]))
+    participant = who.id if isinstance(who, Participant) else None
+    trial = flow.current_trial(who) if participant is not None else None
+    list_id = lists.record(participant, trial.index if trial else None, "search", {"text": text},
+                           [{"rank": i + 1, "model": h.model_id, "category": h.category} for i, h in enumerate(hits)])
+    if participant is not None:
         db.session.commit()
     return jsonify({"list_id": list_id, "query": text,
                     "hits": [dict(model_json(who.study_id, rt.library[h.model_id]), rank=i + 1)

@@ -14,6 +14,7 @@ from sqlalchemy import select
 from werkzeug.exceptions import NotFound
 
 from .. import assignment, flow
+from ..boot import trial_boot
 from ..extensions import db
 from ..models import Participant, SessionLog, flag, log, utcnow
 from ..runtime import runtime
@@ -21,8 +22,6 @@ from ..security import address_key, check_csrf
 
 bp = Blueprint("participant", __name__, url_prefix="/study/<study_id>")
 MTURK_PREVIEW = "ASSIGNMENT_ID_NOT_AVAILABLE"
-#: Attempts the exit page makes to get the last events acknowledged before completing anyway.
-SAVE_ATTEMPTS = 5
 
 
 def _participant(study_id: str) -> Participant | None:
@@ -199,11 +198,9 @@ def _trial_page(rt, p: Participant):
     db.session.commit()
     plan = [x for x in flow.trials(p) if x.kind == "trial"]
     condition = rt.study.condition(t.condition)
-    boot = {"study": p.study_id, "token": p.token, "preview": False, "trial": {
-        "index": t.index, "kind": t.kind, "condition": t.condition, "scene": t.scene_id, "block": t.block,
-        "number": t.index + 1, "of": len(plan)}, "page_id": secrets.token_hex(8),
-        "api": url_for("api.session_state").rsplit("/", 1)[0], "next": url_for(".current", study_id=p.study_id),
-        "limits": {"trial_minutes": rt.study.trial_minutes}}
+    boot = trial_boot(rt.study, p.token, {"index": t.index, "kind": t.kind, "condition": t.condition,
+                                          "scene": t.scene_id, "block": t.block, "number": t.index + 1,
+                                          "of": len(plan)}, url_for(".current", study_id=p.study_id))
     return render_template("trial.html", study=rt.study, p=p, trial=t, condition=condition,
                            boot=boot, scene_title=rt.study.scenes[t.scene_id].title)
 
@@ -294,14 +291,12 @@ def exit_survey(study_id: str):
             last_seq = int(request.form.get("last_seq", "-1"))
             attempt = int(request.form.get("attempt", "0"))
         except ValueError:
-            last_seq, attempt = -1, SAVE_ATTEMPTS
-        if p.acked_seq < last_seq and attempt < SAVE_ATTEMPTS:
+            last_seq, attempt = -1, flow.SAVE_ATTEMPTS
+        if not flow.may_complete(p, last_seq, attempt):
             # the final events are not acknowledged yet: let the page flush its outbox and try again
             db.session.commit()
             return render_template("saving.html", study=study, p=p, answers=answers, attempt=attempt + 1,
                                    last_seq=last_seq), 202
-        if p.acked_seq < last_seq:  # documented fallback: the network is gone, complete anyway
-            log("completed_with_missing_events", p, acked_seq=p.acked_seq, last_seq=last_seq)
         _unless_ended(flow.submit_exit, p, study, answers)
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
