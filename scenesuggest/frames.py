@@ -132,7 +132,3 @@ def face_of_direction(direction) -> str:
     return max(FACES, key=lambda f: float(np.dot(FACE_NORMALS[f], d)))
 
 
-def yaw_of(transform: np.ndarray) -> float:
-    """Angle (radians) about +Y from world +Z to the model's front, in (−π, π]."""
-    f = transform[:3, 2]
-    return math.atan2(f[0], f[2])

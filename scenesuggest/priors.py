@@ -347,13 +347,6 @@ def peak_normalised(counts: np.ndarray) -> np.ndarray:
     return np.where(peak > 0, h / np.where(peak > 0, peak, 1.0), 1.0).astype(np.float32)
 
 
-def orientation_histogram(theta: np.ndarray) -> np.ndarray:
-    """Wrapped 36-bin histogram of angles (radians), bins centred on multiples of 10°, smoothed with a
-    (1, 2, 1)/4 kernel and divided by its peak; flat (all ones) when no angle is defined."""
-    bins = angle_bins(theta)
-    return peak_normalised(np.bincount(bins[bins >= 0], minlength=BINS))
-
-
 def _vocabulary(scenes: list[Scene], taxonomy: Taxonomy) -> tuple[list[str], Taxonomy, list[str], dict]:
     """(categories, taxonomy restricted to them, entities, category → its entities, specific first)."""
     present = sorted({o.category for s in scenes for o in s} | {WALL})

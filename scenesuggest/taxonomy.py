@@ -1,15 +1,15 @@
 """The category taxonomy used for back-off: each category names at most one parent.
 
 Categories are the finest names of coarse→fine paths (``Chair/OfficeChair`` → category ``OfficeChair``
-with parent ``Chair``). When a statistic of a category has too few observations, the engine asks for
-its parent's statistic instead (:meth:`Taxonomy.back_off`).
+with parent ``Chair``). When a statistic of a category has too few observations, the engine uses its
+parent's instead: the priors walk :meth:`Taxonomy.ancestors` (``Priors.entity_chain``).
 """
 
 from __future__ import annotations
 
 import json
 from collections import Counter, defaultdict
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from importlib import resources
 from pathlib import Path
 
@@ -71,14 +71,6 @@ class Taxonomy:
 
     def categories(self) -> set[str]:
         return set(self.parents) | set(self.parents.values())
-
-    def back_off(self, category: str, observations: Callable[[str], float],
-                 minimum: float = MIN_OBSERVATIONS) -> str | None:
-        """The first of ``category`` and its ancestors with at least ``minimum`` observations, or None."""
-        for c in [category, *self.ancestors(category)]:
-            if observations(c) >= minimum:
-                return c
-        return None
 
     def to_dict(self) -> dict[str, str]:
         return dict(sorted(self.parents.items()))

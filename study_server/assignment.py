@@ -21,9 +21,6 @@ from .extensions import db, insert_ignore
 from .models import Participant, StudyRecord, Trial, log, utcnow
 from .study_file import Study
 
-#: Statuses that hold a row: finished participants and those still working (with a fresh heartbeat).
-HOLDING = ("completed", "in_progress")
-
 
 def ensure_study_record(study: Study) -> None:
     db.session.execute(insert_ignore(StudyRecord), [{"id": study.id, "title": study.title, "hash": study.hash,

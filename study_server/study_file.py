@@ -335,13 +335,3 @@ def load_study(path: str | Path) -> Study:
     if study.design == "williams" and len(conditions) < 2:
         raise r.fail("design.kind", "a Williams design needs at least two conditions")
     return study
-
-
-def validate_scenes(study: Study) -> None:
-    """Load every target and start scene (native JSON) so that a bad scene fails at start-up."""
-    from scenesuggest import scene_json
-
-    for s in study.scenes.values():
-        scene_json.load(s.target)
-        if s.start:
-            scene_json.load(s.start)

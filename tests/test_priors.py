@@ -1,13 +1,12 @@
 """The priors, on a synthetic corpus whose statistics are known by construction."""
 
-import math
 
 import numpy as np
 import pytest
 import synthetic
 
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.priors import BINS, K_MAX, Priors, orientation_histogram
+from scenesuggest.priors import K_MAX, Priors
 from scenesuggest.scene import SURFACE_TYPES
 
 
@@ -81,15 +80,6 @@ def test_position_densities_are_peak_normalised(priors):
     assert max(dens(p) for p in pts) == pytest.approx(1.0, rel=1e-5)
     assert pts.mean(axis=0) == pytest.approx([0.0, -0.2], abs=0.02)  # 20 cm behind the desk's centre
     assert bw.min() >= 0.05 - 1e-7
-
-
-def test_orientation_histograms():
-    h = orientation_histogram(np.array([math.pi, math.pi, math.pi + 0.01]))
-    assert h.shape == (BINS,) and h.max() == 1.0 and int(np.argmax(h)) == 18
-    assert h[17] == pytest.approx(0.5) and h[0] == 0
-    assert np.all(orientation_histogram(np.array([np.nan])) == 1.0)
-    wrapped = orientation_histogram(np.array([2 * math.pi - 0.01]))
-    assert int(np.argmax(wrapped)) == 0 and wrapped[35] == pytest.approx(0.5)
 
 
 def test_chairs_face_their_desks(priors):

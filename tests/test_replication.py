@@ -125,10 +125,11 @@ def test_prepare_names_a_missing_corpus(tmp_path, monkeypatch):
 
 
 def test_the_study_file_loads_with_two_periods_in_a_williams_design(replication):
-    from study_server.study_file import load_study, validate_scenes
+    from study_server.services import StudyRuntime
+    from study_server.study_file import load_study
 
     study = load_study(replication)
-    validate_scenes(study)
+    StudyRuntime(study).validate_scenes()  # every target parses
     assert study.design == "williams" and study.n_rows == 12 and len(study.periods) == 2
     plans = [study.plan(row) for row in range(study.n_rows)]
     for plan in plans:
