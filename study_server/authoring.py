@@ -1,4 +1,5 @@
-"""Saving a target scene, and its image, from the admin's scene editor.
+"""Scenes the editor posts: the participant's live scene (for suggestions and at "done"), and saving a target
+scene, and its image, from the admin's scene editor.
 
 A target is written where the study file says it lives (``[[scenes]] target``), its image beside it with the
 extension ``.png``. Both are checked in full before anything is written, and written atomically
@@ -28,16 +29,29 @@ def image_path(target: Path) -> Path:
     return target.with_suffix(".png")
 
 
+def posted_scene(doc: dict) -> Scene:
+    """A scene the editor posted (native JSON), parsed; a bad one is a 400 naming the field (``scene.…``)."""
+    try:
+        return scene_json.from_dict(doc, file="scene")
+    except SceneSuggestError as e:
+        raise RequestError(400, e.message, f"scene.{e.field}" if e.field else "scene") from None
+
+
+def live_scene(doc, scene_type: str) -> Scene:
+    """The participant's scene as the editor holds it (``{"objects": [...]}``), of the trial's scene type."""
+    if not isinstance(doc, dict) or not isinstance(doc.get("objects"), list):
+        raise RequestError(400, "expected {\"objects\": [...]} in the native scene format", "scene")
+    return posted_scene({"format": scene_json.FORMAT, "version": scene_json.VERSION, "id": "live",
+                         "scene_type": scene_type, "source": "editor", "objects": doc["objects"]})
+
+
 def checked_scene(doc, scene_id: str, library: dict) -> Scene:
-    """A posted scene (native JSON) as ``scene_id``, after checking it parses, has a room and objects, and uses
-    only models of the study's library."""
+    """A posted target scene (native JSON) as ``scene_id``, after checking it parses, has a room and objects,
+    and uses only models of the study's library."""
     if not isinstance(doc, dict):
         raise RequestError(400, "expected a scene object (the native scene JSON)", "scene")
     doc = {**doc, "id": scene_id}
-    try:
-        scene = scene_json.from_dict(doc, file="scene")
-    except SceneSuggestError as e:
-        raise RequestError(400, e.message, f"scene.{e.field}" if e.field else "scene") from None
+    scene = posted_scene(doc)
     objects = [o for o in scene if o.parent is not None]
     if not scene.roots():
         raise RequestError(400, "the scene has no room (an object without a parent)", "scene.objects")

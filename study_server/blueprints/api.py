@@ -17,6 +17,7 @@ from scenesuggest.errors import SceneSuggestError
 from scenesuggest.events import EventError, json_schema, text_problem
 
 from .. import flow, ingest, lists
+from ..authoring import live_scene
 from ..errors import RequestError
 from ..extensions import db
 from ..models import Participant, Trial, log, utcnow
@@ -197,17 +198,6 @@ def events():
     return jsonify({"acked_seq": acked, "stored": True})
 
 
-def _live_scene(doc, scene_type: str):
-    if not isinstance(doc, dict) or not isinstance(doc.get("objects"), list):
-        raise RequestError(400, "expected {\"objects\": [...]} in the native scene format", "scene")
-    full = {"format": scene_json.FORMAT, "version": scene_json.VERSION, "id": "live", "scene_type": scene_type,
-            "source": "editor", "objects": doc["objects"]}
-    try:
-        return scene_json.from_dict(full, file="scene")
-    except SceneSuggestError as e:
-        raise RequestError(400, e.message, f"scene.objects.{e.field}" if e.field else "scene") from None
-
-
 @bp.post("/suggest")
 def suggest():
     who = caller()
@@ -216,7 +206,7 @@ def suggest():
     if condition == "none":
         raise RequestError(403, "this trial's interface has no suggestions", "trial")
     rt = runtime(who.study_id)
-    scene = _live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
+    scene = live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
     try:
         items, surface = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
                                             data.get("normal"), lambda m: model_json(who.study_id, m))
@@ -302,7 +292,7 @@ def trial_done():
     rt = runtime(who.study_id)
     final = data.get("scene")
     if final is not None:
-        final = scene_json.scene_to_dict(_live_scene(final, rt.scene(t.scene_id).get("scene_type", "Room")))
+        final = scene_json.scene_to_dict(live_scene(final, rt.scene(t.scene_id).get("scene_type", "Room")))
     try:
         flow.finish_trial(who, rt.study, index, final)
     except ValueError as e:
