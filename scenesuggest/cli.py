@@ -219,10 +219,8 @@ def suggest_cmd(priors_file, scene_file, parent_id, point, normal, mode, top, sc
     engine = Engine(Priors.load(priors_file), options)
     query = ContextQuery(scene_json.load(scene_file), parent_id, point, normal, scene_type)
     found = engine.suggest(query, mode, top)
-    prep = engine.prepare(query)
-    data = {"mode": mode, "surface_type": prep.surface_type, "scene_type": prep.scene_type,
-            "suggestions": [x.to_dict() for x in found]}
-    lines = [f"{prep.surface_type} of {prep.parent_category} in a {prep.scene_type} ({mode} mode)"]
+    data = {"mode": mode, **found.to_dict()}
+    lines = [f"{found.surface_type} of {found.parent_category} in a {found.scene_type} ({mode} mode)"]
     for x in found:
         t = x.placement[:3, 3]
         lines.append(f"{x.rank:>3}. {x.category:<22} {x.score:7.3f}  occ {x.terms['occurrence']:.2f} "

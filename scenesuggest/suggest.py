@@ -29,7 +29,7 @@ scene-type inference from the objects present.
 from __future__ import annotations
 
 import math
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -102,6 +102,27 @@ class Suggestion:
         return {"rank": self.rank, "category": self.category, "score": self.score, "terms": self.terms,
                 "placement": frames.to_column_major(self.placement), "attachment_face": self.attachment_face,
                 "heading_deg": self.heading_deg, "models": list(self.models), "notes": list(self.notes)}
+
+
+@dataclass(frozen=True)
+class SuggestionList(Sequence):
+    """The answer to one query: its suggestions, best first, and what the engine read from the click — the
+    surface type, the scene type and the clicked parent's category. Behaves as the sequence of suggestions."""
+
+    suggestions: tuple[Suggestion, ...]
+    surface_type: str
+    scene_type: str
+    parent_category: str
+
+    def __getitem__(self, i):
+        return self.suggestions[i]
+
+    def __len__(self) -> int:
+        return len(self.suggestions)
+
+    def to_dict(self) -> dict:
+        return {"surface_type": self.surface_type, "scene_type": self.scene_type,
+                "parent_category": self.parent_category, "suggestions": [s.to_dict() for s in self.suggestions]}
 
 
 @dataclass
@@ -339,7 +360,7 @@ class Engine:
         return [FACES[i] for i in face_index], heading - zero, heading
 
     def suggest(self, query: ContextQuery, mode: str = "full", top: int | None = None,
-                only: Collection[str] | None = None) -> list[Suggestion]:
+                only: Collection[str] | None = None) -> SuggestionList:
         """Ranked suggestions (best first, ties by name), each with a placement; ``top`` limits the list and
         ``only`` (category names) the categories that may appear, as a study whose library lacks some does."""
         if mode not in MODES:
@@ -380,7 +401,7 @@ class Engine:
                        "position": float(scores.position[i])},
                 placement=placement, attachment_face=faces[rank - 1], heading_deg=float(degrees[rank - 1]),
                 models=self.members[i], notes=tuple(notes[i])))
-        return out
+        return SuggestionList(tuple(out), prep.surface_type, prep.scene_type, prep.parent_category)
 
     def _ranking(self, total: np.ndarray, allowed: np.ndarray) -> np.ndarray:
         """Candidate indices best first (ties by name), only the allowed ones."""

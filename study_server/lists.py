@@ -32,7 +32,6 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
     query = ContextQuery(scene, parent, point, normal)
     found = engine.suggest(query, "full" if condition == "full" else "basic", top=SUGGESTIONS_SHOWN,
                            only=rt.placeable(condition))
-    surface = engine.prepare(query).surface_type
     items = []
     for s in found:
         models = [rt.library[m] for m in s.models if m in rt.library] or rt.by_category.get(s.category, [])
@@ -44,7 +43,7 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
                       "models": [describe(m) for m in models[:MODELS_PER_CATEGORY]]})
         if len(items) >= SUGGESTIONS_SHOWN:
             break
-    return items, surface
+    return items, found.surface_type
 
 
 def record(participant_id: int | None, trial: int | None, source: str, query: dict, items: list[dict]) -> str:
