@@ -202,35 +202,23 @@ def _engine(r: _Reader, doc: dict, path: str) -> EngineOptions:
         raise r.fail(path, str(e)) from None
 
 
-def load_study(path: str | Path) -> Study:
-    """Read and validate a study file; every problem names its key."""
-    path = Path(path).resolve()
+def _parse(path: Path) -> tuple[bytes, dict]:
+    """The file's bytes and its TOML document (errors give the line)."""
     try:
         data = path.read_bytes()
     except OSError as e:
         raise StudyFileError(f"cannot read: {e}", file=str(path)) from None
     try:
-        doc = tomllib.loads(data.decode("utf-8"))
+        return data, tomllib.loads(data.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         where = re.search(r"\(at line (\d+), column (\d+)\)", str(e))
         message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(e))
         raise StudyFileError(f"not valid TOML: {message}" + (f" (column {where.group(2)})" if where else ""),
                              file=str(path), line=int(where.group(1)) if where else None) from None
-    r = _Reader(path)
-    base = path.parent
-    r.unknown(doc, ("id", "title", "description", "resources", "design", "conditions", "scenes", "periods",
-                    "practice", "platform", "consent", "instructions", "demographics", "exit_survey", "limits",
-                    "device"), "")
-    study_id = r.string(doc, "id", "id")
-    if not study_id.replace("-", "").replace("_", "").isalnum():
-        raise r.fail("id", "use letters, digits, '-' and '_' only")
 
-    res = r.table(doc, "resources", "resources")
-    r.unknown(res, ("corpus", "priors", "library"), "resources")
-    design = r.table(doc, "design", "design")
-    r.unknown(design, ("kind", "blocking", "participants"), "design")
 
-    conditions = []
+def _conditions(r: _Reader, doc: dict) -> list[Condition]:
+    conditions: list[Condition] = []
     for i, c in enumerate(r.tables(doc, "conditions", "conditions")):
         p = f"conditions[{i}]"
         r.unknown(c, ("id", "label", "instructions", "engine"), p)
@@ -239,7 +227,10 @@ def load_study(path: str | Path) -> Study:
             raise r.fail(f"{p}.id", f"condition {cid!r} given twice")
         conditions.append(Condition(cid, str(c.get("label", cid)), str(c.get("instructions", "")),
                                     _engine(r, r.table(c, "engine", f"{p}.engine", required=False), f"{p}.engine")))
+    return conditions
 
+
+def _scenes(r: _Reader, doc: dict, base: Path) -> dict[str, TargetScene]:
     scenes = {}
     for i, s in enumerate(r.tables(doc, "scenes", "scenes")):
         p = f"scenes[{i}]"
@@ -252,7 +243,10 @@ def load_study(path: str | Path) -> Study:
         if start is not None and not start.is_file():
             raise r.fail(f"{p}.start", f"no such file: {start}")
         scenes[sid] = TargetScene(sid, str(s.get("title", sid)), target, start)
+    return scenes
 
+
+def _periods(r: _Reader, doc: dict, scenes: dict) -> list[tuple[str, ...]]:
     periods = []
     for i, per in enumerate(r.tables(doc, "periods", "periods")):
         p = f"periods[{i}]"
@@ -266,26 +260,37 @@ def load_study(path: str | Path) -> Study:
         if len(set(ids)) != len(ids):
             raise r.fail(f"{p}.scenes", "a scene appears twice")
         periods.append(tuple(ids))
+    return periods
 
+
+def _practice(r: _Reader, doc: dict, scenes: dict, conditions: list[Condition]) -> tuple[str, str] | None:
     practice_doc = r.table(doc, "practice", "practice", required=False)
-    practice = None
-    if practice_doc:
-        r.unknown(practice_doc, ("scene", "condition"), "practice")
-        sid = r.string(practice_doc, "scene", "practice.scene")
-        if sid not in scenes:
-            raise r.fail("practice.scene", f"no scene {sid!r} in [[scenes]]")
-        practice = (sid, r.choice(practice_doc, "condition", "practice.condition", [c.id for c in conditions]))
+    if not practice_doc:
+        return None
+    r.unknown(practice_doc, ("scene", "condition"), "practice")
+    sid = r.string(practice_doc, "scene", "practice.scene")
+    if sid not in scenes:
+        raise r.fail("practice.scene", f"no scene {sid!r} in [[scenes]]")
+    return sid, r.choice(practice_doc, "condition", "practice.condition", [c.id for c in conditions])
 
+
+def _platform(r: _Reader, doc: dict) -> dict:
     platform = r.table(doc, "platform", "platform")
     r.unknown(platform, ("kind", "codes", "completion_url", "study_id"), "platform")
-    platform_study_id = r.string(platform, "study_id", "platform.study_id") if "study_id" in platform else None
     codes_doc = r.table(platform, "codes", "platform.codes")
     r.unknown(codes_doc, CODES, "platform.codes")
-    codes = {k: r.string(codes_doc, k, f"platform.codes.{k}") for k in CODES}
     completion_url = platform.get("completion_url")
     if completion_url is not None and (not isinstance(completion_url, str) or "{code}" not in completion_url):
         raise r.fail("platform.completion_url", "expected a URL containing {code}")
+    return {"platform": r.choice(platform, "kind", "platform.kind", PLATFORMS),
+            "codes": {k: r.string(codes_doc, k, f"platform.codes.{k}") for k in CODES},
+            "completion_url": completion_url,
+            "platform_study_id": r.string(platform, "study_id", "platform.study_id") if "study_id" in platform
+            else None}
 
+
+def _texts(r: _Reader, doc: dict) -> dict:
+    """Consent, instructions and surveys."""
     consent = r.table(doc, "consent", "consent")
     r.unknown(consent, ("version", "text"), "consent")
     instructions = []
@@ -293,13 +298,59 @@ def load_study(path: str | Path) -> Study:
         r.unknown(page, ("title", "body"), f"instructions[{i}]")
         instructions.append((r.string(page, "title", f"instructions[{i}].title"),
                              r.string(page, "body", f"instructions[{i}].body")))
+    return {"consent_version": r.string(consent, "version", "consent.version"),
+            "consent_text": r.string(consent, "text", "consent.text"), "instructions": tuple(instructions),
+            "demographics": _questions(r, doc.get("demographics", []) or [], "demographics"),
+            "exit_survey": _questions(r, r.tables(doc, "exit_survey", "exit_survey"), "exit_survey")}
+
+
+LIMITS = ("trial_minutes", "session_minutes", "stale_after_minutes", "min_objects_placed", "min_trial_seconds",
+          "arrivals_per_address_per_hour", "max_events_per_participant", "max_mb_per_participant")
+
+
+def _limits(r: _Reader, doc: dict) -> dict:
+    """Time limits, the minimum work of a trial, quotas, and the device check."""
     limits = r.table(doc, "limits", "limits", required=False)
-    r.unknown(limits, ("trial_minutes", "session_minutes", "stale_after_minutes", "min_objects_placed",
-                       "min_trial_seconds", "arrivals_per_address_per_hour", "max_events_per_participant",
-                       "max_mb_per_participant"), "limits")
+    r.unknown(limits, LIMITS, "limits")
     device = r.table(doc, "device", "device", required=False)
     r.unknown(device, ("desktop_only", "min_width", "min_height"), "device")
 
+    def number(key: str, default: float, minimum: float = 0.0) -> float:
+        return r.number(limits, key, f"limits.{key}", default, minimum=minimum)
+
+    return {
+        "trial_minutes": number("trial_minutes", 15, 0.1), "session_minutes": number("session_minutes", 90, 0.1),
+        "stale_after_minutes": number("stale_after_minutes", 5, 0.1),
+        "min_objects_placed": int(number("min_objects_placed", 0)),
+        "min_trial_seconds": number("min_trial_seconds", 0),
+        "arrivals_per_address_per_hour": int(number("arrivals_per_address_per_hour", 100, 1)),
+        "max_events_per_participant": int(number("max_events_per_participant", 100_000, 100)),
+        "max_mb_per_participant": number("max_mb_per_participant", 32, 0.1),
+        "desktop_only": r.boolean(device, "desktop_only", "device.desktop_only", True),
+        "min_width": int(r.number(device, "min_width", "device.min_width", 1024)),
+        "min_height": int(r.number(device, "min_height", "device.min_height", 600)),
+    }
+
+
+def load_study(path: str | Path) -> Study:
+    """Read and validate a study file; every problem names its key."""
+    path = Path(path).resolve()
+    data, doc = _parse(path)
+    r = _Reader(path)
+    base = path.parent
+    r.unknown(doc, ("id", "title", "description", "resources", "design", "conditions", "scenes", "periods",
+                    "practice", "platform", "consent", "instructions", "demographics", "exit_survey", "limits",
+                    "device"), "")
+    study_id = r.string(doc, "id", "id")
+    if not study_id.replace("-", "").replace("_", "").isalnum():
+        raise r.fail("id", "use letters, digits, '-' and '_' only")
+    res = r.table(doc, "resources", "resources")
+    r.unknown(res, ("corpus", "priors", "library"), "resources")
+    design = r.table(doc, "design", "design")
+    r.unknown(design, ("kind", "blocking", "participants"), "design")
+    conditions = _conditions(r, doc)
+    scenes = _scenes(r, doc, base)
+    periods = _periods(r, doc, scenes)
     study = Study(
         path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, title=r.string(doc, "title", "title"),
         description=str(doc.get("description", "")),
@@ -309,27 +360,8 @@ def load_study(path: str | Path) -> Study:
         design=r.choice(design, "kind", "design.kind", DESIGNS),
         blocking=r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition"),
         participants=int(r.number(design, "participants", "design.participants", minimum=1)),
-        conditions=tuple(conditions), scenes=scenes, periods=tuple(periods), practice=practice,
-        platform=r.choice(platform, "kind", "platform.kind", PLATFORMS), codes=codes, completion_url=completion_url,
-        consent_version=r.string(consent, "version", "consent.version"),
-        consent_text=r.string(consent, "text", "consent.text"), instructions=tuple(instructions),
-        demographics=_questions(r, doc.get("demographics", []) or [], "demographics"),
-        exit_survey=_questions(r, r.tables(doc, "exit_survey", "exit_survey"), "exit_survey"),
-        trial_minutes=r.number(limits, "trial_minutes", "limits.trial_minutes", 15, minimum=0.1),
-        session_minutes=r.number(limits, "session_minutes", "limits.session_minutes", 90, minimum=0.1),
-        stale_after_minutes=r.number(limits, "stale_after_minutes", "limits.stale_after_minutes", 5, minimum=0.1),
-        desktop_only=r.boolean(device, "desktop_only", "device.desktop_only", True),
-        min_width=int(r.number(device, "min_width", "device.min_width", 1024)),
-        min_height=int(r.number(device, "min_height", "device.min_height", 600)),
-        platform_study_id=platform_study_id,
-        min_objects_placed=int(r.number(limits, "min_objects_placed", "limits.min_objects_placed", 0)),
-        min_trial_seconds=r.number(limits, "min_trial_seconds", "limits.min_trial_seconds", 0),
-        arrivals_per_address_per_hour=int(r.number(limits, "arrivals_per_address_per_hour",
-                                                   "limits.arrivals_per_address_per_hour", 100, minimum=1)),
-        max_events_per_participant=int(r.number(limits, "max_events_per_participant",
-                                                "limits.max_events_per_participant", 100_000, minimum=100)),
-        max_mb_per_participant=r.number(limits, "max_mb_per_participant", "limits.max_mb_per_participant", 32,
-                                        minimum=0.1),
+        conditions=tuple(conditions), scenes=scenes, periods=tuple(periods),
+        practice=_practice(r, doc, scenes, conditions), **_platform(r, doc), **_texts(r, doc), **_limits(r, doc),
         raw=doc,
     )
     if study.design == "williams" and len(conditions) < 2:
