@@ -32,14 +32,26 @@ def current_trial(p: Participant) -> Trial | None:
     return db.session.scalar(select(Trial).where(Trial.participant_id == p.id, Trial.position == p.position))
 
 
+#: The status of a session that still takes pages, events and trials; every other status is final.
+OPEN = "in_progress"
+
+
+class SessionEnded(ValueError):
+    """The session ended (completed, excluded, …) before this step could end it."""
+
+
+def is_open(p: Participant) -> bool:
+    return p.status == OPEN
+
+
 def _finish(p: Participant, study: Study, status: str, code_key: str) -> None:
     """End the session, only if it is still in progress as stored now: an exclusion (or an earlier end) that
-    committed meanwhile is final."""
+    committed meanwhile is final (:class:`SessionEnded`)."""
     values = {"status": status, "step": "done", "code": study.codes[code_key], "finished_at": utcnow()}
-    ended = db.session.execute(update(Participant).where(Participant.id == p.id, Participant.status == "in_progress")
+    ended = db.session.execute(update(Participant).where(Participant.id == p.id, Participant.status == OPEN)
                                .values(**values))
     if ended.rowcount != 1:
-        raise ValueError("the session has already ended")
+        raise SessionEnded()
     for key, value in values.items():
         setattr(p, key, value)
     log("finish", p, status=status)

@@ -23,8 +23,6 @@ from .models import Event, Participant, log, utcnow
 
 PAGE_ID_MAX = 64
 PAGE_ID = re.compile(rf"[A-Za-z0-9_.-]{{1,{PAGE_ID_MAX}}}")
-#: Statuses whose events are still taken (a finished, excluded or returned session takes no more).
-OPEN = ("in_progress",)
 
 
 class Conflict(Exception):
@@ -33,10 +31,6 @@ class Conflict(Exception):
     def __init__(self, positions: list[int], seqs: list[int], next_seq: int):
         super().__init__(f"seq {', '.join(map(str, seqs[:5]))} already stored with different content")
         self.positions, self.seqs, self.next_seq = positions, seqs, next_seq
-
-
-class Closed(Exception):
-    """The session has ended (completed, excluded, …): it takes no more events."""
 
 
 class OverQuota(Exception):
@@ -85,15 +79,14 @@ def contiguous_seq(participant_id: int, start: int) -> int:
 
 def store(participant: Participant, page_id: str, events: list, quota: tuple[int, int] | None = None,
           nbytes: int | None = None) -> int:
-    """Validate (raising :class:`scenesuggest.events.EventError`) and store a batch; returns acked_seq. Raises
-    :class:`Closed` for an ended session, :class:`Conflict` (nothing stored, the conflict logged) and
+    """Validate (raising :class:`scenesuggest.events.EventError`) and store a batch of a session that is still
+    open (the caller checks :func:`study_server.flow.is_open`); returns acked_seq. Raises :class:`Conflict`
+    (nothing stored, the conflict logged) and
     :class:`OverQuota` when ``quota`` = (events, bytes) per participant would be exceeded. ``nbytes`` is the
     batch's size as sent (counted against the byte quota in proportion to the events it adds). Commits."""
     if not isinstance(page_id, str) or not PAGE_ID.fullmatch(page_id):
         raise EventError(f"expected 1 to {PAGE_ID_MAX} letters, digits, '.', '_' or '-'", "page_id")
     batch = validate_batch(events)
-    if participant.status not in OPEN:
-        raise Closed()
     now = utcnow()
     if batch:
         rows = [{"participant_id": participant.id, "seq": e["seq"], "page_id": page_id, "type": e["type"],

@@ -27,6 +27,7 @@ ANONYMOUS_LOGIN_LIMIT = 50
 ADMIN_LIFETIME = timedelta(hours=8)
 ADMIN_IDLE = timedelta(hours=1)
 DEVICE_COOKIE = "scenesuggest_admin_device"
+DEVICE_SALT = "scenesuggest-admin-device"
 DEVICE_LIFETIME = timedelta(days=365)
 
 
@@ -77,18 +78,20 @@ PREVIEW_SALT = "scenesuggest-preview"
 PREVIEW_LIFETIME = timedelta(hours=12)
 
 
+def _signer(salt: str) -> URLSafeTimedSerializer:
+    return URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=salt)
+
+
 def preview_token(study_id: str, condition: str, scene: str) -> str:
     """A signed token that lets the admin's preview page use the API for one condition × scene, storing nothing."""
-    s = URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=PREVIEW_SALT)
-    return "preview." + s.dumps([study_id, condition, scene])
+    return "preview." + _signer(PREVIEW_SALT).dumps([study_id, condition, scene])
 
 
 def read_preview_token(token: str) -> tuple[str, str, str] | None:
     """(study, condition, scene) of a valid preview token, else None."""
-    s = URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt=PREVIEW_SALT)
     try:
-        study_id, condition, scene = s.loads(token.removeprefix("preview."),
-                                             max_age=PREVIEW_LIFETIME.total_seconds())
+        study_id, condition, scene = _signer(PREVIEW_SALT).loads(token.removeprefix("preview."),
+                                                                 max_age=PREVIEW_LIFETIME.total_seconds())
     except (BadSignature, ValueError, TypeError):
         return None
     return study_id, condition, scene
@@ -105,14 +108,10 @@ def _client_key() -> str:
     device = request.cookies.get(DEVICE_COOKIE)
     if device:
         try:
-            return "device:" + _device_signer().loads(device, max_age=DEVICE_LIFETIME.total_seconds())[:48]
+            return "device:" + _signer(DEVICE_SALT).loads(device, max_age=DEVICE_LIFETIME.total_seconds())[:48]
         except (BadSignature, TypeError):
             pass
     return "ip:" + client_network()
-
-
-def _device_signer() -> URLSafeTimedSerializer:
-    return URLSafeTimedSerializer(current_app.config["SECRET_KEY"], salt="scenesuggest-admin-device")
 
 
 def attempt_login(password: str) -> str | None:
@@ -147,7 +146,7 @@ def attempt_login(password: str) -> str | None:
     session["csrf"] = secrets.token_urlsafe(24)
     session.permanent = False
     device = key.removeprefix("device:") if key.startswith("device:") else secrets.token_urlsafe(16)
-    return _device_signer().dumps(device)
+    return _signer(DEVICE_SALT).dumps(device)
 
 
 def _digest(sid: str) -> str:

@@ -46,7 +46,7 @@ export class Outbox {
     } catch (e) { /* blocked or corrupt: this page's own copy below */ }
     if (!state && this.memory) state = JSON.parse(JSON.stringify(this.memory));  // storage blocked or cleared
     state = state || { nextSeq: 0, acked: -1, pending: [] };
-    if (!this.mine || !this.mine.size) return state;
+    if (!this.mine.size) return state;
     const held = new Map(state.pending.map((e) => [identity(e), e]));
     const taken = new Set(state.pending.map((e) => e.seq));
     for (const [id, event] of this.mine) {

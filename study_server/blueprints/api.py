@@ -105,9 +105,9 @@ def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
 
 def _open(who) -> None:
     """A session that has ended (completed, excluded, declined …) changes nothing any more."""
-    if isinstance(who, Participant) and who.status not in ingest.OPEN:
-        raise RequestError(410, f"this session has ended (status {who.status!r})", "status",
-                       extra={"status": who.status})
+    if isinstance(who, Participant) and not flow.is_open(who):
+        raise RequestError(410, f"this session has ended (status {who.status!r}); it takes nothing more", "status",
+                           extra={"status": who.status})
 
 
 def _current(who) -> tuple[str, str, int]:
@@ -176,6 +176,7 @@ def events():
         except EventError as e:
             raise RequestError(422, e.message, e.field) from None
         return jsonify({"acked_seq": max((e["seq"] for e in batch), default=-1), "stored": False})
+    _open(who)
     study = runtime(who.study_id).study
     quota = (study.max_events_per_participant, int(study.max_mb_per_participant * 1024 * 1024))
     try:
@@ -183,18 +184,15 @@ def events():
     except EventError as e:
         db.session.rollback()
         raise RequestError(422, e.message, e.field) from None
-    except ingest.Closed:
-        raise RequestError(410, f"this session has ended (status {who.status!r}); no more events are taken",
-                       "status", extra={"status": who.status}) from None
     except ingest.Conflict as e:
         raise RequestError(409, f"{e}: send these events again from seq {e.next_seq}",
-                       f"events[{e.positions[0]}].seq",
-                       extra={"conflicts": e.positions, "next_seq": e.next_seq}) from None
+                           f"events[{e.positions[0]}].seq",
+                           extra={"conflicts": e.positions, "next_seq": e.next_seq}) from None
     except ingest.OverQuota:
         log("quota", who, what="events")
         db.session.commit()
         raise RequestError(429, "this session has stored as many events as a study allows", "events",
-                       {"Retry-After": "300"}) from None
+                           {"Retry-After": "300"}) from None
     return jsonify({"acked_seq": acked, "stored": True})
 
 

@@ -170,7 +170,7 @@ def current(study_id: str):
     _log_view(p)
     db.session.commit()
     context = {"study": study, "p": p}
-    if p.status != "in_progress":  # finished, declined, screened out or excluded: only the end page
+    if not flow.is_open(p):  # finished, declined, screened out or excluded: only the end page
         return render_template("done.html", completion_url=flow.completion_url(study, p), **context)
     if p.step == "device":
         return render_template("device.html", **context)
@@ -209,7 +209,7 @@ def _unless_ended(step, p: Participant, *args) -> None:
     """Run a step that may end the session; when an exclusion committed meanwhile, change nothing."""
     try:
         step(p, *args)
-    except ValueError:
+    except flow.SessionEnded:
         db.session.rollback()
 
 
@@ -219,7 +219,7 @@ def _post_participant(study_id: str) -> Participant | None:
     p = _participant(study_id)
     if p is None:
         raise NotFound()
-    if p.status != "in_progress":
+    if not flow.is_open(p):
         log("refused", p, path=request.path, status=p.status)
         db.session.commit()
         return None
@@ -245,7 +245,7 @@ def consent(study_id: str):
         agree = request.form.get("agree") == "yes"
         if agree:
             assignment.assign(study, p)  # a schedule row and trials only now (commits; p is fresh after it)
-        if p.step == "consent" and p.status == "in_progress":  # another tab may have moved on meanwhile
+        if p.step == "consent" and flow.is_open(p):  # another tab may have moved on meanwhile
             _unless_ended(flow.give_consent, p, study, agree)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
