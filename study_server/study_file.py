@@ -6,6 +6,7 @@ Paths inside a study file are relative to the file. See ``experiments/demo/study
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -146,8 +147,8 @@ class _Reader:
 
     def number(self, doc: dict, key: str, path: str, default=None, minimum: float = 0.0) -> float:
         v = doc.get(key, default)
-        if isinstance(v, bool) or not isinstance(v, int | float) or v < minimum:
-            raise self.fail(path, f"expected a number ≥ {minimum:g}" if key in doc else "missing")
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < minimum:
+            raise self.fail(path, f"expected a finite number ≥ {minimum:g}" if key in doc else "missing")
         return float(v)
 
     def boolean(self, doc: dict, key: str, path: str, default: bool) -> bool:

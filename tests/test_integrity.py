@@ -484,3 +484,18 @@ def test_an_exclusion_committed_while_the_exit_survey_is_submitted_wins(app_on):
             flow.submit_exit(p, study, {})
         db.session.rollback()
         assert db.session.query(Participant).one().status == "excluded"
+
+
+def test_a_forged_or_foreign_device_cookie_buys_no_extra_guesses(app_on):
+    from study_server.security import DEVICE_COOKIE
+
+    def guesses(cookie):
+        c = app_on.test_client()
+        if cookie:
+            c.set_cookie(DEVICE_COOKIE, cookie, path="/admin")
+        page = c.get("/admin/login")
+        return [c.post("/admin/login", data={"csrf_token": csrf(page), "password": "guess"}).status_code
+                for _ in range(3)]
+    assert guesses(None) + guesses(None) == [401] * 5 + [429]  # one address: five tries
+    assert guesses("made-up.value.sig") == [429] * 3  # an unsigned cookie counts as the address
+    assert guesses("x" * 3000) == [429] * 3  # a long one too (no 500)

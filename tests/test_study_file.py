@@ -57,6 +57,15 @@ def test_the_demo_study_is_valid():
     ('options = ["Never", "A few times", "Regularly"]', 'options = ["Only"]', "demographics[1].options", "two"),
     ('kind = "likert"', 'kind = "slider"', "exit_survey[0].kind", "not one of"),
     ('condition = "full"', 'condition = "sideways"', "practice.condition", "not one of"),
+    ('kind = "link"', 'kind = "link"\nstudy_id = 5', "platform.study_id", "non-empty string"),
+    ('min_objects_placed = 1', 'min_objects_placed = -1', "limits.min_objects_placed", "number ≥ 0"),
+    ('min_trial_seconds = 10', 'min_trial_seconds = "ten"', "limits.min_trial_seconds", "number ≥ 0"),
+    ('arrivals_per_address_per_hour = 100', 'arrivals_per_address_per_hour = 0',
+     "limits.arrivals_per_address_per_hour", "number ≥ 1"),
+    ('max_events_per_participant = 100000', 'max_events_per_participant = 1e400',
+     "limits.max_events_per_participant", "finite number"),
+    ('trial_minutes = 8', 'trial_minutes = inf', "limits.trial_minutes", "finite number"),
+    ('max_mb_per_participant = 32', 'max_mb_per_participant = true', "limits.max_mb_per_participant", "number"),
 ])
 def test_mistakes_name_the_key(study_dir, old, new, key, words):
     path = edit(study_dir, old, new)
