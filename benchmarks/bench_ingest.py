@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import random
-import re
 import sqlite3
 import sys
 import tempfile
@@ -26,29 +25,22 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from serverproc import StudyServer  # noqa: E402
 
+from simulation.transport import HttpTransport  # noqa: E402
+from simulation.walker import Walker  # noqa: E402
+
 
 def enrol(base: str, pid: str) -> str:
     """Walk one participant to the first trial over HTTP; returns its session token."""
-    import requests
-
-    s = requests.Session()
-    page = s.get(f"{base}/study/demo/start?pid={pid}", timeout=30).text
-    token = re.search(r'name="csrf_token" value="([^"]+)"', page).group(1)
-    s.post(f"{base}/study/demo/device", data={"csrf_token": token, "width": 1400, "height": 900}, timeout=30)
-    s.post(f"{base}/study/demo/consent", data={"csrf_token": token, "agree": "yes"}, timeout=30)
-    s.post(f"{base}/study/demo/demographics", data={"csrf_token": token, "age": "30", "experience_3d": "Never",
-                                                    "pointing_device": "Mouse"}, timeout=30)
-    for _ in range(10):
-        page = s.get(f"{base}/study/demo/", timeout=30).text
-        found = re.search(r'"token": "([^"]+)"', page.replace("\\u0022", '"'))
-        if 'id="boot"' in page and found:
-            return found.group(1)
-        s.post(f"{base}/study/demo/instructions", data={"csrf_token": token, "go": "next"}, timeout=30)
-    raise RuntimeError("could not reach the trials")
+    page = Walker(HttpTransport(base), "demo").to_first_trial(
+        {"pid": pid}, lambda _: {"age": "30", "experience_3d": "Never", "pointing_device": "Mouse"})
+    if page.step != "trial":
+        raise RuntimeError(f"could not reach the trials (stopped at {page.step!r})")
+    return page.boot["token"]
 
 
 def participant(base: str, token: str, first_seq: int, batches: int, size: int, interval: float, resend: float,

@@ -29,7 +29,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import numpy as np  # noqa: E402
 from serverproc import StudyServer  # noqa: E402
 
-from study_server.bots import Bot, FlowError, HttpTransport  # noqa: E402
+from simulation.participant import Bot  # noqa: E402
+from simulation.transport import FlowError, HttpTransport  # noqa: E402
 
 
 def run(participants: int, kills: int, seed: int, workers: int) -> dict:

@@ -35,20 +35,25 @@ def emit(data: dict, as_json: bool, human: str) -> None:
 
 class _Group(click.Group):
     #: Command groups of other packages, imported only when used: name → (module, attribute). The engine
-    #: package imports neither the study server nor the analysis.
+    #: package imports neither the study server, the simulation nor the analysis.
     lazy = {"analyze": ("analysis.cli", "analyze"), "schedule": ("study_server.cli", "schedule"),
             "study": ("study_server.cli", "study")}
+    #: Commands that other packages add to those groups: group → [(module, attribute)].
+    extra = {"study": [("simulation.cli", "simulate_cmd")]}
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted([*super().list_commands(ctx), *self.lazy])
 
     def get_command(self, ctx: click.Context, name: str):
-        if name in self.lazy:
-            import importlib
+        if name not in self.lazy:
+            return super().get_command(ctx, name)
+        import importlib
 
-            module, attribute = self.lazy[name]
-            return getattr(importlib.import_module(module), attribute)
-        return super().get_command(ctx, name)
+        module, attribute = self.lazy[name]
+        group = getattr(importlib.import_module(module), attribute)
+        for module, attribute in self.extra.get(name, ()):
+            group.add_command(getattr(importlib.import_module(module), attribute))
+        return group
 
     def invoke(self, ctx: click.Context):
         try:

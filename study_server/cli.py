@@ -16,8 +16,8 @@ from scenesuggest.errors import SceneSuggestError
 
 from . import config, create_app, upgrade_database
 from .export import export_to
-from .runtime import load_studies
 from .schedule import williams_square
+from .studies import load_studies
 
 
 @click.group()
@@ -100,39 +100,3 @@ def study_export_cmd(study_id: str, out: str, database_url: str | None, as_json:
         manifest = export_to(app.extensions["studies"][study_id].study, Path(out))
     emit(manifest, as_json, f"exported {study_id} to {out}: " + ", ".join(f"{n} {k}" for k, n in
                                                                         manifest["row_counts"].items()))
-
-
-@study.command("simulate")
-@click.option("--participants", default=20, show_default=True, type=click.IntRange(min=1))
-@click.option("--seed", default=0, show_default=True)
-@click.option("--url", default=None, help="A running server (default: in process, on DATABASE_URL).")
-@click.option("--study", "study_id", default=None, help="Study id (default: the only configured study).")
-@click.option("--mix", is_flag=True, help="Mix in reloads, second tabs, repeated arrivals, resent batches and "
-                                          "drop-outs.")
-@click.option("--json", "as_json", is_flag=True)
-def study_simulate_cmd(participants: int, seed: int, url: str | None, study_id: str | None, mix: bool,
-                       as_json: bool) -> None:
-    """Simulated participants take the whole study through its HTTP interface; their operation times follow
-    the keystroke-level model applied to what the engine returns."""
-    from .bots import Behaviours
-    from .simulate import simulate
-
-    app = None
-    if url is None:
-        app = create_app()
-        upgrade_database(app)
-        if study_id is not None and study_id not in app.extensions["studies"]:
-            raise SceneSuggestError(f"no study {study_id!r} among {', '.join(app.extensions['studies'])}",
-                                    field="study")
-    elif study_id is None:
-        raise SceneSuggestError("name the study (--study) when simulating against --url", field="study")
-    summary = simulate(participants, seed, url=url, study=study_id, app=app,
-                       behaviours=Behaviours.mixed() if mix else None,
-                       progress=lambda label: click.echo(label, err=True))
-    means = ", ".join(f"{c} {s:.0f} s" for c, s in summary["mean_seconds"].items())
-    emit(summary, as_json, f"{summary['completed']}/{participants} participants completed {summary['trials']} "
-                           f"trials, {summary['events']} events ({summary['dropped_out']} dropped out); "
-                           f"mean trial time {means}"
-                           + "".join(f"\nfailed: {f['participant']}: {f['error']}" for f in summary["failures"]))
-    if summary["failures"]:
-        raise SceneSuggestError(f"{len(summary['failures'])} simulated participant(s) could not finish")

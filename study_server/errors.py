@@ -3,10 +3,20 @@
 Raised by services and routes alike; ``create_app`` maps it once — ``{"error": message, "field": name, …}`` as
 JSON under ``/api/`` and for JSON requests (the admin's scene editor), the calm message page everywhere else. The
 same place answers HTTP errors and unexpected failures (never a stack trace; participant pages get a reference
-that is in the session log).
+that is in the session log). A database that cannot store anything right now (read-only, full, locked or
+unreachable) is no bug to hide behind a 500: the API answers 503 with ``Retry-After`` (the browser's outbox keeps
+the events and sends them again) and participant pages say that the work is kept and to wait a moment.
 """
 
 from __future__ import annotations
+
+from sqlalchemy.exc import DBAPIError
+
+RETRY_AFTER_S = 5
+UNAVAILABLE = "the study's database cannot store data right now; nothing was stored — please send again shortly"
+_UNAVAILABLE_MARKERS = ("readonly database", "read-only", "read only", "disk is full", "database or disk is full",
+                        "no space left", "could not extend", "database is locked", "unable to open database",
+                        "could not connect", "server closed the connection", "connection refused")
 
 
 class RequestError(Exception):
@@ -82,14 +92,13 @@ def unexpected(e: Exception):
     right now is a 503 (the API adds Retry-After; the outbox sends again), anything else a 500."""
     from flask import current_app, jsonify
 
-    from . import storage
     from .extensions import db
 
     db.session.rollback()
-    if storage.unavailable(e):
+    if database_unavailable(e):
         current_app.logger.error("database unavailable: %s", e)
         if _is_api():
-            return jsonify({"error": storage.MESSAGE, "field": None}), 503, {"Retry-After": str(storage.RETRY_AFTER_S)}
+            return jsonify({"error": UNAVAILABLE, "field": None}), 503, {"Retry-After": str(RETRY_AFTER_S)}
         return _page(503, "We cannot save anything for a moment. Your work is kept in this browser; please wait a "
                           "minute and reload this page.", _log_participant_failure(503, e))
     current_app.logger.exception("request failure")
@@ -97,3 +106,11 @@ def unexpected(e: Exception):
         return jsonify({"error": "internal error; the request was not applied", "field": None}), 500
     return _page(500, "Something went wrong on our side. Your work is saved; please reload this page in a moment.",
                  _log_participant_failure(500, e))
+
+
+def database_unavailable(error: BaseException) -> bool:
+    """Whether ``error`` says the database cannot store data at the moment (as opposed to a bug)."""
+    if not isinstance(error, DBAPIError):
+        return False
+    text = str(error.orig if error.orig is not None else error).lower()
+    return bool(error.connection_invalidated) or any(m in text for m in _UNAVAILABLE_MARKERS)

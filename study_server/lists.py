@@ -14,7 +14,7 @@ from scenesuggest.suggest import ContextQuery
 
 from .extensions import db
 from .models import ShownList
-from .services import StudyRuntime
+from .studies import StudyRuntime
 
 #: Suggestions a context list shows (the engine ranks every category; these many are placed and oriented).
 SUGGESTIONS_SHOWN = 40

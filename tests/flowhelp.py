@@ -1,10 +1,10 @@
-"""Walking a participant through a study with HTTP requests alone (Flask test client)."""
+"""Walking a participant through a study in tests (Flask test client), with the simulation's one walker."""
 
 from __future__ import annotations
 
-import html
-import json
-import re
+from simulation.page import read_page
+from simulation.transport import FlaskTransport
+from simulation.walker import Walker
 
 DEMOGRAPHICS = {"age": "31", "experience_3d": "Never", "pointing_device": "Trackpad"}
 EXIT = {"enjoy_list": "2", "competent_list": "3", "enjoy_suggestions": "5", "competent_suggestions": "4",
@@ -12,12 +12,13 @@ EXIT = {"enjoy_list": "2", "competent_list": "3", "enjoy_suggestions": "5", "com
 
 
 def csrf(response) -> str:
-    return re.search(rb'name="csrf_token" value="([^"]+)"', response.data).group(1).decode()
+    """The form token of a page (a test client's response)."""
+    return read_page(response.data).csrf
 
 
 def boot(response) -> dict:
-    raw = re.search(rb'<script type="application/json" id="boot">(.*?)</script>', response.data, re.S).group(1)
-    return json.loads(html.unescape(raw.decode()))
+    """The scene editor's boot data of a trial page (a test client's response)."""
+    return read_page(response.data).boot
 
 
 def enter(client, study="demo", query="pid=p1", ua="Mozilla/5.0 (X11; Linux x86_64) Chrome/150"):
@@ -28,18 +29,12 @@ def enter(client, study="demo", query="pid=p1", ua="Mozilla/5.0 (X11; Linux x86_
 
 def to_trials(client, study="demo", query="pid=p1") -> dict:
     """From the entry link to the first trial page; returns the trial page's boot data."""
-    page = enter(client, study, query)
-    token = csrf(page)
-    client.form_token = token  # the browser session's form token, for later posts
-    client.post(f"/study/{study}/device", data={"csrf_token": token, "width": "1400", "height": "900"})
-    client.post(f"/study/{study}/consent", data={"csrf_token": token, "agree": "yes"})
-    client.post(f"/study/{study}/demographics", data={"csrf_token": token, **DEMOGRAPHICS})
-    for _ in range(10):
-        page = client.get(f"/study/{study}/")
-        if b'id="boot"' in page.data:
-            return boot(page)
-        client.post(f"/study/{study}/instructions", data={"csrf_token": token, "go": "next"})
-    raise AssertionError("never reached the trials")
+    walker = Walker(FlaskTransport(client), study)
+    page = walker.enter(query, headers={"User-Agent": "Mozilla/5.0 (X11; Linux x86_64) Chrome/150"})
+    client.form_token = page.csrf  # the browser session's form token, for later posts
+    page = walker.walk(lambda _: DEMOGRAPHICS, page=page)
+    assert page.step == "trial", f"never reached the trials (stopped at {page.step!r})"
+    return page.boot
 
 
 def auth(b: dict) -> dict:
@@ -50,7 +45,9 @@ def finish_all_trials(client, b: dict, study="demo") -> list[dict]:
     """Work through every trial: a trial_start, one object inserted, a trial_done 12 s later, and 'done';
     returns each trial's boot data."""
     seen, seq = [], 0
-    while True:
+
+    def trial(b: dict) -> bool:
+        nonlocal seq
         seen.append(b)
         t = b["trial"]
         t0 = 1.0e12 + seq * 1.0e5
@@ -66,7 +63,8 @@ def finish_all_trials(client, b: dict, study="demo") -> list[dict]:
         assert r.status_code == 200 and r.json["acked_seq"] == seq - 1, r.json
         r = client.post("/api/trial/done", headers=auth(b), json={"trial": t["index"]})
         assert r.status_code == 200, r.json
-        page = client.get(f"/study/{study}/")
-        if b'id="boot"' not in page.data:
-            return seen
-        b = boot(page)
+        return True
+
+    trial(b)
+    Walker(FlaskTransport(client), study).walk(lambda _: DEMOGRAPHICS, trial, until=("exit",))
+    return seen

@@ -17,8 +17,10 @@ from conftest import DEMO_STUDY, ROOT, gunicorn, make_app
 from analysis.load import read_database, read_export
 from analysis.measures import picks_table, trials_table
 from analysis.report import build_report
-from study_server.bots import Bot, FlaskTransport, heading_deg, words
-from study_server.simulate import simulate
+from simulation.actions import heading_deg, words
+from simulation.participant import Bot
+from simulation.run import simulate
+from simulation.transport import FlaskTransport
 
 
 def test_helpers():
@@ -68,8 +70,8 @@ def test_simulated_study_over_real_http_feeds_the_report(tmp_path, demo_resource
 
 
 def test_simulation_is_reproducible_from_its_seed(tmp_path, demo_resources):
-    a = simulate(2, seed=3, app=make_app(tmp_path / "a"))
-    b = simulate(2, seed=3, app=make_app(tmp_path / "b"))
+    a = simulate(2, seed=3, study="demo", app=make_app(tmp_path / "a"))
+    b = simulate(2, seed=3, study="demo", app=make_app(tmp_path / "b"))
     assert a == b and a["completed"] == 2
 
 
@@ -110,12 +112,12 @@ def test_replaced_picks_are_not_final():
 
 @pytest.mark.slow
 def test_mixed_behaviours_lose_nothing_and_duplicate_nothing(tmp_path, demo_resources):
-    from study_server.bots import Behaviours
+    from simulation.participant import Behaviours
 
     app = make_app(tmp_path)
-    summary = simulate(8, seed=11, app=app, behaviours=Behaviours(reload=0.3, second_tab=0.2, duplicate_arrival=0.5,
-                                                                  resend=0.3, drop_out=0.25, lossy=0.1,
-                                                                  latency_s=0.002))
+    behaviours = Behaviours(reload=0.3, second_tab=0.2, duplicate_arrival=0.5, resend=0.3, drop_out=0.25,
+                            lossy=0.1, latency_s=0.002)
+    summary = simulate(8, seed=11, study="demo", app=app, behaviours=behaviours)
     assert not summary["failures"] and summary["reloads"] > 0 and summary["dropped_out"] > 0
     assert summary["requests_repeated"] > 20  # lost requests and lost answers, all sent again
     assert summary["completed"] + summary["dropped_out"] == 8

@@ -31,6 +31,33 @@ def test_a_whole_run_of_the_demo_study(client, app):
         assert answers["exit"]["enjoy_suggestions"] == 5 and answers["exit"]["preference"] == "Suggestions, oriented"
 
 
+def test_every_page_says_its_step_and_one_walker_goes_through_them(client):
+    """Pages mark their step (``<body data-step>``): the walker reads the step, the form token, the trial's boot
+    data and the completion code without looking at wording or markup."""
+    from simulation.page import read_page
+    from simulation.transport import FlaskTransport
+    from simulation.walker import Walker
+
+    seen = []
+
+    def answers(page):
+        seen.append(page.step)
+        return DEMOGRAPHICS if page.step == "demographics" else {**EXIT, "last_seq": "29", "attempt": "0"}
+
+    walker = Walker(FlaskTransport(client), "demo")
+    first = walker.enter("pid=walker")
+    assert first.step == "device" and first.csrf
+    trials = []
+    b = walker.walk(answers, page=first).boot
+    assert b is not None and b["trial"]["kind"] == "practice"
+    finish_all_trials(client, b)
+    end = walker.walk(answers, lambda boot: trials.append(boot) or True)
+    assert seen == ["demographics", "exit"] and trials == []
+    assert end.step == "done" and end.code == "DEMO-DONE-7F3A"
+    assert read_page(client.get("/study/nope/").data).step == "message"  # a calm notice, not a step of the flow
+    assert read_page(enter(client.application.test_client(), query="pid=other").data).step == "device"
+
+
 def test_the_completion_code_waits_for_the_last_events(client, app):
     b = to_trials(client)
     finish_all_trials(client, b)

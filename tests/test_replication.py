@@ -125,7 +125,7 @@ def test_prepare_names_a_missing_corpus(tmp_path, monkeypatch):
 
 
 def test_the_study_file_loads_with_two_periods_in_a_williams_design(replication):
-    from study_server.services import StudyRuntime
+    from study_server.studies import StudyRuntime
     from study_server.study_file import load_study
 
     study = load_study(replication)
@@ -141,8 +141,8 @@ def test_the_study_file_loads_with_two_periods_in_a_williams_design(replication)
 
 @pytest.mark.slow
 def test_simulated_participants_complete_the_replication(replication, tmp_path):
-    from study_server.simulate import simulate
+    from simulation.run import simulate
 
     app = make_app(tmp_path, studies=[replication])
-    report = simulate(3, seed=1, app=app)
+    report = simulate(3, seed=1, app=app, study="scenesuggest-2015")
     assert report["completed"] == 3 and report["trials"] == 27, report

@@ -30,7 +30,6 @@ from ..errors import RequestError
 from ..export import export_zip
 from ..extensions import db
 from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
-from ..runtime import runtime
 from ..security import (
     DEVICE_COOKIE,
     DEVICE_LIFETIME,
@@ -43,6 +42,7 @@ from ..security import (
     end_admin_session,
     preview_token,
 )
+from ..studies import runtime
 
 bp = Blueprint("admin", __name__, url_prefix="/admin")
 

@@ -22,8 +22,8 @@ from ..errors import RequestError
 from ..extensions import db
 from ..models import Participant, Trial, log, utcnow
 from ..openapi import openapi_document
-from ..runtime import runtime
 from ..security import read_preview_token
+from ..studies import runtime
 
 bp = Blueprint("api", __name__, url_prefix="/api")
 

@@ -17,8 +17,8 @@ from .. import assignment, flow
 from ..boot import trial_boot
 from ..extensions import db
 from ..models import Participant, SessionLog, flag, log, utcnow
-from ..runtime import runtime
 from ..security import address_key, check_csrf
+from ..studies import runtime
 
 bp = Blueprint("participant", __name__, url_prefix="/study/<study_id>")
 MTURK_PREVIEW = "ASSIGNMENT_ID_NOT_AVAILABLE"

@@ -1,5 +1,5 @@
-"""``scenesuggest study simulate``: run simulated participants (:mod:`study_server.bots`) through a study, in
-process or against a running server, and summarise what they did."""
+"""Run simulated participants (:mod:`.participant`) through a study, in process or against a running server,
+and summarise what they did (``scenesuggest study simulate``)."""
 
 from __future__ import annotations
 
@@ -7,23 +7,21 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .bots import Behaviours, Bot, FlaskTransport, FlowError, HttpTransport
+from .participant import Behaviours, Bot
+from .transport import FlaskTransport, FlowError, HttpTransport
 
 
-def simulate(participants: int, seed: int = 0, *, url: str | None = None, study: str | None = None, app=None,
+def simulate(participants: int, seed: int = 0, *, study: str, url: str | None = None, app=None,
              behaviours: Behaviours | None = None, progress: Callable[[str], None] = lambda label: None) -> dict:
-    """Run ``participants`` bots one after another (bot i draws from the generator seeded ``[seed, i]``).
+    """Run ``participants`` bots one after another through ``study`` (bot i draws from the generator seeded
+    ``[seed, i]``).
 
-    With ``url`` they talk HTTP to that server; otherwise to ``app`` (a Flask app) in process. Returns the
-    counts of completed participants, trials, events sent and objects the bots could not find, and the mean
-    simulated seconds per condition.
+    With ``url`` they talk HTTP to that server; otherwise to ``app`` (a Flask app) through its test client.
+    Returns the counts of completed participants, trials, events sent and objects the bots could not find, and
+    the mean simulated seconds per condition.
     """
     if url is None and app is None:
         raise ValueError("give a server URL or an app")
-    if study is None:
-        if app is None:
-            raise ValueError("name the study when simulating against a URL")
-        study = next(iter(app.extensions["studies"]))
     results, failures, retries, symmetry = [], [], 0, {}
     for i in range(participants):
         transport = HttpTransport(url) if url else FlaskTransport(app.test_client())

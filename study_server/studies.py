@@ -1,7 +1,9 @@
-"""What a running study needs besides the database: its engine per condition, model library, search, scenes.
+"""The studies a server runs: each study file loaded and validated at start-up (a bad study stops the server,
+never a participant's request), with what a running study needs besides the database — its engine per condition,
+model library, search index and scenes — and the lookup of a study by id per request.
 
-Loaded once per process, lazily (the first request that needs a piece loads it, under a lock), so that
-creating the app stays cheap and each gunicorn worker holds one copy.
+The pieces are loaded once per process, lazily (the first request that needs a piece loads it, under a lock), so
+that creating the app stays cheap and each gunicorn worker holds one copy.
 """
 
 from __future__ import annotations
@@ -11,16 +13,43 @@ import threading
 from functools import cached_property
 from pathlib import Path
 
+from flask import abort, current_app
+
 from scenesuggest import scene_json
 from scenesuggest.library import INDEX_FILE, ModelInfo, load_index
 from scenesuggest.priors import Priors
 from scenesuggest.search import SearchIndex
 from scenesuggest.suggest import Engine
 
-from .study_file import Study, StudyFileError
+from .study_file import Study, StudyFileError, load_study
+
+
+def load_studies(files: list[Path], check: bool = True) -> dict[str, StudyRuntime]:
+    """Validate every study file (and, with ``check``, its scenes, priors and library): a bad study stops
+    the server at start-up with an error naming the key, never a participant's request."""
+    runtimes: dict[str, StudyRuntime] = {}
+    for f in files:
+        study = load_study(f)
+        if study.id in runtimes:
+            raise StudyFileError(f"study id {study.id!r} is used by two study files", file=str(f), field="id")
+        runtime = StudyRuntime(study)
+        runtime.validate_scenes()
+        if check:
+            runtime.check_resources()
+        runtimes[study.id] = runtime
+    return runtimes
+
+
+def runtime(study_id: str) -> StudyRuntime:
+    studies = current_app.extensions["studies"]
+    if study_id not in studies:
+        abort(404)
+    return studies[study_id]
 
 
 class StudyRuntime:
+    """One study as the server runs it: its validated file and, loaded on first use, its resources."""
+
     def __init__(self, study: Study):
         self.study = study
         self._lock = threading.RLock()

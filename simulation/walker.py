@@ -1,0 +1,82 @@
+"""The participant walk: from the entry link through every page of a study, the one way all simulated
+participants, tests and benchmarks go through it.
+
+Each page names its step (:mod:`.page`); the walker answers the steps whose answer is always the same (the
+device check, consent, the instruction pages, the exit page's wait for the last events) and asks its caller for
+the rest: the survey answers (``answers``) and what to do in a trial (``trial``). Every request goes through a
+transport (:mod:`.transport`), so the same walk runs in process or over real HTTP.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Collection
+from urllib.parse import urlencode
+
+from .page import Page, read_page
+from .transport import FlowError
+
+#: What a person answers on the pages that ask nothing of them (a 1440 × 900 window passes the device check).
+FIXED_ANSWERS = {"device": {"width": "1440", "height": "900"}, "consent": {"agree": "yes"},
+                 "instructions": {"go": "next"}}
+#: Pages a study shows before and after the trials whose answers the caller gives.
+SURVEYS = ("demographics", "exit")
+MAX_PAGES = 200
+
+
+class Walker:
+    """One participant's way through the pages of ``study`` over ``http`` (a transport)."""
+
+    def __init__(self, http, study: str):
+        self.http, self.study = http, study
+
+    def enter(self, query: str | dict, headers: dict | None = None) -> Page:
+        """Follow the entry link (``pid=…``, or a platform's parameters) and read the page it leads to."""
+        query = urlencode(query) if isinstance(query, dict) else query
+        r = self.http.get(f"/study/{self.study}/start?{query}", headers=headers)
+        if r.status >= 400:
+            raise FlowError(f"entry link → {r.status}")
+        return read_page(r.body)
+
+    def current(self) -> Page:
+        """The page the participant is on now (what a reload shows)."""
+        r = self.http.get(f"/study/{self.study}/")
+        if r.status >= 400:
+            raise FlowError(f"GET /study/{self.study}/ → {r.status}")
+        return read_page(r.body)
+
+    def submit(self, step: str, form: dict, page: Page) -> Page:
+        """Post ``form`` to ``step`` with ``page``'s form token; returns the page the answer leads to."""
+        r = self.http.post(f"/study/{self.study}/{step}", form={"csrf_token": page.csrf or "", **form})
+        if r.status >= 400:
+            raise FlowError(f"POST {step} → {r.status}")
+        return read_page(r.body)
+
+    def walk(self, answers: Callable[[Page], dict], trial: Callable[[dict], bool] | None = None,
+             until: Collection[str] = ("done",), page: Page | None = None) -> Page:
+        """Go from ``page`` (default: the current one) until a step of ``until`` or the end page; returns it.
+
+        ``answers(page)`` gives the form of a survey page (``demographics``, ``exit``); ``trial(boot)`` works
+        through the trial whose boot data is given and returns False to stop walking there (a drop-out). A walk
+        without ``trial`` stops at the first trial page."""
+        page = page or self.current()
+        for _ in range(MAX_PAGES):
+            if page.step in until or page.step == "done":
+                return page
+            if page.step == "trial":
+                if trial is None or not trial(page.boot):
+                    return page
+                page = self.current()
+            elif page.step in FIXED_ANSWERS:
+                page = self.submit(page.step, FIXED_ANSWERS[page.step], page)
+            elif page.step in SURVEYS:
+                page = self.submit(page.step, answers(page), page)
+            elif page.step == "saving":  # the exit survey waits for the last events: send it again
+                page = self.submit("exit", page.hidden, page)
+            else:
+                raise FlowError(f"a page the walk cannot go on from (step {page.step!r})")
+        raise FlowError("the study never ended")
+
+    def to_first_trial(self, query: str | dict, answers: Callable[[Page], dict], headers: dict | None = None
+                       ) -> Page:
+        """From the entry link to the first trial page (or wherever the walk stops before it)."""
+        return self.walk(answers, page=self.enter(query, headers))
