@@ -53,11 +53,21 @@ def browser(server):
 
 
 IGNORED_CONSOLE = ("GPU stall due to ReadPixels", "favicon", "dbus")
+TEST_HOOK = "window.sceneSuggestTestHook = true"  # set before the page's scripts: trial.js then loads test-hook.js
+
+
+def new_context(browser, test_hook: bool = True, **options):
+    """A browser context whose pages load the trial page's test hook (``window.sceneSuggestTest``) unless
+    ``test_hook`` is false, as a participant's page does not."""
+    context = browser.new_context(viewport={"width": 1280, "height": 720}, **options)
+    if test_hook:
+        context.add_init_script(TEST_HOOK)
+    return context
 
 
 @pytest.fixture
 def page(browser):
-    context = browser.new_context(viewport={"width": 1280, "height": 720})
+    context = new_context(browser)
     pg = context.new_page()
     pg.console_problems = []
     pg.on("console", lambda m: m.type == "error" and not any(s in m.text for s in IGNORED_CONSOLE)
@@ -425,6 +435,28 @@ def test_a_second_tab_takes_over_and_nothing_is_numbered_twice(page, server):
     logged = [e[0] for e in hook(page, "events.map(e => [e.seq])")] + \
         [e[0] for e in second.evaluate("() => window.sceneSuggestTest.events.map(e => [e.seq])")]
     assert len(logged) == len(set(s for s in logged if s >= 0))
+
+
+def test_only_a_page_that_asks_for_the_test_hook_loads_it(page, browser, server):
+    """A participant's page neither loads the test hook nor keeps its events for it; a test's page does."""
+    base, _ = server
+    start(page, base, "browser-hook")
+    scripts = "performance.getEntriesByType('resource').map(r => r.name).filter(n => n.endsWith('.js'))"
+    assert any(n.endswith("/js/test-hook.js") for n in page.evaluate(f"() => {scripts}"))
+    plain = new_context(browser, test_hook=False, storage_state=page.context.storage_state())
+    try:
+        participant = plain.new_page()
+        requested = []
+        participant.on("request", lambda r: requested.append(r.url))
+        participant.goto(f"{base}/study/demo/")
+        until(participant, "document.getElementById('hint').textContent !== ''")  # the condition is wired: after
+        until(participant, "document.querySelector('#editor canvas')")           # the hook would have loaded
+        assert participant.evaluate("() => typeof window.sceneSuggestTest") == "undefined"
+        loaded = participant.evaluate(f"() => {scripts}")
+        assert any(n.endswith("/js/trial.js") for n in loaded)
+        assert not [u for u in requested + loaded if "test-hook" in u]
+    finally:
+        plain.close()
 
 
 def db_event_times(database: Path, pid: str) -> list[tuple[int, str, float]]:
