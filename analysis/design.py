@@ -73,6 +73,13 @@ class Design:
                       tuple(t for t in self.fixed_terms if t != term), self.random, self.dropped)
 
 
+def formula_of(design: Design) -> str:
+    """lme4's formula for the design, as fits report it: ``y ~ condition + (1 | participant) + (1 | scene)``."""
+    fixed = " + ".join(design.fixed_terms) or "1"
+    random = " + ".join(f"({t.slope_name or 1} | {t.group})" for t in design.random)
+    return f"{design.response} ~ {fixed} + {random}"
+
+
 def _term_of(name: str, terms: tuple[str, ...]) -> str | None:
     if name == "(Intercept)":
         return None

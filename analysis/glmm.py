@@ -22,9 +22,9 @@ from scipy.special import gammaln
 from statsmodels.genmod.families import Poisson
 from statsmodels.genmod.generalized_linear_model import GLM
 
-from .design import Design
+from .design import Design, formula_of
 from .errors import AnalysisError
-from .mixed import MixedFit, formula_of
+from .results import MixedFit
 
 STEP = 1e-4  # finite-difference step of the Hessian (lme4's deriv12)
 WILD = 1e300  # deviance reported where the likelihood overflows, so line searches back off

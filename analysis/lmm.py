@@ -20,9 +20,9 @@ import numpy as np
 from scipy import optimize
 from scipy.linalg import block_diag, cho_factor, cho_solve, solve_triangular
 
-from .design import Design
+from .design import Design, formula_of
 from .errors import AnalysisError
-from .mixed import MixedFit, formula_of
+from .results import MixedFit
 
 STARTS = (1.0, 0.1, 3.0)
 

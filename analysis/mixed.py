@@ -2,104 +2,39 @@
 
 ``fit`` dispatches on the family: Gaussian (linear mixed model, :mod:`analysis.lmm`) or Poisson (log link,
 Laplace or adaptive Gauss–Hermite likelihood, :mod:`analysis.glmm`). The numbers reproduce lme4's ``lmer``
-(``REML = FALSE``) and ``glmer`` with their default settings; tests compare them with lme4's own output.
+(``REML = FALSE``) and ``glmer`` with their default settings; tests compare them with lme4's own output. What
+they return (:class:`MixedFit`, :class:`LRTest`, :class:`Comparison`, :class:`Contrast`) is in
+:mod:`analysis.results`.
 """
 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
 
 from .design import Design
 from .errors import AnalysisError
+from .glmm import fit_poisson
+from .lmm import fit_lmm
+from .results import Comparison, Contrast, LRTest, MixedFit
 
 FAMILIES = ("gaussian", "poisson")
-
-
-@dataclass(frozen=True)
-class MixedFit:
-    """A fitted mixed model.
-
-    ``variance`` holds random-effect variances by grouping factor (``"Subject:Days"`` for a slope,
-    ``"Subject:cor"`` for the intercept–slope correlation) and ``"residual"`` for Gaussian models.
-    ``loglik`` is the maximised log-likelihood (for REML fits, the REML criterion is ``-2 * loglik``).
-    """
-
-    family: str
-    formula: str
-    nobs: int
-    groups: dict[str, int]
-    fixed: dict[str, float]
-    se: dict[str, float]
-    cov_fixed: np.ndarray
-    variance: dict[str, float]
-    loglik: float
-    n_params: int
-    reml: bool = False
-    optimizer: str = ""
-    singular: bool = False
-    dropped: int = 0
-    extra: dict = field(default_factory=dict)
-
-    def to_dict(self) -> dict:
-        return {"family": self.family, "formula": self.formula, "nobs": self.nobs, "groups": self.groups,
-                "loglik": self.loglik, "reml": self.reml, "n_params": self.n_params,
-                "fixed": {k: {"estimate": v, "se": self.se[k]} for k, v in self.fixed.items()},
-                "variance": self.variance, "singular": self.singular, "optimizer": self.optimizer,
-                "dropped_rows": self.dropped, **self.extra}
-
-
-@dataclass(frozen=True)
-class LRTest:
-    """Likelihood-ratio test of nested maximum-likelihood fits: χ²(df) = 2 (ℓ_full − ℓ_null)."""
-
-    chi2: float
-    df: int
-    p: float
-    nobs: int
-    null_loglik: float
-    full_loglik: float
-
-    def to_dict(self) -> dict:
-        return {"chi2": self.chi2, "df": self.df, "p": self.p, "n": self.nobs, "null_loglik": self.null_loglik,
-                "full_loglik": self.full_loglik}
-
-    def text(self) -> str:
-        """APA style: χ²(2, N = 180) = 12.34, p < .001."""
-        return f"χ²({self.df}, N = {self.nobs}) = {self.chi2:.2f}, {format_p(self.p)}"
-
-
-def format_p(p: float) -> str:
-    if not np.isfinite(p):
-        return "p = n/a"
-    if p < 0.001:
-        return "p < .001"
-    return f"p = {p:.3f}".replace("0.", ".", 1)
-
-
-def formula_of(design: Design) -> str:
-    fixed = " + ".join(design.fixed_terms) or "1"
-    random = " + ".join(f"({t.slope_name or 1} | {t.group})" for t in design.random)
-    return f"{design.response} ~ {fixed} + {random}"
 
 
 def fit(design: Design, family: str = "gaussian", *, reml: bool = False, n_agq: int = 1) -> MixedFit:
     """Fit by maximum likelihood (or REML for Gaussian models when ``reml``)."""
     if family == "gaussian":
-        from .lmm import fit_lmm
-
         return fit_lmm(design, reml=reml)
     if family == "poisson":
-        from .glmm import fit_poisson
-
         return fit_poisson(design, n_agq=n_agq)
     raise AnalysisError(f"unknown family {family!r} (choose {' or '.join(FAMILIES)})", "--family")
 
 
 def lr_test(null: MixedFit, full: MixedFit) -> LRTest:
+    """``anova(null, full)``: df is the difference in estimated parameters; a χ² below 0 (the null fitted
+    slightly better) counts as 0, as in lme4's ``anova``."""
     if null.reml or full.reml:
         raise AnalysisError("likelihood-ratio tests of fixed effects need maximum-likelihood fits, not REML")
     df = full.n_params - null.n_params
@@ -107,38 +42,11 @@ def lr_test(null: MixedFit, full: MixedFit) -> LRTest:
     return LRTest(chi2, df, float(stats.chi2.sf(chi2, df)), full.nobs, null.loglik, full.loglik)
 
 
-@dataclass(frozen=True)
-class Comparison:
-    """A measure's model with the term, without it, and the LR test between them."""
-
-    full: MixedFit
-    null: MixedFit
-    lrt: LRTest
-
-    def to_dict(self) -> dict:
-        return {**self.full.to_dict(), "lrt": self.lrt.to_dict(), "null": self.null.to_dict()}
-
-
 def compare(design: Design, term: str, family: str = "gaussian") -> Comparison:
     """Fit with and without the fixed ``term`` and test it."""
     full = fit(design, family)
     null = fit(design.without(term), family)
     return Comparison(full, null, lr_test(null, full))
-
-
-@dataclass(frozen=True)
-class Contrast:
-    a: str
-    b: str
-    estimate: float
-    se: float
-    z: float
-    p: float
-    p_holm: float
-
-    def to_dict(self) -> dict:
-        return {"contrast": f"{self.a} − {self.b}", "estimate": self.estimate, "se": self.se, "z": self.z,
-                "p": self.p, "p_holm": self.p_holm}
 
 
 def holm(p: list[float]) -> list[float]:

@@ -19,7 +19,8 @@ import pandas as pd
 from .bootstrap import bootstrap_by
 from .design import build_design
 from .errors import AnalysisError
-from .mixed import compare, format_p, pairwise
+from .mixed import compare, pairwise
+from .results import format_p
 
 #: (column, label, digits, family, table) — what Table 1 and the tests cover; ``picks`` rows for MRR.
 MEASURES = [

@@ -21,8 +21,12 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from serverproc import StudyServer  # noqa: E402
+
+from simulation.transport import HttpTransport  # noqa: E402
+from simulation.walker import Walker  # noqa: E402
 
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -61,27 +65,21 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp, \
             StudyServer(Path(tmp) / "instance", f"sqlite:///{tmp}/db.sqlite3") as server:
         base = server.base
+        # the participant walks to the first trial over HTTP; the browser then carries on with its cookies
+        http = HttpTransport(base)
+        walk = Walker(http, "demo").to_first_trial(
+            {"pid": "bench-client"}, lambda _: {"age": "30", "experience_3d": "Never", "pointing_device": "Mouse"})
+        boot = walk.boot
+        models = http.get("/api/models", headers={"Authorization": f"Bearer {boot['token']}"}).json()["models"]
+        key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
+        scene = json.dumps(scene_with(models, args.objects))
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=chromium, args=ARGS)
-            page = browser.new_page(viewport={"width": 1280, "height": 720})  # passes the device check
-            page.goto(f"{base}/study/demo/start?pid=bench-client")
-            page.click("text=I agree to take part")
-            page.fill("input[name=age]", "30")
-            page.check("input[name=experience_3d][value=Never]")
-            page.check("input[name=pointing_device][value=Mouse]")
-            page.click("button:has-text('Continue')")
-            while page.locator("button[name=go][value=next]").count():
-                page.click("button[name=go][value=next]")
-            boot = json.loads(page.locator("#boot").inner_text())
-            models = page.evaluate("() => fetch('/api/models', {headers: {Authorization: 'Bearer ' + "
-                                   "JSON.parse(document.getElementById('boot').textContent).token}})"
-                                   ".then(r => r.json())")["models"]
-            key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
-            page.evaluate("([k, v]) => localStorage.setItem(k, v)", [key, json.dumps(scene_with(models,
-                                                                                               args.objects))])
-            fresh = browser.new_context(viewport={"width": 800, "height": 600},
-                                        storage_state=page.context.storage_state())
-            fresh.add_init_script("window.sceneSuggestTestHook = true")  # the page then loads its test hook
+            fresh = browser.new_context(viewport={"width": 800, "height": 600})
+            fresh.add_cookies(http.cookies())
+            # the scene the page resumes from, and the test hook (loaded only when asked for)
+            fresh.add_init_script(f"localStorage.setItem({json.dumps(key)}, {json.dumps(scene)}); "
+                                  "window.sceneSuggestTestHook = true")
             measure = fresh.new_page()
             measure.goto(f"{base}/study/demo/")
             for _ in range(400):
@@ -98,7 +96,8 @@ def main() -> int:
             drawn = measure.evaluate("() => window.sceneSuggestTest.renderInfo()")
             transferred = measure.evaluate("""() => {
               const nav = performance.getEntriesByType('navigation')[0];
-              const res = performance.getEntriesByType('resource');
+              // what a participant's page loads (the test hook is loaded for the measurement only)
+              const res = performance.getEntriesByType('resource').filter(r => !r.name.endsWith('/test-hook.js'));
               const sum = (k) => res.reduce((s, r) => s + (r[k] || 0), 0);
               return {page: (nav.transferSize || nav.encodedBodySize), transfer: sum('transferSize'),
                       body: sum('encodedBodySize'),
