@@ -35,12 +35,12 @@ import math
 import numpy as np
 from scipy.optimize import minimize
 
+from .angle_bins import BINS, angle_bins, bin_counts
 from .frames import FACES
 from .observations import POOLED
 from .scene import SURFACE_TYPES
 from .taxonomy import MIN_OBSERVATIONS
 
-BINS = 36
 BIN = 2 * math.pi / BINS
 KINDS = ("canonical", "parent_front", "parent_bearing", "sibling_front", "sibling_bearing", "wall")
 PSEUDO_COUNT = 3.0
@@ -210,8 +210,6 @@ class _GroupCounts:
     """Samples and θ, φ counts of each (segment, scene group): what leaving a scene group out subtracts."""
 
     def __init__(self, expanded, row_group: np.ndarray):
-        from .pair_priors import angle_bins, bin_counts  # pair_priors reads this module's BINS
-
         self.n_groups = int(row_group.max()) + 1 if len(row_group) else 1
         self.keys, inverse = np.unique(expanded.segment * self.n_groups + row_group, return_inverse=True)
         inverse = inverse.reshape(-1)
@@ -272,8 +270,6 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
     used = np.array([k in kinds for k in KINDS], dtype=float)
     if trust == "equal":
         return np.broadcast_to(used.astype(np.float32), (len(priors.entities), len(SURFACE_TYPES), len(KINDS))).copy()
-    from .pair_priors import angle_bins  # pair_priors reads this module's BINS
-
     heading = np.array([s.heading for s in supports], dtype=float)
     usable = np.flatnonzero(np.isfinite(heading))
     n = len(supports)

@@ -20,13 +20,12 @@ seen at one.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from .angle_bins import angle_bins, bin_counts
 from .observations import RELATIONS, Pair
-from .orientation import BINS
 from .scene import SURFACE_TYPES
 
 MIN_BANDWIDTH_M = 0.1
@@ -96,22 +95,6 @@ def expand_pairs(pairs: list[Pair], expand: dict[str, list[int]], s_index: dict[
     else:
         segment = np.zeros(0, np.int64)
     return Expanded(group, child, xy, theta, phi_all[row_pair], row_pair, segment, keys)
-
-
-def angle_bins(angles: np.ndarray) -> np.ndarray:
-    """The 10° bin of each angle (radians); −1 where it is undefined."""
-    angles = np.asarray(angles, dtype=np.float64)
-    ok = np.isfinite(angles)
-    out = np.full(len(angles), -1, dtype=np.int64)
-    out[ok] = np.round(angles[ok] / (2 * math.pi / BINS)).astype(np.int64) % BINS
-    return out
-
-
-def bin_counts(segment: np.ndarray, bins: np.ndarray, n_segments: int) -> np.ndarray:
-    """(n_segments, BINS) counts of the defined bins of each segment's rows."""
-    ok = bins >= 0
-    return np.bincount(segment[ok] * BINS + bins[ok], minlength=n_segments * BINS).reshape(
-        n_segments, BINS).astype(np.float32)
 
 
 def pair_arrays(x: Expanded, progress) -> dict[str, np.ndarray]:

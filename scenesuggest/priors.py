@@ -1,4 +1,4 @@
-"""The contextual priors of SceneSuggest, learned from a corpus, as plain arrays.
+"""The contextual priors of SceneSuggest, learned from a corpus (:mod:`.learning` counts them), as plain arrays.
 
 * occurrence — per (parent, scene type): for each child category C the histogram of how many children of
   C each parent instance carries, giving ``P(|C on p| > k)``;
@@ -29,7 +29,6 @@ to geometry.
 from __future__ import annotations
 
 import json
-from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -38,49 +37,21 @@ import numpy as np
 from . import frames
 from .errors import SceneSuggestError
 from .folds import similar_groups
-from .observations import POOLED, RELATIONS, WALL, corpus_observations
+from .learning import ANY, K_MAX, learn_counts, subtree
+from .observations import POOLED, RELATIONS
 from .orientation import BINS, KINDS, learn_orientation, smooth
-from .pair_priors import angle_bins, expand_pairs, pair_arrays
 from .scene import SURFACE_TYPES, Scene
 from .taxonomy import MIN_OBSERVATIONS, Taxonomy
 
 FORMAT = "scenesuggest-priors"
 VERSION = 2
-ANY = "*"
 #: Statistics borrowed from all scene types count this much for a category never seen in the query's scene type
 #: or never seen next to a reference or on a parent there (chosen by held-out MRR on near-copy-grouped folds:
 #: Stanford 0.234 with a hard mask (0), 0.239 at 0.2, 0.237 at 0.5; AI2-THOR 0.492 at 0 and at 0.2; on folds of
 #: another seed, not used to choose, 0.234 and 0.238).
 UNSEEN_IN_SCENE_TYPE = 0.2
-K_MAX = 8
 FACES = frames.FACES
-
-#: Learned arrays, by name: (shape, meaning). Saved and loaded as they are; everything else is derived.
-ARRAYS = {
-    "occ_parent_n": ("(entities, scene types)", "parent instances per parent entity and scene type (last: *)"),
-    "occ_key": ("(rows,)", "occurrence rows: parent entity × scene types + scene type, sorted"),
-    "occ_child": ("(rows,)", "occurrence rows: child entity"),
-    "occ_pgt": ("(rows, K_MAX + 1)", "P(count of the child on the parent > k), k = 0..K_MAX"),
-    "sup_counts": ("(entities, surface types)", "supported instances per surface type"),
-    "att_counts": ("(entities, surface types, faces)", "supported instances per surface type and face"),
-    "alpha_n": ("(entities, surface types, faces, BINS)", "turns from the canonical pose, counts per 10° bin"),
-    "group_keys": ("(groups, 4)", "pair groups: reference entity, scene index, relation, surface type"),
-    "seg_group": ("(segments,)", "each segment's group (segments sorted by group, then child)"),
-    "seg_child": ("(segments,)", "each segment's child entity"),
-    "seg_start": ("(segments,)", "first sample of the segment in pair_xy"),
-    "seg_count": ("(segments,)", "samples of the segment"),
-    "seg_bandwidth": ("(segments, 2)", "KDE bandwidth per axis, metres"),
-    "seg_weight": ("(segments,)", "1 / the KDE's peak value"),
-    "seg_theta_n": ("(segments, BINS)", "counts of θ per 10° bin"),
-    "seg_phi_n": ("(segments, BINS)", "counts of φ per 10° bin"),
-    "pair_xy": ("(samples, 2)", "offsets δ, metres, in the reference's frame"),
-    "orient_weights": ("(entities, surface types, kinds)",
-                       "trust in each kind of orientation evidence (orientation.KINDS)"),
-    "model_category": ("(models,)", "category index of each model"),
-    "model_size": ("(models, 3)", "canonical box size, metres"),
-    "model_count": ("(models,)", "supported instances of the model"),
-    "candidate_categories": ("(candidates,)", "category indices that have models, sorted"),
-}
+__all__ = ["ANY", "BINS", "FACES", "K_MAX", "Priors", "UNSEEN_IN_SCENE_TYPE", "code_digest", "peak_normalised"]
 
 
 def code_digest() -> str:
@@ -95,32 +66,77 @@ def code_digest() -> str:
     return digest.hexdigest()[:16]
 
 
-def _subtree(category: str) -> str:
-    return f"{category}/*"
-
-
 class Priors:
-    """Learned state (the arrays of :data:`ARRAYS`, each an attribute of the same name) plus the lookups the
-    engine needs. Build with :meth:`fit` or :meth:`load`.
+    """Learned state, as plain arrays, plus the lookups the engine needs. Build with :meth:`fit` or
+    :meth:`load`; :meth:`save` writes the arrays of the Attributes section and ``meta``, nothing else.
 
-    Derived on construction: ``seg_hist`` (segments, BINS), the paper's peak-normalised smoothed θ histograms.
+    Entities are the categories, then the subtrees (``Chair/*``), then POOLED; scene types are sorted, then
+    ``*`` (all of them); surface types and faces are in the order of ``SURFACE_TYPES`` and ``FACES``; angle bins
+    are 10° wide (BINS of them). Counts are of supported instances in the training scenes.
+
+    Attributes
+    ----------
+    occ_parent_n : ndarray of shape (entities, scene types), float32
+        Parent instances per parent entity and scene type.
+    occ_key : ndarray of shape (rows,), int32
+        Occurrence rows: parent entity × scene types + scene index, sorted.
+    occ_child : ndarray of shape (rows,), int32
+        Occurrence rows: child entity.
+    occ_pgt : ndarray of shape (rows, K_MAX + 1), float32
+        P(count of the child on the parent > k), k = 0..K_MAX.
+    sup_counts : ndarray of shape (entities, surface types), float32
+        Supported instances per surface type.
+    att_counts : ndarray of shape (entities, surface types, faces), float32
+        Supported instances per surface type and attachment face.
+    alpha_n : ndarray of shape (entities, surface types, faces, BINS), float32
+        Turns from the canonical pose, counts per 10° bin.
+    group_keys : ndarray of shape (groups, 4), int32
+        Pair groups: reference entity, scene index, relation, surface type.
+    seg_group : ndarray of shape (segments,), int32
+        Each segment's group (segments sorted by group, then child).
+    seg_child : ndarray of shape (segments,), int32
+        Each segment's child entity.
+    seg_start : ndarray of shape (segments,), int64
+        First sample of the segment in ``pair_xy``.
+    seg_count : ndarray of shape (segments,), int32
+        Samples of the segment.
+    seg_bandwidth : ndarray of shape (segments, 2), float32
+        KDE bandwidth per axis, metres.
+    seg_weight : ndarray of shape (segments,), float32
+        1 / the KDE's peak value, so the density is a relative likelihood in [0, 1].
+    seg_theta_n : ndarray of shape (segments, BINS), float32
+        Counts of θ (heading relative to the reference's front) per 10° bin.
+    seg_phi_n : ndarray of shape (segments, BINS), float32
+        Counts of φ (heading relative to the bearing to the reference) per 10° bin.
+    pair_xy : ndarray of shape (samples, 2), float32
+        Offsets δ, metres, in the reference's frame on the support plane.
+    orient_weights : ndarray of shape (entities, surface types, kinds), float32
+        Trust (≥ 0) in each kind of orientation evidence, in the order of ``orientation.KINDS``.
+    model_category : ndarray of shape (models,), int32
+        Category index of each model (models in the order of ``meta["model_ids"]``).
+    model_size : ndarray of shape (models, 3), float32
+        Canonical box size, metres.
+    model_count : ndarray of shape (models,), int32
+        Supported instances of the model.
+    candidate_categories : ndarray of shape (candidates,), int32
+        Category indices that have models, sorted.
+
+    Derived on construction (not saved): ``categories``, ``entities``, ``scene_types``, ``model_ids`` and
+    ``taxonomy`` from ``meta``; ``seg_hist`` (segments, BINS), the paper's peak-normalised smoothed θ histograms.
     """
 
+    #: The learned arrays, as documented under Attributes: saved and loaded as they are.
+    ARRAY_NAMES = ("occ_parent_n", "occ_key", "occ_child", "occ_pgt", "sup_counts", "att_counts", "alpha_n",
+                   "group_keys", "seg_group", "seg_child", "seg_start", "seg_count", "seg_bandwidth", "seg_weight",
+                   "seg_theta_n", "seg_phi_n", "pair_xy", "orient_weights", "model_category", "model_size",
+                   "model_count", "candidate_categories")
+
     def __init__(self, arrays: dict[str, np.ndarray], meta: dict):
-        missing = set(ARRAYS) - set(arrays)
+        missing = set(self.ARRAY_NAMES) - set(arrays)
         if missing:
             raise SceneSuggestError(f"priors lack {', '.join(sorted(missing))}", field="arrays")
         self.meta = meta
-        self.arrays = {name: arrays[name] for name in ARRAYS}
-        self.categories: list[str] = meta["categories"]
-        self.entities: list[str] = meta["entities"]
-        self.scene_types: list[str] = meta["scene_types"]
-        self.model_ids: list[str] = meta["model_ids"]
-        self.taxonomy = Taxonomy(meta["taxonomy"])
-        self.category_index = {c: i for i, c in enumerate(self.categories)}
-        self.entity_index = {e: i for i, e in enumerate(self.entities)}
-        self.scene_index = {s: i for i, s in enumerate(self.scene_types)}
-        a = self.arrays
+        self.arrays = a = {name: arrays[name] for name in self.ARRAY_NAMES}
         self.occ_parent_n, self.occ_key, self.occ_child, self.occ_pgt = (
             a["occ_parent_n"], a["occ_key"], a["occ_child"], a["occ_pgt"])
         self.sup_counts, self.att_counts, self.alpha_n = a["sup_counts"], a["att_counts"], a["alpha_n"]
@@ -131,6 +147,14 @@ class Priors:
         self.model_category, self.model_size, self.model_count = (
             a["model_category"], a["model_size"], a["model_count"])
         self.candidate_categories = a["candidate_categories"]
+        self.categories: list[str] = meta["categories"]
+        self.entities: list[str] = meta["entities"]
+        self.scene_types: list[str] = meta["scene_types"]
+        self.model_ids: list[str] = meta["model_ids"]
+        self.taxonomy = Taxonomy(meta["taxonomy"])
+        self.category_index = {c: i for i, c in enumerate(self.categories)}
+        self.entity_index = {e: i for i, e in enumerate(self.entities)}
+        self.scene_index = {s: i for i, s in enumerate(self.scene_types)}
         self.seg_hist = peak_normalised(self.seg_theta_n)
         self._groups = {tuple(int(v) for v in key): g for g, key in enumerate(self.group_keys)}
         self._occ_starts = np.searchsorted(self.occ_key, np.arange(len(self.entities) * len(self.scene_types) + 1))
@@ -143,7 +167,7 @@ class Priors:
         if category in self.entity_index:
             chain.append(self.entity_index[category])
         for c in [category, *self.taxonomy.ancestors(category)]:
-            e = self.entity_index.get(_subtree(c))
+            e = self.entity_index.get(subtree(c))
             if e is not None:
                 chain.append(e)
         return chain
@@ -153,11 +177,19 @@ class Priors:
     def fit(cls, scenes: Iterable[Scene], taxonomy: Taxonomy | None = None,
             progress: Callable[[Iterable, str], Iterable] | None = None, orientation_kinds: tuple[str, ...] = KINDS,
             orientation_trust: str = "learned") -> Priors:
-        """Learn every prior from ``scenes`` (world frame) with ``taxonomy`` for back-off. ``orientation_kinds``
-        and ``orientation_trust`` restrict the orientation evidence, for ablations (:func:`.orientation.
-        learn_orientation`)."""
-        return _fit(list(scenes), taxonomy or Taxonomy(), progress or (lambda items, label="": items),
-                    tuple(orientation_kinds), orientation_trust)
+        """Learn every prior from ``scenes`` (world frame) with ``taxonomy`` for back-off: the counts
+        (:func:`.learning.learn_counts`), then the orientation weights, learned from priors that trust every
+        kind alike. ``orientation_kinds`` and ``orientation_trust`` restrict the orientation evidence, for
+        ablations (:func:`.orientation.learn_orientation`)."""
+        scenes, kinds = list(scenes), tuple(orientation_kinds)
+        counts = learn_counts(scenes, taxonomy or Taxonomy(), progress or (lambda items, label="": items))
+        meta = {"format": FORMAT, "version": VERSION, **counts.meta, "orientation_kinds": list(kinds),
+                "orientation_trust": orientation_trust}
+        flat = np.ones((len(meta["entities"]), len(SURFACE_TYPES), 1), dtype=np.float32)
+        untrusted = cls({**counts.arrays, "orient_weights": flat}, meta)
+        weights = learn_orientation(untrusted, counts.supports, counts.pairs, counts.expanded, similar_groups(scenes),
+                                    counts.expand, kinds, orientation_trust)
+        return cls({**counts.arrays, "orient_weights": weights}, meta)
 
     # --- persistence ---------------------------------------------------------------------------------------
     def save(self, path: str | Path) -> Path:
@@ -338,100 +370,10 @@ class Priors:
                 "segments": int(len(self.seg_group)), "scene_types": self.scene_types[:-1]}
 
 
-# --- fitting -----------------------------------------------------------------------------------------------
+# --- derived ---------------------------------------------------------------------------------------------------
 def peak_normalised(counts: np.ndarray) -> np.ndarray:
     """Histogram counts (…, BINS) smoothed with the (1, 2, 1)/4 kernel and divided by their peak; flat (all
     ones) where nothing was counted."""
     h = smooth(np.asarray(counts, dtype=np.float64))
     peak = h.max(axis=-1, keepdims=True)
     return np.where(peak > 0, h / np.where(peak > 0, peak, 1.0), 1.0).astype(np.float32)
-
-
-def _vocabulary(scenes: list[Scene], taxonomy: Taxonomy) -> tuple[list[str], Taxonomy, list[str], dict]:
-    """(categories, taxonomy restricted to them, entities, category → its entities, specific first)."""
-    present = sorted({o.category for s in scenes for o in s} | {WALL})
-    categories = sorted(set(present) | {a for c in present for a in taxonomy.ancestors(c)})
-    parents = {c: taxonomy.parent(c) for c in categories if taxonomy.parent(c) in set(categories)}
-    tax = Taxonomy(parents)
-    has_children = set(parents.values())
-    entities = list(categories) + [_subtree(c) for c in categories if c in has_children] + [POOLED]
-    entity_index = {e: i for i, e in enumerate(entities)}
-    expand = {c: [entity_index[c]] + [entity_index[_subtree(x)] for x in [c, *tax.ancestors(c)]
-                                      if _subtree(x) in entity_index] for c in categories}
-    return categories, tax, entities, expand
-
-
-def _occurrence(scenes: list[Scene], expand: dict, s_index: dict, n_e: int, progress) -> dict[str, np.ndarray]:
-    """Child-count histograms per (parent entity, scene type) → P(|C on p| > k)."""
-    n_s = len(s_index)
-    any_s = n_s - 1
-    parent_n = np.zeros((n_e, n_s), dtype=np.float64)
-    hist: dict[tuple[int, int], np.ndarray] = {}
-    for scene in progress(scenes, "counting children"):
-        children = defaultdict(Counter)
-        for o in scene:
-            if o.parent is not None:
-                children[o.parent].update(expand[o.category])
-        for p in scene:
-            keys = [(e, s) for e in expand[p.category] for s in {s_index[scene.scene_type], any_s}]
-            for e, s in keys:
-                parent_n[e, s] += 1
-                for child, count in children[p.id].items():
-                    h = hist.setdefault((e * n_s + s, child), np.zeros(K_MAX + 1))
-                    h[min(count, K_MAX)] += 1
-    occ_items = sorted(hist.items())
-    occ_pgt = np.zeros((len(occ_items), K_MAX + 1), dtype=np.float32)
-    for i, ((key, _), h) in enumerate(occ_items):
-        n = parent_n[key // n_s, key % n_s]
-        occ_pgt[i] = (h[::-1].cumsum()[::-1] - h) / n  # P(count > k) for k = 0..K_MAX
-    return {"occ_parent_n": parent_n.astype(np.float32),
-            "occ_key": np.array([k for (k, _), _ in occ_items], dtype=np.int32),
-            "occ_child": np.array([c for (_, c), _ in occ_items], dtype=np.int32), "occ_pgt": occ_pgt}
-
-
-def _fit(scenes: list[Scene], taxonomy: Taxonomy, progress, kinds: tuple[str, ...] = KINDS,
-         trust: str = "learned") -> Priors:
-    categories, tax, entities, expand = _vocabulary(scenes, taxonomy)
-    scene_types = sorted({s.scene_type for s in scenes} - {ANY}) + [ANY]
-    s_index = {s: i for i, s in enumerate(scene_types)}
-    n_e = len(entities)
-    arrays = _occurrence(scenes, expand, s_index, n_e, progress)
-
-    supports, pairs = corpus_observations(scenes)
-    sup_counts = np.zeros((n_e, len(SURFACE_TYPES)), dtype=np.float32)
-    att_counts = np.zeros((n_e, len(SURFACE_TYPES), len(FACES)), dtype=np.float32)
-    alpha_n = np.zeros((n_e, len(SURFACE_TYPES), len(FACES), BINS), dtype=np.float32)
-    model_counts: Counter = Counter()
-    model_info: dict[str, tuple[str, tuple]] = {}
-    alpha_bins = angle_bins(np.array([sup.alpha for sup in supports]))
-    for sup, b in zip(supports, alpha_bins, strict=True):
-        t, f = SURFACE_TYPES.index(sup.surface_type), FACES.index(sup.face)
-        for e in expand[sup.category]:
-            sup_counts[e, t] += 1
-            att_counts[e, t, f] += 1
-            if b >= 0:
-                alpha_n[e, t, f, b] += 1
-        model_counts[sup.model_id] += 1
-        model_info[sup.model_id] = (sup.category, sup.size)
-
-    expanded = expand_pairs(pairs, expand, s_index, len(scene_types) - 1, pooled=n_e - 1)
-    arrays.update(pair_arrays(expanded, progress))
-    model_ids = sorted(model_counts, key=lambda m: (model_info[m][0], -model_counts[m], m))
-    c_index = {c: i for i, c in enumerate(categories)}
-    arrays.update(
-        sup_counts=sup_counts, att_counts=att_counts, alpha_n=alpha_n,
-        model_category=np.array([c_index[model_info[m][0]] for m in model_ids], dtype=np.int32),
-        model_size=np.array([model_info[m][1] for m in model_ids], dtype=np.float32).reshape(-1, 3),
-        model_count=np.array([model_counts[m] for m in model_ids], dtype=np.int32),
-        candidate_categories=np.array(sorted({c_index[model_info[m][0]] for m in model_ids}), dtype=np.int32),
-        orient_weights=np.ones((n_e, len(SURFACE_TYPES), 1), dtype=np.float32),
-    )
-    meta = {"format": FORMAT, "version": VERSION, "categories": categories, "entities": entities,
-            "scene_types": scene_types, "model_ids": model_ids, "taxonomy": tax.to_dict(),
-            "scenes": len(scenes), "scene_ids": sorted(s.id for s in scenes), "supports": len(supports),
-            "k_max": K_MAX, "bins": BINS, "min_observations": MIN_OBSERVATIONS,
-            "orientation_kinds": list(kinds), "orientation_trust": trust}
-    untrusted = Priors(arrays, meta)
-    arrays["orient_weights"] = learn_orientation(untrusted, supports, pairs, expanded, similar_groups(scenes),
-                                                 expand, kinds, trust)
-    return Priors(arrays, meta)

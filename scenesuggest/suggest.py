@@ -24,6 +24,9 @@ chosen by the orientation option:
 Headings and placements are computed only for the suggestions returned (``top``). Beyond the paper, each off
 unless :class:`EngineOptions` turns it on: collision- and size-aware placement, anchor refinement, and
 scene-type inference from the objects present.
+
+The query, and what the engine reads from it before scoring (surface type, scene type, references), is
+:mod:`.query`.
 """
 
 from __future__ import annotations
@@ -34,19 +37,17 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import frames, headings, poses, surfaces
+from . import frames, headings, poses
 from .errors import SceneSuggestError
-from .observations import is_radial, wall_reference
+from .observations import is_radial
 from .orientation import decide
+from .placement_checks import check_fit, refine_anchors
 from .priors import ANY, BINS, FACES, K_MAX, Priors
-from .scene import SURFACE_TYPES, Scene
-from .scene_types import infer_scene_type
+from .query import ContextQuery, Prepared, prepare
+from .scene import SURFACE_TYPES
 
 MODES = ("basic", "full")
 ORIENTATIONS = ("learned", "paper")
-#: A click may lie this far (metres) outside its parent's box (or 5% of the box diagonal, if more): boxes
-#: of models placed from metadata are estimates (on the Stanford corpus every contact is within 11 cm).
-POINT_TOLERANCE_M = 0.15
 HEADINGS = np.arange(BINS) * (2 * math.pi / BINS)
 
 
@@ -73,17 +74,6 @@ class EngineOptions:
         if self.orientation not in ORIENTATIONS:
             raise SceneSuggestError(f"must be one of {', '.join(ORIENTATIONS)}, got {self.orientation!r}",
                                     field="orientation")
-
-
-@dataclass(frozen=True)
-class ContextQuery:
-    """A click on ``parent_id``'s surface at world ``point`` with surface ``normal`` (metres, +Y up)."""
-
-    scene: Scene
-    parent_id: str
-    point: tuple[float, float, float]
-    normal: tuple[float, float, float]
-    scene_type: str | None = None
 
 
 @dataclass(frozen=True)
@@ -126,21 +116,6 @@ class SuggestionList(Sequence):
 
 
 @dataclass
-class Prepared:
-    """A validated query and what the engine derives from it: surface and scene type, references (the
-    parent and its children) and the nearest wall (with its distance, metres) of an upward surface."""
-
-    query: ContextQuery
-    point: np.ndarray
-    normal: np.ndarray
-    surface_type: str
-    scene_type: str
-    parent_category: str
-    references: list[tuple[object, str]] = field(default_factory=list)
-    wall: tuple[object, float] | None = None
-
-
-@dataclass
 class Scores:
     """Per-candidate terms of one query (arrays over :attr:`Engine.candidates`); ``densities``: for each
     reference of :attr:`Prepared.references`, every candidate's P_relpos (scaled as in the position term)."""
@@ -151,16 +126,6 @@ class Scores:
     position: np.ndarray
     total: np.ndarray
     densities: list[np.ndarray] = field(default_factory=list)
-
-
-def _vector(value, name: str) -> np.ndarray:
-    try:
-        v = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise SceneSuggestError("expected three numbers", field=name) from None
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise SceneSuggestError("expected three finite numbers", field=name)
-    return v
 
 
 class Engine:
@@ -216,29 +181,7 @@ class Engine:
     # --- queries -------------------------------------------------------------------------------------------
     def prepare(self, query: ContextQuery) -> Prepared:
         """Validate a query (errors name the field) and derive surface type, scene type and references."""
-        scene = query.scene
-        parent = scene.objects.get(query.parent_id) if isinstance(query.parent_id, str) else None
-        if parent is None:
-            raise SceneSuggestError(f"no object {query.parent_id!r} in the scene", field="parent")
-        point, normal = _vector(query.point, "point"), _vector(query.normal, "normal")
-        length = np.linalg.norm(normal)
-        if length < 1e-9:
-            raise SceneSuggestError("the normal must not be zero", field="normal")
-        normal = normal / length
-        lo, hi = parent.world_bbox()
-        distance = float(np.linalg.norm(np.maximum(0, np.maximum(lo - point, point - hi))))
-        if distance > max(POINT_TOLERANCE_M, 0.05 * float(np.linalg.norm(hi - lo))):
-            raise SceneSuggestError(f"the point is {distance:.2f} m away from {parent.category} "
-                                    f"{parent.id!r}", field="point")
-        if query.scene_type is not None:
-            scene_type = query.scene_type
-        elif self.options.infer_scene_type:
-            scene_type = infer_scene_type((o.category for o in scene), self.priors.taxonomy)
-        else:
-            scene_type = scene.scene_type
-        refs = [(parent, "parent")] + [(q, "sibling") for q in scene.children(parent.id)]
-        return Prepared(query, point, normal, surfaces.surface_type(parent.transform, parent.size, point, normal),
-                        scene_type, parent.category, refs, wall_reference(scene, point, normal))
+        return prepare(query, self.priors.taxonomy, self.options.infer_scene_type)
 
     def score(self, query: ContextQuery) -> Scores:
         prep = self.prepare(query)
@@ -375,15 +318,11 @@ class Engine:
         notes: list[list[str]] = [[] for _ in range(n)]
         total = scores.total
         if self.options.anchor_refinement:
-            from .placement_checks import refine_anchors
-
             points, moved = refine_anchors(self, scores, self.options.refine_radius_m)
             for i in np.flatnonzero(moved > 0):
                 notes[i].append(f"moved {moved[i]:.2f} m to a more typical spot")
         allowed = np.ones(n, dtype=bool) if only is None else np.isin(self.names, list(only))
         if self.options.collision_aware:  # every candidate needs its pose before the ranking is known
-            from .placement_checks import check_fit
-
             faces, alphas, headings = self.choose_poses(scores, mode)
             total = check_fit(self, scores, faces, alphas, headings, points, total.copy(), notes, mode)
             order = self._ranking(total, allowed)[: top or n]

@@ -62,11 +62,6 @@ def test_server_layers_point_down_only():
 
 
 PACKAGES = ("scenesuggest", "study_server", "simulation", "analysis")
-#: Import cycles that exist today, each as the set of modules in it; the list may only shrink.
-KNOWN_CYCLES = [
-    # pair_priors reads orientation.BINS at import; orientation imports pair_priors inside two functions.
-    {"scenesuggest.orientation", "scenesuggest.pair_priors"},
-]
 
 
 def _module_graph(package: str) -> dict[str, set[str]]:
@@ -96,6 +91,4 @@ def _cycles(graph: dict[str, set[str]]) -> list[set[str]]:
 
 
 def test_no_import_cycles_within_a_package():
-    found = [c for package in PACKAGES for c in _cycles(_module_graph(package))]
-    assert [c for c in found if c not in KNOWN_CYCLES] == []
-    assert [c for c in KNOWN_CYCLES if c not in found] == [], "a known cycle is gone: remove it from KNOWN_CYCLES"
+    assert [c for package in PACKAGES for c in _cycles(_module_graph(package))] == []

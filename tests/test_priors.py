@@ -1,11 +1,15 @@
 """The priors, on a synthetic corpus whose statistics are known by construction."""
 
+import inspect
+import re
 
 import numpy as np
 import pytest
 import synthetic
 
 from scenesuggest.errors import SceneSuggestError
+from scenesuggest.frames import FACES
+from scenesuggest.orientation import BINS, KINDS
 from scenesuggest.priors import K_MAX, Priors
 from scenesuggest.scene import SURFACE_TYPES
 
@@ -113,3 +117,40 @@ def test_files_from_other_versions_and_garbage_are_refused(priors, tmp_path):
     (tmp_path / "junk.npz").write_bytes(b"not a zip")
     with pytest.raises(SceneSuggestError, match="cannot read priors"):
         Priors.load(tmp_path / "junk.npz")
+
+
+def documented_attributes() -> dict[str, tuple[list[str], str]]:
+    """name → (dimensions, dtype) of each entry of the Attributes section of the Priors docstring."""
+    lines = inspect.cleandoc(Priors.__doc__).splitlines()
+    start = lines.index("Attributes") + 1
+    assert set(lines[start]) == {"-"}
+    out = {}
+    for line in lines[start + 1:]:
+        if not line or line.startswith(" "):
+            continue
+        if not re.match(r"\w+ : ", line):
+            break  # the end of the section
+        m = re.fullmatch(r"(\w+) : ndarray of shape \((.*)\), (\w+)", line)
+        assert m, f"not 'name : ndarray of shape (...), dtype': {line!r}"
+        out[m[1]] = ([d.strip() for d in m[2].split(",") if d.strip()], m[3])
+    return out
+
+
+def test_every_learned_array_is_declared_with_its_shape(priors, tmp_path):
+    documented = documented_attributes()
+    with np.load(priors.save(tmp_path / "p.npz")) as data:
+        saved = set(data.files) - {"meta"}
+    assert saved == set(documented) == set(Priors.ARRAY_NAMES)
+    known = {"entities": len(priors.entities), "scene types": len(priors.scene_types),
+             "surface types": len(SURFACE_TYPES), "faces": len(FACES), "BINS": BINS, "K_MAX + 1": K_MAX + 1,
+             "kinds": len(KINDS), "models": len(priors.model_ids)}
+    free: dict[str, int] = {}  # rows, groups, segments, samples, candidates: the same wherever they appear
+    for name, (dims, dtype) in documented.items():
+        array = getattr(priors, name)
+        assert array is priors.arrays[name]
+        assert array.dtype == np.dtype(dtype), name
+        assert array.ndim == len(dims), name
+        for dim, size in zip(dims, array.shape, strict=True):
+            expected = int(dim) if dim.isdigit() else known[dim] if dim in known else free.setdefault(dim, size)
+            assert size == expected, f"{name}: {dim} is {size}, expected {expected}"
+    assert set(free) == {"rows", "groups", "segments", "samples", "candidates"} and min(free.values()) > 0
