@@ -10,7 +10,7 @@ NPM_STAMP := node_modules/.installed
 DEMO_LIBRARY := var/library/ai2thor/library.json
 DEMO_PRIORS := var/priors/ai2thor.npz
 
-.PHONY: setup demo demo-report demo-power replication serve-replication test test-fast lint audit pytest serve bench clean
+.PHONY: setup wheel demo demo-report demo-power replication serve-replication test test-fast lint audit pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
@@ -39,6 +39,14 @@ $(PIP_STAMP): pyproject.toml
 $(NPM_STAMP): package.json package-lock.json
 	npm ci --no-audit --no-fund --loglevel=error
 	touch $@
+
+# The wheel, with the three.js files the client imports (setup.py); built afresh, so that nothing an earlier
+# build left in build/ comes along.
+wheel: setup
+	rm -rf build dist
+	$(BIN)/python -m pip wheel --no-deps --quiet -w dist .
+	rm -rf build
+	@ls dist/*.whl
 
 lint: $(PIP_STAMP)
 	$(BIN)/ruff check .
@@ -103,4 +111,4 @@ bench: demo
 	$(BIN)/python benchmarks/bench_kill.py
 
 clean:
-	rm -rf $(VENV) node_modules .pytest_cache .ruff_cache var test-artifacts
+	rm -rf $(VENV) node_modules .pytest_cache .ruff_cache var test-artifacts build dist

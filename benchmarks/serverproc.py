@@ -13,7 +13,7 @@ import urllib.request
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-DEMO_STUDY = ROOT / "experiments" / "demo" / "study.toml"
+DEMO_STUDY = ROOT / "study_server" / "demo" / "study.toml"
 
 
 def free_port() -> int:

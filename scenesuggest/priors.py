@@ -28,6 +28,7 @@ to geometry.
 
 from __future__ import annotations
 
+import io
 import json
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -35,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from . import frames
+from .atomic import write_atomically
 from .errors import SceneSuggestError
 from .folds import similar_groups
 from .learning import ANY, K_MAX, learn_counts, subtree
@@ -193,13 +195,13 @@ class Priors:
 
     # --- persistence ---------------------------------------------------------------------------------------
     def save(self, path: str | Path) -> Path:
-        """Write one ``.npz`` file; saving what was loaded reproduces the file byte for byte."""
-        path = Path(path)
+        """Write one ``.npz`` file, whole or not at all (a running server may read it); saving what was loaded
+        reproduces the file byte for byte."""
         payload = dict(self.arrays)
         payload["meta"] = np.frombuffer(json.dumps(self.meta, sort_keys=True).encode(), dtype=np.uint8)
-        with path.open("wb") as f:
-            np.savez_compressed(f, **{k: payload[k] for k in sorted(payload)})
-        return path
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, **{k: payload[k] for k in sorted(payload)})
+        return write_atomically(path, buffer.getvalue())
 
     @classmethod
     def load(cls, path: str | Path) -> Priors:

@@ -15,7 +15,7 @@ from werkzeug.exceptions import HTTPException
 from . import config as settings
 from .extensions import db, migrate
 
-MIGRATIONS = settings.ROOT / "migrations"
+MIGRATIONS = settings.PACKAGE / "migrations"
 
 
 def _sqlite_pragmas(dbapi_connection, _record) -> None:
@@ -50,8 +50,7 @@ def _private_sqlite_file(url: str) -> None:
 def create_app(config: dict | None = None) -> Flask:
     """Build the app. ``config`` overrides the environment (tests pass a database URL and study files)."""
     instance = Path((config or {}).get("INSTANCE_PATH") or settings.instance_path())
-    app = Flask(__name__, instance_path=str(instance), static_folder=str(settings.ROOT / "static"),
-                static_url_path="/static")
+    app = Flask(__name__, instance_path=str(instance))  # templates/ and static/ of the package
     app.config.update(settings.from_environment(instance))
     app.config.update(config or {})
     app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})

@@ -62,12 +62,37 @@ def study_migrate_cmd() -> None:
     click.echo("database is at the newest schema revision")
 
 
+def _prepare_all() -> list[str]:
+    """Build the missing priors and libraries of the configured studies (SCENESUGGEST_STUDIES)."""
+    from scenesuggest.cli import progress
+
+    from .prepare import prepare
+
+    built = []
+    for rt in load_studies(config.study_files(), check=False).values():
+        built += [f"{rt.study.id}: {what}" for what in prepare(rt.study, progress,
+                                                                 lambda m: click.echo(m, err=True))]
+    return built
+
+
+@study.command("prepare")
+@click.option("--json", "as_json", is_flag=True)
+def study_prepare_cmd(as_json: bool) -> None:
+    """Build what the configured studies name but lack: priors and model libraries, from their corpus."""
+    built = _prepare_all()
+    emit({"built": built}, as_json, "built " + ", ".join(built) if built else "every study has its resources")
+
+
 @study.command("serve")
 @click.option("--host", default="127.0.0.1", show_default=True)
 @click.option("--port", default=5000, show_default=True)
 @click.option("--workers", default=2, show_default=True)
-def study_serve_cmd(host: str, port: int, workers: int) -> None:
-    """Migrate, then serve the configured studies with gunicorn (SCENESUGGEST_STUDIES, DATABASE_URL)."""
+@click.option("--prepare/--no-prepare", default=True, show_default=True,
+              help="First build missing priors and model libraries (see 'study prepare').")
+def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
+    """Prepare, migrate, then serve the configured studies with gunicorn (SCENESUGGEST_STUDIES, DATABASE_URL)."""
+    if prepare:
+        _prepare_all()
     app = create_app()
     upgrade_database(app)
     password_file = config.ensure_admin_password(config.instance_path())

@@ -2,9 +2,11 @@
 
 | variable | meaning | default |
 |---|---|---|
-| ``SCENESUGGEST_STUDIES`` | study files, separated by ``:`` | ``experiments/demo/study.toml`` |
+| ``SCENESUGGEST_STUDIES`` | study files, separated by ``:`` | the built-in demo study (``study_server/demo``) |
+| ``SCENESUGGEST_HOME`` | the server's data folder: instance folder, and the priors and model libraries that \
+study files name by corpus only | ``var/`` of the checkout; installed: ``var/scenesuggest`` in the Python prefix |
 | ``DATABASE_URL`` | SQLAlchemy URL (``postgresql+psycopg://…`` to scale) | SQLite file in the instance folder |
-| ``SCENESUGGEST_INSTANCE`` | instance folder (database, secret key, admin password) | ``var/instance`` |
+| ``SCENESUGGEST_INSTANCE`` | instance folder (database, secret key, admin password) | ``instance/`` of the home |
 | ``SCENESUGGEST_SECRET_KEY`` | signs cookies | generated once into the instance folder |
 | ``SCENESUGGEST_ADMIN_PASSWORD_HASH`` | werkzeug hash of the admin password | ``instance/admin.json`` |
 | ``SCENESUGGEST_FRAME_ANCESTORS`` | CSP frame-ancestors, for platforms that embed the study | ``'self'`` |
@@ -17,18 +19,41 @@ from __future__ import annotations
 import json
 import os
 import secrets
+import sys
 from pathlib import Path
 
 from scenesuggest.errors import SceneSuggestError
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_STUDY = ROOT / "experiments" / "demo" / "study.toml"
+PACKAGE = Path(__file__).resolve().parent
+DEFAULT_STUDY = PACKAGE / "demo" / "study.toml"
 ADMIN_FILE = "admin.json"
 PASSWORD_FILE = "admin-password.txt"
 
 
+def checkout() -> Path | None:
+    """The source checkout the package runs from (an editable install), or None when it is installed."""
+    root = PACKAGE.parent
+    return root if (root / "pyproject.toml").is_file() else None
+
+
+def data_home() -> Path:
+    """Where the server keeps its data: ``SCENESUGGEST_HOME``, else ``var/`` of the checkout it runs from, else
+    ``var/scenesuggest`` under the Python prefix (the virtual environment it is installed in), as Flask places
+    the instance folders of installed packages."""
+    if os.environ.get("SCENESUGGEST_HOME"):
+        return Path(os.environ["SCENESUGGEST_HOME"]).resolve()
+    root = checkout()
+    return root / "var" if root is not None else Path(sys.prefix) / "var" / "scenesuggest"
+
+
+def study_files() -> list[Path]:
+    """The study files the server runs: ``SCENESUGGEST_STUDIES`` (separated by ``:``), else the built-in demo."""
+    studies = os.environ.get("SCENESUGGEST_STUDIES")
+    return [Path(p) for p in studies.split(":") if p] if studies else [DEFAULT_STUDY]
+
+
 def instance_path() -> Path:
-    return Path(os.environ.get("SCENESUGGEST_INSTANCE", ROOT / "var" / "instance")).resolve()
+    return Path(os.environ.get("SCENESUGGEST_INSTANCE") or data_home() / "instance").resolve()
 
 
 class ConfigError(SceneSuggestError):
@@ -43,7 +68,6 @@ def from_environment(instance: Path) -> dict:
     """The app's settings as a Flask config dict. In production the secret key must come from the environment
     (a generated one would differ between hosts and vanish with the instance folder) and cookies are Secure."""
     instance.mkdir(mode=0o700, parents=True, exist_ok=True)
-    studies = os.environ.get("SCENESUGGEST_STUDIES")
     env = os.environ.get("SCENESUGGEST_ENV", "development")
     if env not in ENVIRONMENTS:
         raise ConfigError(f"must be one of {', '.join(ENVIRONMENTS)}", field="SCENESUGGEST_ENV")
@@ -56,7 +80,7 @@ def from_environment(instance: Path) -> dict:
         "ENV_NAME": env,
         "DEBUG": False,
         "SESSION_COOKIE_SECURE": production,
-        "STUDY_FILES": [Path(p) for p in studies.split(":") if p] if studies else [DEFAULT_STUDY],
+        "STUDY_FILES": study_files(),
         "SQLALCHEMY_DATABASE_URI": os.environ.get("DATABASE_URL") or f"sqlite:///{instance / 'studies.sqlite3'}",
         "SECRET_KEY": os.environ.get("SCENESUGGEST_SECRET_KEY") or _secret_key(instance),
         "ADMIN_PASSWORD_HASH": os.environ.get("SCENESUGGEST_ADMIN_PASSWORD_HASH") or _admin_hash(instance),

@@ -59,13 +59,13 @@ class StudyRuntime:
     def check_resources(self) -> None:
         """Fail at start-up, naming the key, when the priors file or the model library is missing."""
         if not self.study.priors.is_file():
-            raise StudyFileError(f"no priors file at {self.study.priors} (make one with 'scenesuggest priors "
-                                 f"train {self.study.corpus} -o {self.study.priors}')", file=str(self.study.path),
-                                 field="resources.priors")
+            raise StudyFileError(f"no priors file at {self.study.priors} (build it with 'scenesuggest study "
+                                 f"prepare', or 'scenesuggest priors train {self.study.corpus} -o "
+                                 f"{self.study.priors}')", file=str(self.study.path), field="resources.priors")
         if not (self.study.library / INDEX_FILE).is_file():
-            raise StudyFileError(f"no model library at {self.study.library} (build one with 'scenesuggest assets "
-                                 f"build {self.study.corpus} --out {self.study.library}')",
-                                 file=str(self.study.path), field="resources.library")
+            raise StudyFileError(f"no model library at {self.study.library} (build it with 'scenesuggest study "
+                                 f"prepare', or 'scenesuggest assets build {self.study.corpus} --out "
+                                 f"{self.study.library}')", file=str(self.study.path), field="resources.library")
 
     @cached_property
     def priors(self) -> Priors:

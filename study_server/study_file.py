@@ -1,6 +1,6 @@
 """Study files: TOML in ``experiments/``, validated with errors that name the key (``conditions[1].engine``).
 
-Paths inside a study file are relative to the file. See ``experiments/demo/study.toml`` for every key.
+Paths inside a study file are relative to the file. See ``study_server/demo/study.toml`` for every key.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from scenesuggest.errors import SceneSuggestError
 from scenesuggest.suggest import EngineOptions
 
 from . import schedule
+from .config import data_home
 
 CONDITIONS = ("none", "basic", "full")
 DESIGNS = ("williams", "random", "fixed")
@@ -333,6 +334,22 @@ def _limits(r: _Reader, doc: dict) -> dict:
     }
 
 
+def _resources(r: _Reader, doc: dict, base: Path) -> dict:
+    """The corpus, and the priors file and model library (paths relative to the study file). A study that names
+    neither uses the server's own, built from the corpus: ``priors/<corpus>.npz`` and ``library/<corpus>`` in its
+    data folder (:func:`.config.data_home`), which ``scenesuggest study prepare`` builds."""
+    res = r.table(doc, "resources", "resources")
+    r.unknown(res, ("corpus", "priors", "library"), "resources")
+    corpus = r.string(res, "corpus", "resources.corpus")
+    name = corpus.split(":", 1)[0]
+    home = data_home()
+    return {"corpus": corpus,
+            "priors": base / r.string(res, "priors", "resources.priors") if "priors" in res
+            else home / "priors" / f"{name}.npz",
+            "library": base / r.string(res, "library", "resources.library") if "library" in res
+            else home / "library" / name}
+
+
 def load_study(path: str | Path) -> Study:
     """Read and validate a study file; every problem names its key."""
     path = Path(path).resolve()
@@ -345,8 +362,6 @@ def load_study(path: str | Path) -> Study:
     study_id = r.string(doc, "id", "id")
     if not study_id.replace("-", "").replace("_", "").isalnum():
         raise r.fail("id", "use letters, digits, '-' and '_' only")
-    res = r.table(doc, "resources", "resources")
-    r.unknown(res, ("corpus", "priors", "library"), "resources")
     design = r.table(doc, "design", "design")
     r.unknown(design, ("kind", "blocking", "participants"), "design")
     conditions = _conditions(r, doc)
@@ -355,9 +370,7 @@ def load_study(path: str | Path) -> Study:
     study = Study(
         path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, title=r.string(doc, "title", "title"),
         description=str(doc.get("description", "")),
-        corpus=r.string(res, "corpus", "resources.corpus"),
-        priors=base / r.string(res, "priors", "resources.priors"),
-        library=base / r.string(res, "library", "resources.library"),
+        **_resources(r, doc, base),
         design=r.choice(design, "kind", "design.kind", DESIGNS),
         blocking=r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition"),
         participants=int(r.number(design, "participants", "design.participants", minimum=1)),

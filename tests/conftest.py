@@ -68,9 +68,7 @@ def copy_demo_study(tmp: Path) -> Path:
 
     folder = tmp / "demo"
     shutil.copytree(DEMO_STUDY.parent, folder)
-    study = folder / "study.toml"
-    study.write_text(study.read_text().replace('"../../var/', f'"{ROOT}/var/'))
-    return study
+    return folder / "study.toml"
 
 
 REPLICATION = ROOT / "experiments" / "scenesuggest-2015"
@@ -95,7 +93,7 @@ def replication(stanford_dir, stanford_meshes) -> Path:
 
 
 # --- study server fixtures ------------------------------------------------------------------------------------
-DEMO_STUDY = ROOT / "experiments" / "demo" / "study.toml"
+DEMO_STUDY = ROOT / "study_server" / "demo" / "study.toml"
 
 
 @pytest.fixture(scope="session")

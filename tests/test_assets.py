@@ -141,3 +141,27 @@ def test_a_failed_build_leaves_nothing_behind(ai2thor, tmp_path):
 def test_unknown_model_ids_are_refused(ai2thor, tmp_path):
     with pytest.raises(SceneSuggestError, match="unknown model ids: nope"):
         build_library(ai2thor, tmp_path / "lib", model_ids=["nope"])
+
+
+def test_what_is_written_whole_gets_the_usual_permissions(ai2thor, tmp_path):
+    """A library folder and the files written atomically get the modes ``mkdir`` and ``open`` would give (the
+    umask applied), not the private modes of their temporary names; a replaced file keeps its mode."""
+    import os
+    import stat
+
+    from scenesuggest.atomic import write_atomically
+
+    old = os.umask(0o027)
+    try:
+        build_library(ai2thor, tmp_path / "lib", model_ids=["ai2thor:Mug"], thumbnail_px=32)
+        fresh = write_atomically(tmp_path / "fresh.bin", b"x")
+        kept = tmp_path / "kept.bin"
+        kept.write_bytes(b"old")
+        kept.chmod(0o600)
+        write_atomically(kept, b"new")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "lib").stat().st_mode) == 0o750
+    assert stat.S_IMODE((tmp_path / "lib" / "library.json").stat().st_mode) == 0o640
+    assert stat.S_IMODE(fresh.stat().st_mode) == 0o640
+    assert stat.S_IMODE(kept.stat().st_mode) == 0o600 and kept.read_bytes() == b"new"

@@ -1,6 +1,7 @@
 """Study files: the demo validates; mistakes are reported with the key that is wrong."""
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -77,9 +78,10 @@ def test_mistakes_name_the_key(study_dir, old, new, key, words):
 
 def test_invalid_toml_reports_the_line(study_dir):
     path = edit(study_dir, 'title = "Furnish a room"', 'title = "Furnish a room')
+    line = path.read_text().splitlines().index('title = "Furnish a room') + 1
     with pytest.raises(StudyFileError) as info:
         load_study(path)
-    assert info.value.line == 6 and str(info.value).startswith(f"{path}:6: not valid TOML")
+    assert info.value.line == line and str(info.value).startswith(f"{path}:{line}: not valid TOML")
 
 
 def test_validate_command(study_dir, demo_resources):
@@ -90,9 +92,11 @@ def test_validate_command(study_dir, demo_resources):
     bad = subprocess.run([*cli, str(edit(study_dir, 'kind = "williams"', 'kind = "latin"'))], capture_output=True,
                          text=True)
     assert bad.returncode == 2 and "field 'design.kind'" in bad.stderr
+    empty_home = {**os.environ, "SCENESUGGEST_HOME": str(study_dir / "empty")}
     missing = subprocess.run([*cli, str(edit(study_dir, 'kind = "latin"', 'kind = "williams"'))],
-                             capture_output=True, text=True)
-    assert missing.returncode == 2 and "field 'resources.priors'" in missing.stderr  # the copy's var/ is empty
+                             capture_output=True, text=True, env=empty_home)
+    assert missing.returncode == 2 and "field 'resources.priors'" in missing.stderr
+    assert "scenesuggest study prepare" in missing.stderr
     bad_scene = study_dir / "scenes" / "bedside.json"
     bad_scene.write_text(bad_scene.read_text().replace('"scene_type"', '"scene_kind"', 1))
     broken = subprocess.run([*cli, str(study_dir / "study.toml"), "--no-resources"], capture_output=True, text=True)

@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import re
 import shutil
-import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
 
+from ..atomic import temporary_folder_beside
 from ..corpora.corpus import Corpus, Progress, no_progress
 from ..errors import SceneSuggestError
 from ..library import ModelInfo, save_index
@@ -66,8 +66,7 @@ def build_library(corpus: Corpus, out: str | Path, model_ids: list[str] | None =
         todo = [corpus.models[m] for m in model_ids]
     else:
         todo = [m for m in corpus.models.values() if buildable(m)]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}-"))
+    tmp = temporary_folder_beside(out)
     started = time.perf_counter()
     timings: dict[str, float] = {}
     try:

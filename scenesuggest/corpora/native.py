@@ -7,10 +7,10 @@ Layout: ``DIR/scenes/*.json`` (one scene each, see :mod:`scenesuggest.scene_json
 from __future__ import annotations
 
 import shutil
-import tempfile
 from pathlib import Path
 
 from .. import scene_json
+from ..atomic import temporary_folder_beside
 from ..errors import SceneSuggestError
 from ..library import INDEX_FILE, ModelInfo, load_index, save_index
 from ..taxonomy import Taxonomy
@@ -44,8 +44,7 @@ def write_native(corpus: Corpus, directory: str | Path, progress: Progress = no_
     target = Path(directory)
     if target.exists() and any(target.iterdir()):
         raise SceneSuggestError("output folder exists and is not empty", file=str(target))
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}-"))
+    tmp = temporary_folder_beside(target)
     try:
         (tmp / "scenes").mkdir()
         for scene in progress(corpus.scenes, "writing scenes"):

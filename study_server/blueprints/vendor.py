@@ -1,4 +1,4 @@
-"""three.js from node_modules (installed from the npm registry at the version package-lock.json pins).
+"""three.js as the npm registry ships it, at the version package-lock.json pins (:mod:`study_server.importmap`).
 
 Served under /vendor/three/: ``build/`` (three.module.js imports ./three.core.js) and ``examples/jsm/`` (the
 loaders and controls, which import the bare specifier ``three`` — resolved by the page's import map,
@@ -9,7 +9,7 @@ from __future__ import annotations
 from flask import Blueprint, send_from_directory
 from werkzeug.exceptions import NotFound
 
-from ..importmap import THREE
+from ..importmap import three_folder
 
 bp = Blueprint("vendor", __name__, url_prefix="/vendor")
 
@@ -18,6 +18,6 @@ bp = Blueprint("vendor", __name__, url_prefix="/vendor")
 def three(filename: str):
     if not (filename.startswith("build/") or filename.startswith("examples/jsm/")) or not filename.endswith(".js"):
         raise NotFound()
-    response = send_from_directory(THREE, filename, max_age=24 * 3600)
+    response = send_from_directory(three_folder(), filename, max_age=24 * 3600)
     response.headers["Cache-Control"] = "public, max-age=86400"
     return response

@@ -3,7 +3,7 @@
 Each scene is a 5 m × 2.7 m × 4 m room (back wall at z = −2, facing +Z) with a few objects placed by hand
 here; sizes are the library's typical sizes. Run it to regenerate ``scenes/*.json``:
 
-    .venv/bin/python experiments/demo/make_scenes.py
+    .venv/bin/python study_server/demo/make_scenes.py
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ BACK = -ROOM[2] / 2
 
 
 def author(scene_id: str, scene_type: str, models) -> SceneAuthor:
-    return SceneAuthor(scene_id, scene_type, models, ROOM, source="authored: experiments/demo/make_scenes.py",
+    return SceneAuthor(scene_id, scene_type, models, ROOM, source="authored: study_server/demo/make_scenes.py",
                        room_model="ai2thor:Room")
 
 
