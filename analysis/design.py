@@ -32,10 +32,6 @@ class RandomTerm:
     slope_name: str | None = None
     slope: np.ndarray | None = None
 
-    @property
-    def per_level(self) -> int:
-        return 1 if self.slope is None else 2
-
     def z(self) -> sparse.csr_matrix:
         """Sparse random-effects columns: per level, an intercept (and the slope) column."""
         n, k = len(self.codes), len(self.levels)

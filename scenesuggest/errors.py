@@ -24,6 +24,3 @@ class SceneSuggestError(Exception):
             where = f"{self.file}:{self.line}: " if self.line else f"{self.file}: "
         what = f"field '{self.field}': " if self.field else ""
         return f"{where}{what}{self.message}"
-
-    def to_dict(self) -> dict:
-        return {"error": self.message, "file": self.file, "line": self.line, "field": self.field}

@@ -117,14 +117,6 @@ def _relative(heading: float, reference: float) -> float:
     return float(poses.wrap(heading - reference)) if not (math.isnan(heading) or math.isnan(reference)) else math.nan
 
 
-def pair_geometry(point, normal, heading: float, ref: ObjectInstance) -> tuple[np.ndarray, float, float]:
-    """(δ, θ, φ) of an object at ``point`` with ``heading`` on a plane with ``normal`` relative to ``ref``."""
-    radial = is_radial(ref.size)
-    offset = poses.plane_offset(point, normal, ref.transform, radial)
-    theta = _relative(heading, poses.reference_heading(point, normal, ref.transform, radial))
-    return offset, theta, _relative(heading, bearing(point, normal, ref))
-
-
 def wall_reference(scene: Scene, point, normal) -> tuple[Wall, float] | None:
     """The nearest wall of a point on an upward surface, and its distance (metres); None elsewhere."""
     n = np.asarray(normal, dtype=float)

@@ -154,7 +154,6 @@ class Priors:
         self.scene_types: list[str] = meta["scene_types"]
         self.model_ids: list[str] = meta["model_ids"]
         self.taxonomy = Taxonomy(meta["taxonomy"])
-        self.category_index = {c: i for i, c in enumerate(self.categories)}
         self.entity_index = {e: i for i, e in enumerate(self.entities)}
         self.scene_index = {s: i for i, s in enumerate(self.scene_types)}
         self.seg_hist = peak_normalised(self.seg_theta_n)

@@ -260,10 +260,6 @@ class Engine:
             return headings.paper_scores(self, scores, idx)
         return headings.learned_scores(self, scores.prepared, idx, faces)
 
-    def evidence(self, prep: Prepared, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        """(m, kinds, BINS) orientation evidence of candidates ``idx`` (:func:`.headings.evidence`)."""
-        return headings.evidence(self, prep, idx, faces)
-
     # --- placement -----------------------------------------------------------------------------------------
     def geometric_face(self, size, surface_type: str) -> str:
         """Attachment by geometry: hang by the top from ceilings, stand on the bottom on floors and tops,

@@ -69,9 +69,6 @@ class Taxonomy:
         """Coarse→fine path ending in ``category``."""
         return list(reversed(self.ancestors(category))) + [category]
 
-    def categories(self) -> set[str]:
-        return set(self.parents) | set(self.parents.values())
-
     def to_dict(self) -> dict[str, str]:
         return dict(sorted(self.parents.items()))
 

@@ -47,10 +47,6 @@ class Wall:
         return {"normal": list(self.normal), "offset": self.offset, "along": list(self.along),
                 "height": list(self.height)}
 
-    @classmethod
-    def from_dict(cls, d: dict) -> Wall:
-        return cls(tuple(d["normal"]), float(d["offset"]), tuple(d["along"]), tuple(d["height"]))
-
     @property
     def heading_normal(self) -> np.ndarray:
         """The inward normal as a world 3-vector."""

@@ -28,11 +28,6 @@ CLICK_ERROR_M = 0.15
 BATCH = 200  # events per request, as the outbox sends them
 
 
-def heading_deg(transform: list[float]) -> float:
-    """Heading of a column-major 4×4 transform: the angle of its front (+Z) about +Y, degrees."""
-    return math.degrees(math.atan2(transform[8], transform[10]))
-
-
 def rotation_of(transform: list[float]) -> np.ndarray:
     """The 3×3 rotation of a column-major 4×4 rigid transform."""
     return np.asarray(transform, dtype=float).reshape(4, 4).T[:3, :3]

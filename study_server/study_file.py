@@ -9,7 +9,7 @@ import hashlib
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from scenesuggest.errors import SceneSuggestError
@@ -103,7 +103,6 @@ class Study:
     arrivals_per_address_per_hour: int = 100
     max_events_per_participant: int = 100_000
     max_mb_per_participant: float = 32.0
-    raw: dict = field(repr=False, default_factory=dict)
 
     def condition(self, condition_id: str) -> Condition:
         return next(c for c in self.conditions if c.id == condition_id)
@@ -376,7 +375,6 @@ def load_study(path: str | Path) -> Study:
         participants=int(r.number(design, "participants", "design.participants", minimum=1)),
         conditions=tuple(conditions), scenes=scenes, periods=tuple(periods),
         practice=_practice(r, doc, scenes, conditions), **_platform(r, doc), **_texts(r, doc), **_limits(r, doc),
-        raw=doc,
     )
     if study.design == "williams" and len(conditions) < 2:
         raise r.fail("design.kind", "a Williams design needs at least two conditions")

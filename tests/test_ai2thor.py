@@ -76,7 +76,7 @@ def test_objects_rest_on_their_parent(ai2thor):
 
 def test_curated_taxonomy_covers_every_type(ai2thor):
     taxonomy = ai2thor_taxonomy()
-    assert {o.category for o in ai2thor.objects()} - {"Room"} <= set(taxonomy.parents)
+    assert {o.category for s in ai2thor.scenes for o in s} - {"Room"} <= set(taxonomy.parents)
     assert taxonomy.path("Mug") == ["Kitchenware", "Dish", "Mug"]
     assert ai2thor.models["ai2thor:Mug"].category_path == ["Kitchenware", "Dish", "Mug"]
 
@@ -85,6 +85,6 @@ def test_model_sizes_are_typical_boxes(ai2thor):
     mug = ai2thor.models["ai2thor:Mug"].size
     bed = ai2thor.models["ai2thor:Bed"].size
     assert 0.05 < mug[1] < 0.2 and 1.2 < max(bed[0], bed[2]) < 2.6
-    instance = next(o for o in ai2thor.objects() if o.category == "Bed")
+    instance = next(o for s in ai2thor.scenes for o in s if o.category == "Bed")
     lo, hi = frames.world_bbox(instance.transform, instance.size)
     assert 0.3 < hi[1] - lo[1] < 1.6

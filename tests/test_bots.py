@@ -17,7 +17,7 @@ from conftest import DEMO_STUDY, ROOT, gunicorn, make_app
 from analysis.load import read_database, read_export
 from analysis.measures import picks_table, trials_table
 from analysis.report import build_report
-from simulation.actions import heading_deg, words
+from simulation.actions import words
 from simulation.participant import Bot
 from simulation.run import simulate
 from simulation.transport import FlaskTransport
@@ -25,8 +25,6 @@ from simulation.transport import FlaskTransport
 
 def test_helpers():
     assert words("DeskLamp") == "desk lamp" and words("TV") == "tv"
-    turned = [0.0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, 0, 1]  # front +Z turned to +X
-    assert heading_deg(turned) == pytest.approx(90.0)
 
 
 def test_a_bot_completes_the_demo_and_everything_it_logged_is_stored(tmp_path, demo_resources):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from naive_scorer import NaiveScorer
 
+from scenesuggest import headings
 from scenesuggest.orientation import KINDS
 from scenesuggest.priors import Priors
 from scenesuggest.suggest import ContextQuery, Engine
@@ -47,7 +48,7 @@ def test_heading_scores_match_the_naive_scorer(queries_and_engine):
         top = np.argsort(-scores.total, kind="stable")[:10]
         faces = engine.face_indices(scores.prepared, "full", top)
         fast = engine.heading_scores(scores, top, faces)
-        evidence = engine.evidence(scores.prepared, top, faces)
+        evidence = headings.evidence(engine, scores.prepared, top, faces)
         for row, (i, face) in enumerate(zip(top, faces, strict=True)):
             np.testing.assert_allclose(fast[row], naive.heading_scores(q, int(i), int(face)), rtol=1e-9, atol=1e-12)
             for k, kind in enumerate(KINDS):

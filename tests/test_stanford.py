@@ -73,7 +73,7 @@ def test_known_object_world_position(stanford):
 
 def test_categories_and_fallbacks(stanford):
     """99% of instances get a real label (ShapeNetSem category or WordNet lemma)."""
-    counts = Counter(o.category for o in stanford.objects())
+    counts = Counter(o.category for s in stanford.scenes for o in s)
     assert counts["Room"] == 133
     unknown = counts.get("Unknown", 0)
     assert unknown / sum(counts.values()) < 0.01
@@ -85,7 +85,7 @@ def test_categories_and_fallbacks(stanford):
 
 
 def test_surface_types_and_faces(stanford):
-    edges = [o for o in stanford.objects() if o.parent is not None]
+    edges = [o for s in stanford.scenes for o in s if o.parent is not None]
     faces = Counter(o.attachment_face for o in edges)
     types = Counter(o.surface_type for o in edges)
     assert faces.most_common(1)[0][0] == "bottom"

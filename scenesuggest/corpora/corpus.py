@@ -25,7 +25,3 @@ class Corpus:
     scenes: list[Scene]
     models: dict[str, ModelInfo] = field(default_factory=dict)
     taxonomy: Taxonomy = field(default_factory=Taxonomy)
-
-    def objects(self):
-        for scene in self.scenes:
-            yield from scene

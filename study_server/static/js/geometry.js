@@ -3,7 +3,7 @@
 // turning it about the surface normal, and classifying the surface a click landed on.
 import * as THREE from "three";
 
-export const FACE_NORMALS = {
+const FACE_NORMALS = {
   bottom: [0, -1, 0], top: [0, 1, 0], front: [0, 0, 1], back: [0, 0, -1], left: [1, 0, 0], right: [-1, 0, 0],
 };
 const FACE_CENTRE = {
@@ -12,7 +12,7 @@ const FACE_CENTRE = {
 const FACE_REFERENCE = { bottom: [0, 0, 1], top: [0, 0, 1], front: [0, 1, 0], back: [0, 1, 0], left: [0, 1, 0], right: [0, 1, 0] };
 const HORIZONTAL_COS = Math.cos(Math.PI / 4);
 
-export function faceCentre(face, size) {
+function faceCentre(face, size) {
   const f = FACE_CENTRE[face];
   return new THREE.Vector3(f[0] * size[0], f[1] * size[1], f[2] * size[2]);
 }
@@ -87,10 +87,6 @@ export function poseMatrix(point, quaternion, face, size) {
   return m;
 }
 
-/** Where a placed object touches its surface: the world centre of its attached face. */
-export function anchorOf(matrix, face, size) {
-  return faceCentre(face, size).applyMatrix4(matrix);
-}
 
 export function rotationOf(matrix) {
   const q = new THREE.Quaternion();

@@ -4,8 +4,8 @@
 // decides the frame rate on software WebGL (SwiftShader) that many participants' laptops fall back to.
 import * as THREE from "three";
 
-export const SKY = { colour: 0xffffff, ground: 0x8a7f70, intensity: 1.6 };
-export const SUN = { colour: 0xffffff, intensity: 1.4, position: [3, 6, 4] };
+const SKY = { colour: 0xffffff, ground: 0x8a7f70, intensity: 1.6 };
+const SUN = { colour: 0xffffff, intensity: 1.4, position: [3, 6, 4] };
 
 /** The scene lights, for the materials that use three.js's own lighting (textured models). */
 export function addLights(scene) {
