@@ -61,9 +61,11 @@ pytest: setup
 
 test: demo lint audit pytest
 
-# The inner loop: no browser, no PostgreSQL, no kill test (the whole suite is `make test`).
+# The inner loop: no browser, no PostgreSQL, no kill test (the whole suite is `make test`), on two processes, a
+# test file each at a time, with single-threaded BLAS (two processes of two threads each on two cores run slower).
 test-fast: demo
-	$(BIN)/pytest -q -m "not browser and not postgresql and not slow"
+	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
+		$(BIN)/pytest -q -n 2 --dist loadfile -m "not browser and not postgresql and not slow"
 
 # A study of the demo with 20 simulated participants, exported and analysed (var/demo-report/report/README.md).
 DEMO_REPORT := var/demo-report
