@@ -10,6 +10,7 @@ node_modules directly.
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 from pathlib import Path
@@ -31,7 +32,7 @@ def _resolve(spec: str, importer: Path) -> Path | None:
     if spec.startswith("three/addons/"):
         return THREE / "examples" / "jsm" / spec.removeprefix("three/addons/")
     if spec.startswith(".") and importer.is_relative_to(THREE):
-        return (importer.parent / spec).resolve()
+        return Path(os.path.normpath(importer.parent / spec))  # node_modules may be a link: do not follow it
     return None
 
 
