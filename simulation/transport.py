@@ -19,7 +19,12 @@ import numpy as np
 
 
 class FlowError(RuntimeError):
-    """The server answered something a participant's browser would not have expected."""
+    """The server answered something a participant's browser would not have expected (``status``: its HTTP
+    status, when it answered)."""
+
+    def __init__(self, message: str, status: int | None = None):
+        super().__init__(message)
+        self.status = status
 
 
 @dataclass

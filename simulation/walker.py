@@ -34,21 +34,21 @@ class Walker:
         query = urlencode(query) if isinstance(query, dict) else query
         r = self.http.get(f"/study/{self.study}/start?{query}", headers=headers)
         if r.status >= 400:
-            raise FlowError(f"entry link → {r.status}")
+            raise FlowError(f"entry link → {r.status}", r.status)
         return read_page(r.body)
 
     def current(self) -> Page:
         """The page the participant is on now (what a reload shows)."""
         r = self.http.get(f"/study/{self.study}/")
         if r.status >= 400:
-            raise FlowError(f"GET /study/{self.study}/ → {r.status}")
+            raise FlowError(f"GET /study/{self.study}/ → {r.status}", r.status)
         return read_page(r.body)
 
     def submit(self, step: str, form: dict, page: Page) -> Page:
         """Post ``form`` to ``step`` with ``page``'s form token; returns the page the answer leads to."""
         r = self.http.post(f"/study/{self.study}/{step}", form={"csrf_token": page.csrf or "", **form})
         if r.status >= 400:
-            raise FlowError(f"POST {step} → {r.status}")
+            raise FlowError(f"POST {step} → {r.status}", r.status)
         return read_page(r.body)
 
     def walk(self, answers: Callable[[Page], dict], trial: Callable[[dict], bool] | None = None,

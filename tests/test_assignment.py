@@ -3,16 +3,16 @@ processes, gunicorn workers), on SQLite and on PostgreSQL; one session per platf
 consented hold no row."""
 
 import multiprocessing
-import re
 import signal
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
 
 import pytest
-import requests
 from conftest import DEMO_STUDY, make_app
 
+from simulation.transport import FlowError, HttpTransport
+from simulation.walker import Walker
 from study_server.assignment import arrive, assign, row_counts
 from study_server.extensions import db
 from study_server.models import Participant, Trial, utcnow
@@ -131,14 +131,13 @@ def test_concurrent_arrivals_over_http_with_several_gunicorn_workers(tmp_path, r
     base, app = gunicorn_server(url)
 
     def one(pid):  # each a browser of its own: the entry link, the device check, consent
-        browser = requests.Session()
-        r = browser.get(f"{base}/study/demo/start?pid={pid}", timeout=30)
-        assert r.status_code in (200, 409), r.text  # 409: the same id is already open in another browser
-        if r.status_code == 409:
+        walker = Walker(HttpTransport(base), "demo")
+        try:
+            page = walker.enter({"pid": pid})
+        except FlowError as e:  # 409: the same id is already open in another browser
+            assert e.status == 409, e
             return pid
-        form = {"csrf_token": re.search(r'name="csrf_token" value="([^"]+)"', r.text).group(1)}
-        browser.post(f"{base}/study/demo/device", data={**form, "width": "1400", "height": "900"}, timeout=30)
-        assert browser.post(f"{base}/study/demo/consent", data={**form, "agree": "yes"}, timeout=30).ok
+        assert walker.walk(lambda _: {}, until=("demographics",), page=page).step == "demographics"
         return pid
     with ThreadPoolExecutor(max_workers=12) as pool:
         list(pool.map(one, [f"h{i}" for i in range(36)] + ["dup"] * 6))
