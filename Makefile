@@ -43,9 +43,9 @@ $(NPM_STAMP): package.json package-lock.json
 # The wheel, with the three.js files the client imports (setup.py); built afresh, so that nothing an earlier
 # build left in build/ comes along.
 wheel: setup
-	rm -rf build dist
+	rm -rf build dist *.egg-info
 	$(BIN)/python -m pip wheel --no-deps --quiet -w dist .
-	rm -rf build
+	rm -rf build *.egg-info
 	@ls dist/*.whl
 
 lint: $(PIP_STAMP)

@@ -14,13 +14,14 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("SCENESUGGEST_SHARED_DATA", ROOT.parent / "shared" / "data"))
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 sys.path.insert(0, str(ROOT / "benchmarks"))  # serverproc: the server as a subprocess, shared with the benchmarks
+BROWSER_TESTS = Path(__file__).resolve().parent / "browser"
 
 
 def pytest_collection_modifyitems(config, items) -> None:
-    """Mark what needs Chromium (``browser``) or a PostgreSQL server (``postgresql``), so that ``make test-fast``
-    can leave them out; ``slow`` is set by hand on the longest tests."""
+    """Mark what needs Chromium (``browser``: every test under tests/browser/) or a PostgreSQL server
+    (``postgresql``), so that ``make test-fast`` can leave them out; ``slow`` is set by hand on the longest tests."""
     for item in items:
-        if item.path.name == "test_browser.py":
+        if item.path.resolve().is_relative_to(BROWSER_TESTS):
             item.add_marker(pytest.mark.browser)
         names = set(getattr(item, "fixturenames", ()))
         params = getattr(getattr(item, "callspec", None), "params", {})
@@ -199,3 +200,20 @@ def postgres_db(postgres_url):
     subprocess.run([*run, f"{bindir}/createdb", "-h", "127.0.0.1", "-p", str(port), "-U", "postgres", name],
                    check=True, capture_output=True)
     return url.rsplit("/", 1)[0] + "/" + name
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def backend_url(request, tmp_path, demo_resources):
+    """A fresh database for one test, on SQLite and (a second run of the test) on the throwaway PostgreSQL."""
+    if request.param == "postgresql":
+        return request.getfixturevalue("postgres_db")
+    return f"sqlite:///{tmp_path / 'study.sqlite3'}"
+
+
+@pytest.fixture
+def app_on(backend_url, tmp_path):
+    """The demo study's app on ``backend_url``, its admin password integrityhelp.PASSWORD."""
+    from integrityhelp import PASSWORD
+    from werkzeug.security import generate_password_hash
+
+    return make_app(tmp_path, backend_url, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))

@@ -1,0 +1,127 @@
+"""Driving the trial page in the browser tests: waiting on it, asking its test hook (world points to pixels,
+the objects, the events it logged), placing a suggestion, and reading what the server stored."""
+
+from __future__ import annotations
+
+import math
+import sqlite3
+import time
+from pathlib import Path
+
+from conftest import ROOT  # tests/conftest.py (this folder is a package)
+
+ARTIFACTS = ROOT / "test-artifacts"
+
+
+def until(page, expression: str, timeout: float = 20.0):
+    """Poll a JS expression (the page's CSP forbids Playwright's eval-based waiting)."""
+    from playwright.sync_api import Error
+
+    end = time.time() + timeout
+    while time.time() < end:
+        try:
+            value = page.evaluate(f"() => {expression}")
+        except Error:  # the page is navigating
+            value = None
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out waiting for {expression}")
+
+
+def hook(page, expression: str):
+    return page.evaluate(f"() => window.sceneSuggestTest.{expression}")
+
+
+def ready(page):
+    until(page, "!!(window.sceneSuggestTest && window.sceneSuggestTest.ready)")
+    page.evaluate("() => window.sceneSuggestTest.loaded()")
+
+
+def start(page, base: str, pid: str, study: str = "demo"):
+    page.goto(f"{base}/study/{study}/start?pid={pid}")
+    page.click("text=I agree to take part")
+    page.fill("input[name=age]", "29")
+    page.check("input[name=experience_3d][value='A few times']")
+    page.check("input[name=pointing_device][value=Trackpad]")
+    page.click("button:has-text('Continue')")
+    while page.locator("button[name=go][value=next]").count():
+        page.click("button[name=go][value=next]")
+    ready(page)
+
+
+def objects(page) -> dict:
+    return {o["id"]: o for o in hook(page, "objects()")}
+
+
+def floor_pixel(page, x=0.0, z=0.3):
+    return hook(page, f"worldToPixel({x}, 0, {z})")
+
+
+def heading_deg(transform, face="bottom"):
+    """Yaw of the front (+Z column of the column-major matrix) about +Y, degrees in [0, 360)."""
+    fx, fz = transform[8], transform[10]
+    return math.degrees(math.atan2(fx, fz)) % 360
+
+
+def suggest_at(page, x, y, shift=True):
+    before = hook(page, "lastSuggest?.list_id") or None
+    if shift:
+        page.keyboard.down("Shift")
+    page.mouse.click(x, y)
+    if shift:
+        page.keyboard.up("Shift")
+    until(page, f"window.sceneSuggestTest.lastSuggest && window.sceneSuggestTest.lastSuggest.list_id !== {before!r}"
+          .replace("None", "null"))
+    page.evaluate("() => window.sceneSuggestTest.loaded()")
+    return hook(page, "lastSuggest")
+
+
+def done(page):
+    page.click("#done-button")
+    with page.expect_navigation(timeout=30000):
+        page.click("#confirm-yes")
+
+
+def exit_survey(page, likert: str, preference: str) -> str:
+    """Answer every Likert item with ``likert``, choose ``preference``, submit; returns the completion code."""
+    for q in ("enjoy_list", "competent_list", "enjoy_suggestions", "competent_suggestions"):
+        page.check(f"input[name={q}][value='{likert}']")
+    page.check(f"input[name=preference][value='{preference}']")
+    page.click("button:has-text('Continue')")
+    page.wait_for_selector(".code")
+    return page.inner_text(".code")
+
+
+def db_events(database: Path, pid: str) -> list[tuple[int, str]]:
+    with sqlite3.connect(database) as conn:
+        return conn.execute("SELECT e.seq, e.type FROM events e JOIN participants p ON p.id = e.participant_id "
+                            "WHERE p.platform_id = ? ORDER BY e.seq", (pid,)).fetchall()
+
+
+def db_event_times(database: Path, pid: str) -> list[tuple[int, str, float]]:
+    with sqlite3.connect(database) as conn:
+        return conn.execute("SELECT e.seq, e.type, e.client_t FROM events e JOIN participants p ON "
+                            "p.id = e.participant_id WHERE p.platform_id = ? ORDER BY e.seq", (pid,)).fetchall()
+
+
+def screenshot(page, name: str):
+    ARTIFACTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(ARTIFACTS / f"{name}.png"))
+
+
+def place_with_suggestions(page, mode_toggle=False):
+    """Ask for suggestions on the floor; the top one is placed at once on the clicked surface."""
+    x, y = floor_pixel(page, -0.6, 0.4)
+    if mode_toggle:
+        page.click("#suggest-mode")
+    response = suggest_at(page, x, y, shift=not mode_toggle)
+    if mode_toggle:
+        page.click("#suggest-mode")
+    placed = [o for o in objects(page).values() if o["parent"] == response["hit"]["parent"] and o["id"] != "room"]
+    top = response["suggestions"][0]
+    newest = placed[-1]
+    assert newest["category"] == top["category"] and newest["model_id"] == top["models"][0]["id"]
+    assert newest["parent"] == "room" and newest["surface_type"] == "up_interior"
+    assert math.dist(newest["contact_point"], response["hit"]["point"]) < 1e-6  # on the clicked point
+    return response, newest

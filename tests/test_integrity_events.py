@@ -1,0 +1,143 @@
+"""Nobody can poison a participant's record: the events a page sends are stored once or refused with the field
+to blame (a seq another sender holds, a string that cannot be stored, a quota spent), and the export of whatever
+is stored neither crashes nor runs as a formula. HTTP against the server, on SQLite and on PostgreSQL."""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+
+import pytest
+from conftest import make_app
+from flowhelp import auth, csrf, to_trials
+from integrityhelp import PASSWORD, event, post_events, study_copy
+
+from scenesuggest.cells import safe_cell, unescape_cell
+from study_server.extensions import db
+from study_server.models import Event, SessionLog, Trial
+
+
+def test_a_seq_held_by_other_content_is_a_conflict_never_a_silent_drop(app_on):
+    c = app_on.test_client()
+    b = to_trials(c)
+    assert post_events(c, b, [event(0), event(1), event(2)]).json["acked_seq"] == 2
+    r = post_events(c, b, [event(3), event(1, text="what the participant really searched")])
+    assert r.status_code == 409 and r.json["conflicts"] == [1] and r.json["field"] == "events[1].seq"
+    assert r.json["next_seq"] == 4
+    with app_on.app_context():
+        assert db.session.query(Event).count() == 3  # nothing of the refused batch
+        assert db.session.query(SessionLog).filter_by(kind="event_conflict").one().detail["seqs"] == [1]
+    # the same events again (a reload replaying its outbox under a new page id) are simply acknowledged
+    assert post_events(c, b, [event(1), event(2)], page_id="another-page").json == {"acked_seq": 2, "stored": True}
+    # the client sends its event under the seq the server handed out: stored, and nothing lost
+    assert post_events(c, b, [event(3), event(4, text="what the participant really searched", t=1.0e12 + 1)]
+                       ).json["acked_seq"] == 4
+
+
+# --- one bad string -----------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("events", "page_id", "field"), [
+    ([event(0, text="\udfff")], None, "events[0].payload.text"),
+    ([event(0, "list_shown", source="search", items=["ok", "\ud800x"])], None, "events[0].payload.items[1]"),
+    ([event(0, text="nul\x00")], None, "events[0].payload.text"),
+    ([event(0)], "page\udfff", "page_id"),
+    ([event(0)], "page\x00", "page_id"),
+    ([event(2**31)], None, "events[0].seq"),
+])
+def test_strings_that_cannot_be_stored_and_seqs_that_overflow_get_a_422(app_on, events, page_id, field):
+    c = app_on.test_client()
+    b = to_trials(c)
+    body = json.dumps({"page_id": page_id or b["page_id"], "events": events})  # json escapes the surrogates
+    r = c.post("/api/events", data=body, headers={**auth(b), "Content-Type": "application/json"})
+    assert r.status_code == 422 and r.json["field"] == field, r.json
+    with app_on.app_context():
+        assert db.session.query(Event).count() == 0
+    emoji = json.dumps({"page_id": b["page_id"], "events": [event(0, text="sofa \U0001F6CB")]})  # a surrogate pair
+    assert c.post("/api/events", data=emoji, headers={**auth(b), "Content-Type": "application/json"}).status_code == 200
+
+
+def test_the_export_never_crashes_on_what_is_stored(app_on, tmp_path):
+    c = app_on.test_client()
+    b = to_trials(c)
+    assert post_events(c, b, [event(0, "insert", object="o1", model="m", category="Sofa", rank=1,
+                                    source="context")]).status_code == 200
+    with app_on.app_context():  # text stored before the server refused it
+        e = db.session.query(Event).one()
+        e.payload = {**e.payload, "model": "bad\udfff"}  # JSON keeps it as an escape: the driver accepts it
+        db.session.commit()
+    admin = app_on.test_client()
+    page = admin.get("/admin/login")
+    admin.post("/admin/login", data={"csrf_token": csrf(page), "password": PASSWORD})
+    r = admin.get("/admin/demo/export.zip")
+    assert r.status_code == 200
+    picks = zipfile.ZipFile(io.BytesIO(r.data)).read("demo/picks.csv").decode("utf-8")
+    assert "bad\\udfff" in picks
+
+
+def test_export_cells_cannot_run_as_formulas_and_load_back_unchanged(client, app, tmp_path):
+    from analysis.load import read_export
+    from study_server.export import export_to
+
+    hostile = ["=HYPERLINK(\"http://evil\",\"x\")", "+cmd|' /C calc'!A0", "-2+3", "@SUM(A1)", "\tx", "\rx",
+               "'quoted", "-12.5"]
+    b = to_trials(client)
+    assert post_events(client, b, [event(i, text=t) for i, t in enumerate(hostile)]).status_code == 200
+    with app.app_context():
+        export_to(app.extensions["studies"]["demo"].study, tmp_path / "export")
+    raw = (tmp_path / "export" / "session_log.csv").read_text()
+    assert all(not line.startswith(("=", "+", "@")) for line in raw.splitlines())
+    assert [safe_cell(t) for t in hostile[:-1]] == ["'" + t for t in hostile[:-1]] and safe_cell("-12.5") == "-12.5"
+    assert [unescape_cell(safe_cell(t)) for t in hostile] == hostile
+    data = read_export(tmp_path / "export")
+    searched = [p["text"] for p in data.events["payload"]]
+    assert searched == hostile
+
+
+def test_arrivals_events_and_bytes_have_quotas(tmp_path, demo_resources):
+    path = study_copy(tmp_path, arrivals_per_address_per_hour=3, max_events_per_participant=100,
+                      max_mb_per_participant=0.2)
+    app = make_app(tmp_path, studies=[path])
+    for i in range(3):
+        assert app.test_client().get(f"/study/demo/start?pid=a{i}").status_code == 302
+    r = app.test_client().get("/study/demo/start?pid=a3")
+    assert r.status_code == 429 and b"Too many people" in r.data
+    far = app.test_client()
+    far.environ_base["REMOTE_ADDR"] = "10.1.2.3"  # another address is not held back
+    b = to_trials(far, query="pid=elsewhere")
+    assert post_events(far, b, [event(i) for i in range(100)]).status_code == 200
+    r = post_events(far, b, [event(100)])
+    assert r.status_code == 429 and r.headers["Retry-After"] and r.json["field"] == "events"
+    big = make_app(tmp_path / "big", studies=[path])
+    c = big.test_client()
+    b = to_trials(c, query="pid=bytes")
+    payload = "x" * 1900
+    codes = [post_events(c, b, [event(j * 50 + i, text=payload) for i in range(50)]).status_code for j in range(3)]
+    assert codes == [200, 200, 429]  # 0.2 MB: two batches of 50 × 2 kB, not a third
+
+
+def test_surrogates_sent_as_raw_bytes_and_deep_bodies_are_refused_not_stored(app_on):
+    c = app_on.test_client()
+    b = to_trials(c)
+    head = {**auth(b), "Content-Type": "application/json"}
+    raw = b'{"trial": -1, "scene": {"objects": [{"id": "x\xed\xa0\x80y"}]}}'  # a surrogate as (invalid) UTF-8
+    r = c.post("/api/trial/done", data=raw, headers=head)
+    assert r.status_code == 422 and r.json["field"] == "scene.objects[0].id"
+    r = c.post("/api/suggest", data=b'{"trial": -1, "parent": "\xed\xbf\xbf"}', headers=head)
+    assert r.status_code == 422 and r.json["field"] == "parent"
+    deep = b'{"trial": -1, "scene": ' + b"[" * 980 + b'"\\udfff"' + b"]" * 980 + b"}"
+    r = c.post("/api/trial/done", data=deep, headers=head)
+    assert r.status_code in (400, 422) and "Traceback" not in r.get_data(as_text=True)
+    assert c.get("/api/search?q=a%00b", headers=auth(b)).status_code == 400
+    with app_on.app_context():
+        assert db.session.query(Trial).filter(Trial.done_at.is_not(None)).count() == 0
+
+
+def test_an_event_another_tab_already_stored_under_a_new_seq_is_acknowledged(app_on):
+    c = app_on.test_client()
+    b = to_trials(c)
+    mine = event(0, text="mine")
+    assert post_events(c, b, [event(0, text="theirs"), dict(mine, seq=1)]).json["acked_seq"] == 1
+    r = post_events(c, b, [mine])  # this page still holds it under its first seq
+    assert r.status_code == 200 and r.json["acked_seq"] == 1
+    with app_on.app_context():
+        assert db.session.query(Event).count() == 2
