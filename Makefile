@@ -7,28 +7,19 @@ BIN := $(VENV)/bin
 PIP_STAMP := $(VENV)/.installed
 NPM_STAMP := node_modules/.installed
 
-DEMO_LIBRARY := var/library/ai2thor/library.json
-DEMO_PRIORS := var/priors/ai2thor.npz
+DEMO_STUDY := study_server/demo/study.toml
 
 .PHONY: setup wheel demo demo-report demo-power replication serve-replication test test-fast lint audit pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
-# The built-in demo study's model library (procedural meshes; rebuilt when the asset code changes) and priors,
-# kept in var/.
-$(DEMO_LIBRARY): $(wildcard scenesuggest/assets/*.py) | $(PIP_STAMP)
-	$(BIN)/scenesuggest assets build ai2thor --out var/library/ai2thor
-
-# Priors are retrained when the code that learns them changes (a new priors file version would not load).
-PRIORS_CODE := $(wildcard scenesuggest/*.py scenesuggest/corpora/*.py)
-$(DEMO_PRIORS): $(PRIORS_CODE) | $(PIP_STAMP)
-	mkdir -p var/priors
-	$(BIN)/scenesuggest priors train ai2thor -o $@
-
-demo: setup $(DEMO_LIBRARY) $(DEMO_PRIORS)
+# The built-in demo study's model library (procedural meshes) and priors, the server's own for the AI2-THOR corpus
+# (in var/): built when missing, and again when the code that makes them changes.
+demo: setup
+	$(BIN)/scenesuggest study prepare $(DEMO_STUDY)
 
 serve: demo
-	$(BIN)/scenesuggest study serve --host 127.0.0.1 --port 5000
+	$(BIN)/scenesuggest study serve --host 127.0.0.1 --port 5000 --no-prepare
 
 $(PIP_STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -56,16 +47,19 @@ lint: $(PIP_STAMP)
 audit: $(PIP_STAMP) $(NPM_STAMP)
 	$(BIN)/python .ci/audit
 
+# Every test: those without a browser on two processes (a test file each at a time, single-threaded BLAS, as in
+# test-fast), then the browser tests, which drive Chromium and a server of their own, one at a time.
+PARALLEL := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(BIN)/pytest -n 2 --dist loadfile
 pytest: setup
-	$(BIN)/pytest
+	$(PARALLEL) -m "not browser"
+	$(BIN)/pytest -m browser
 
 test: demo lint audit pytest
 
-# The inner loop: no browser, no PostgreSQL, no kill test (the whole suite is `make test`), on two processes, a
-# test file each at a time, with single-threaded BLAS (two processes of two threads each on two cores run slower).
+# The inner loop: no browser, no PostgreSQL, no kill test (the whole suite is `make test`), on two processes (two
+# processes of two BLAS threads each on two cores run slower than single-threaded BLAS).
 test-fast: demo
-	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
-		$(BIN)/pytest -q -n 2 --dist loadfile -m "not browser and not postgresql and not slow"
+	$(PARALLEL) -q -m "not browser and not postgresql and not slow"
 
 # A study of the demo with 20 simulated participants, exported and analysed (var/demo-report/report/README.md).
 DEMO_REPORT := var/demo-report
@@ -103,7 +97,7 @@ replication: setup
 # The replication study served for people (prepared first): http://127.0.0.1:5000/study/scenesuggest-2015/start?pid=…
 serve-replication: setup
 	SCENESUGGEST_STANFORD_DIR=$(SCENESUGGEST_STANFORD_DIR) $(BIN)/python $(REPLICATION)/prepare.py
-	SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study serve --host 127.0.0.1 --port 5000
+	SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study serve --host 127.0.0.1 --port 5000 --no-prepare
 
 bench: demo
 	$(BIN)/python benchmarks/bench_corpus.py

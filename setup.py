@@ -38,7 +38,7 @@ def _resolve(spec: str, importer: Path) -> Path | None:
 
 def three_files() -> set[Path]:
     """The three.js files the client needs: the closure of the imports of its modules."""
-    todo = [(spec, js) for js in CLIENT.glob("*.js") for spec in IMPORT.findall(js.read_text())]
+    todo = [(spec, js) for js in CLIENT.glob("*.js") for spec in IMPORT.findall(js.read_text(encoding="utf-8"))]
     found: set[Path] = set()
     while todo:
         spec, importer = todo.pop()
@@ -48,7 +48,7 @@ def three_files() -> set[Path]:
         if not path.is_file():
             raise SystemExit(f"{importer} imports {spec!r}, which node_modules/three does not have")
         found.add(path)
-        todo += [(s, path) for s in IMPORT.findall(path.read_text())]
+        todo += [(s, path) for s in IMPORT.findall(path.read_text(encoding="utf-8"))]
     return found
 
 
@@ -58,7 +58,7 @@ class BuildWithThree(build_py):
         if getattr(self, "editable_mode", False):
             return
         if not (THREE / "package.json").is_file():
-            raise SystemExit("three.js is missing: run 'npm ci' before building the package")
+            raise SystemExit("three.js is missing: build the wheel with 'make wheel' (it runs npm ci first)")
         target = Path(self.build_lib) / "study_server" / "vendor" / "three"
         for path in sorted(three_files()) + [THREE / "LICENSE", THREE / "package.json"]:
             out = target / path.relative_to(THREE)

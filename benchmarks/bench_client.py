@@ -23,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from serverproc import StudyServer  # noqa: E402
+from serverproc import StudyServer, demo_missing  # noqa: E402
 
 from simulation.transport import HttpTransport  # noqa: E402
 from simulation.walker import Walker  # noqa: E402
@@ -57,8 +57,8 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=5.0)
     args = parser.parse_args()
     chromium = shutil.which("chromium") or "/usr/bin/chromium"
-    if not Path(chromium).exists() or not (ROOT / "var" / "priors" / "ai2thor.npz").is_file():
-        print(json.dumps({"benchmark": "client", "error": "needs Chromium (apt) and `make demo`"}))
+    if not Path(chromium).exists() or demo_missing():
+        print(json.dumps({"benchmark": "client", "error": demo_missing() or "needs Chromium (apt)"}))
         return 1
     from playwright.sync_api import sync_playwright
 

@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from serverproc import StudyServer  # noqa: E402
+from serverproc import StudyServer, demo_missing  # noqa: E402
 
 from simulation.transport import HttpTransport  # noqa: E402
 from simulation.walker import Walker  # noqa: E402
@@ -143,8 +143,8 @@ def main() -> int:
                         help="seconds between one participant's context queries during the paced phase "
                              "(0: ingestion alone)")
     args = parser.parse_args()
-    if not (ROOT / "var" / "priors" / "ai2thor.npz").is_file():
-        print(json.dumps({"benchmark": "ingest", "error": "run `make demo` first (the demo study's resources)"}))
+    if demo_missing():
+        print(json.dumps({"benchmark": "ingest", "error": demo_missing()}))
         return 1
     with tempfile.TemporaryDirectory() as tmp:
         database = Path(tmp) / "bench.sqlite3"

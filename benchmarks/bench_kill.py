@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import numpy as np  # noqa: E402
-from serverproc import StudyServer  # noqa: E402
+from serverproc import StudyServer, demo_missing  # noqa: E402
 
 from simulation.participant import Bot  # noqa: E402
 from simulation.transport import FlowError, HttpTransport  # noqa: E402
@@ -99,8 +99,8 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
-    if not (ROOT / "var" / "priors" / "ai2thor.npz").is_file():
-        print(json.dumps({"benchmark": "kill", "error": "run `make demo` first (the demo study's resources)"}))
+    if demo_missing():
+        print(json.dumps({"benchmark": "kill", "error": demo_missing()}))
         return 1
     out = run(args.participants, args.kills, args.seed, args.workers)
     print(json.dumps(out))

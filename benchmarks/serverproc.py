@@ -16,6 +16,15 @@ ROOT = Path(__file__).resolve().parents[1]
 DEMO_STUDY = ROOT / "study_server" / "demo" / "study.toml"
 
 
+def demo_missing() -> str | None:
+    """What the demo study lacks to be served (its priors and library; `make demo` builds them), or None."""
+    from study_server.prepare import problems
+    from study_server.study_file import load_study
+
+    found = problems(load_study(DEMO_STUDY))
+    return "; ".join(found.values()) + " (run `make demo`)" if found else None
+
+
 def free_port() -> int:
     s = socket.socket()
     s.bind(("127.0.0.1", 0))

@@ -37,6 +37,7 @@ import numpy as np
 
 from . import frames
 from .atomic import write_atomically
+from .digest import source_digest
 from .errors import SceneSuggestError
 from .folds import similar_groups
 from .learning import ANY, K_MAX, learn_counts, subtree
@@ -59,13 +60,7 @@ __all__ = ["ANY", "BINS", "FACES", "K_MAX", "Priors", "UNSEEN_IN_SCENE_TYPE", "c
 def code_digest() -> str:
     """A short hash of the engine's code (every module of the package and its corpus loaders), which decides
     what a priors file holds: prepared priors files are retrained when it changes."""
-    import hashlib
-
-    digest = hashlib.sha256()
-    root = Path(__file__).parent
-    for path in sorted([*root.glob("*.py"), *root.glob("corpora/*.py")]):
-        digest.update(path.read_bytes())
-    return digest.hexdigest()[:16]
+    return source_digest("*.py", "corpora/*.py")
 
 
 class Priors:
@@ -184,8 +179,8 @@ class Priors:
         ablations (:func:`.orientation.learn_orientation`)."""
         scenes, kinds = list(scenes), tuple(orientation_kinds)
         counts = learn_counts(scenes, taxonomy or Taxonomy(), progress or (lambda items, label="": items))
-        meta = {"format": FORMAT, "version": VERSION, **counts.meta, "orientation_kinds": list(kinds),
-                "orientation_trust": orientation_trust}
+        meta = {"format": FORMAT, "version": VERSION, "code": code_digest(), **counts.meta,
+                "orientation_kinds": list(kinds), "orientation_trust": orientation_trust}
         flat = np.ones((len(meta["entities"]), len(SURFACE_TYPES), 1), dtype=np.float32)
         untrusted = cls({**counts.arrays, "orient_weights": flat}, meta)
         weights = learn_orientation(untrusted, counts.supports, counts.pairs, counts.expanded, similar_groups(scenes),
@@ -204,25 +199,25 @@ class Priors:
 
     @classmethod
     def load(cls, path: str | Path) -> Priors:
+        """Read a priors file; a file that is not one, or of another version, is an error naming the file."""
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as data:
-                arrays = {k: data[k] for k in data.files}
+                meta = _checked_meta(data, path)
+                arrays = {k: data[k] for k in data.files if k != "meta"}
         except (OSError, ValueError) as e:
             raise SceneSuggestError(f"cannot read priors: {e}", file=str(path)) from None
-        if "meta" not in arrays:
-            raise SceneSuggestError("not a priors file (no metadata)", file=str(path), field="meta")
-        try:
-            meta = json.loads(arrays.pop("meta").tobytes().decode())
-        except (UnicodeDecodeError, ValueError):
-            raise SceneSuggestError("not a priors file (bad metadata)", file=str(path), field="meta") from None
-        if meta.get("format") != FORMAT:
-            raise SceneSuggestError("not a priors file", file=str(path), field="format")
-        if meta.get("version") != VERSION:
-            raise SceneSuggestError(f"priors file has version {meta.get('version')!r}, this engine reads "
-                                    f"version {VERSION}: retrain with 'scenesuggest priors train'",
-                                    file=str(path), field="version")
         return cls(arrays, meta)
+
+    @staticmethod
+    def read_meta(path: str | Path) -> dict:
+        """The metadata of a priors file, checked as :meth:`load` checks it, without reading the arrays."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                return _checked_meta(data, path)
+        except (OSError, ValueError) as e:
+            raise SceneSuggestError(f"cannot read priors: {e}", file=str(path)) from None
 
     # --- lookups -------------------------------------------------------------------------------------------
     def stat_entity(self, category: str, backoff: bool = True) -> int | None:
@@ -378,3 +373,20 @@ def peak_normalised(counts: np.ndarray) -> np.ndarray:
     h = smooth(np.asarray(counts, dtype=np.float64))
     peak = h.max(axis=-1, keepdims=True)
     return np.where(peak > 0, h / np.where(peak > 0, peak, 1.0), 1.0).astype(np.float32)
+
+
+def _checked_meta(data, path: Path) -> dict:
+    """The metadata entry of an open ``.npz``: present, JSON, this format and this engine's version."""
+    if "meta" not in data.files:
+        raise SceneSuggestError("not a priors file (no metadata)", file=str(path), field="meta")
+    try:
+        meta = json.loads(data["meta"].tobytes().decode())
+    except (UnicodeDecodeError, ValueError):
+        raise SceneSuggestError("not a priors file (bad metadata)", file=str(path), field="meta") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise SceneSuggestError("not a priors file", file=str(path), field="format")
+    if meta.get("version") != VERSION:
+        raise SceneSuggestError(f"priors file has version {meta.get('version')!r}, this engine reads "
+                                f"version {VERSION}: retrain with 'scenesuggest priors train'",
+                                file=str(path), field="version")
+    return meta

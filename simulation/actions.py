@@ -262,7 +262,7 @@ class Trial:
         if distance > POSE_TOLERANCE_M:
             self.spend(M + P)
             self.event("move_start", {"object": obj["id"]})
-            self.spend(B + drag_seconds(distance) + B)
+            self.spend(drag_seconds(distance))
             self.event("move_end", {"object": obj["id"], "distance": distance, "parent": obj["parent"]})
         turn = math.degrees(poses.turn_about(placed, rotation_of(obj["transform"]), obj["contact_normal"]))
         if abs(obj["contact_normal"][1]) > 0.9:  # on a floor or a table: only a visible difference is turned

@@ -14,7 +14,7 @@ from scenesuggest.errors import SceneSuggestError
 @click.option("--participants", default=20, show_default=True, type=click.IntRange(min=1))
 @click.option("--seed", default=0, show_default=True)
 @click.option("--url", default=None, help="A running server (default: in process, on DATABASE_URL).")
-@click.option("--study", "study_id", default=None, help="Study id (default: the only configured study).")
+@click.option("--study", "study_id", default=None, help="Study id (default: the first configured study).")
 @click.option("--mix", is_flag=True, help="Mix in reloads, second tabs, repeated arrivals, resent batches and "
                                           "drop-outs.")
 @click.option("--json", "as_json", is_flag=True)

@@ -3,7 +3,7 @@
 Pages mark their step, so a walker never recognises a page by its wording or markup. The steps: ``device``,
 ``consent``, ``demographics``, ``instructions``, ``trial``, ``exit``, ``saving`` (the exit survey waits for the
 last events), ``done`` (the end page, with the completion code in ``#completion-code``), ``message`` (a notice,
-such as a link that cannot be used).
+such as a link that cannot be used) and ``mturk-preview`` (an MTurk HIT not yet accepted).
 """
 
 from __future__ import annotations

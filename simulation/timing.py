@@ -21,8 +21,8 @@ COARSE_DEG = 15.0  # one key press of the turning keys, degrees
 
 
 def drag_seconds(distance_m: float) -> float:
-    """Fitts' law for a drag over ``distance_m`` metres onto a target of TARGET_M."""
-    return FITTS_A + FITTS_B * math.log2(distance_m / TARGET_M + 1)
+    """A drag over ``distance_m`` metres: press, move by Fitts' law onto a target of TARGET_M, release."""
+    return B + FITTS_A + FITTS_B * math.log2(distance_m / TARGET_M + 1) + B
 
 
 def turn_seconds(turn_deg: float, tolerance_deg: float) -> float:

@@ -2,9 +2,9 @@
 participants, tests and benchmarks go through it.
 
 Each page names its step (:mod:`.page`); the walker answers the steps whose answer is always the same (the
-device check, consent, the instruction pages, the exit page's wait for the last events) and asks its caller for
-the rest: the survey answers (``answers``) and what to do in a trial (``trial``). Every request goes through a
-transport (:mod:`.transport`), so the same walk runs in process or over real HTTP.
+device check, consent, the instruction pages) and asks its caller for the rest: the survey answers
+(``answers``) and what to do in a trial (``trial``). Every request goes through a transport (:mod:`.transport`),
+so the same walk runs in process or over real HTTP.
 """
 
 from __future__ import annotations
@@ -20,6 +20,9 @@ FIXED_ANSWERS = {"device": {"width": "1440", "height": "900"}, "consent": {"agre
                  "instructions": {"go": "next"}}
 #: Pages a study shows before and after the trials whose answers the caller gives.
 SURVEYS = ("demographics", "exit")
+#: Where a walk ends: the end page, or the exit survey waiting for events the server has not acknowledged (a
+#: browser would send them and try again; a walker that gets there has lost events, which its caller must see).
+ENDS = ("done", "saving")
 MAX_PAGES = 200
 
 
@@ -53,14 +56,15 @@ class Walker:
 
     def walk(self, answers: Callable[[Page], dict], trial: Callable[[dict], bool] | None = None,
              until: Collection[str] = ("done",), page: Page | None = None) -> Page:
-        """Go from ``page`` (default: the current one) until a step of ``until`` or the end page; returns it.
+        """Go from ``page`` (default: the current one) until a step of ``until`` or an end (:data:`ENDS`);
+        returns that page.
 
         ``answers(page)`` gives the form of a survey page (``demographics``, ``exit``); ``trial(boot)`` works
         through the trial whose boot data is given and returns False to stop walking there (a drop-out). A walk
         without ``trial`` stops at the first trial page."""
         page = page or self.current()
         for _ in range(MAX_PAGES):
-            if page.step in until or page.step == "done":
+            if page.step in until or page.step in ENDS:
                 return page
             if page.step == "trial":
                 if trial is None or not trial(page.boot):
@@ -70,8 +74,6 @@ class Walker:
                 page = self.submit(page.step, FIXED_ANSWERS[page.step], page)
             elif page.step in SURVEYS:
                 page = self.submit(page.step, answers(page), page)
-            elif page.step == "saving":  # the exit survey waits for the last events: send it again
-                page = self.submit("exit", page.hidden, page)
             else:
                 raise FlowError(f"a page the walk cannot go on from (step {page.step!r})")
         raise FlowError("the study never ended")

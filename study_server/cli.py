@@ -62,24 +62,25 @@ def study_migrate_cmd() -> None:
     click.echo("database is at the newest schema revision")
 
 
-def _prepare_all() -> list[str]:
-    """Build the missing priors and libraries of the configured studies (SCENESUGGEST_STUDIES)."""
+def _prepare(files: list[Path]) -> list[str]:
+    """Build the server's own priors and libraries that the studies of ``files`` use, where missing or stale."""
     from scenesuggest.cli import progress
 
     from .prepare import prepare
 
     built = []
-    for rt in load_studies(config.study_files(), check=False).values():
-        built += [f"{rt.study.id}: {what}" for what in prepare(rt.study, progress,
-                                                                 lambda m: click.echo(m, err=True))]
+    for rt in load_studies(files, check=False).values():
+        built += [f"{rt.study.id}: {what}" for what in prepare(rt.study, progress, lambda m: click.echo(m, err=True))]
     return built
 
 
 @study.command("prepare")
+@click.argument("files", nargs=-1, type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True)
-def study_prepare_cmd(as_json: bool) -> None:
-    """Build what the configured studies name but lack: priors and model libraries, from their corpus."""
-    built = _prepare_all()
+def study_prepare_cmd(files: tuple[str, ...], as_json: bool) -> None:
+    """Build the priors and model libraries that study FILES (default: the configured studies) take from the
+    server: those of studies that name only their corpus, where missing or made by other engine code."""
+    built = _prepare([Path(f) for f in files] or config.study_files())
     emit({"built": built}, as_json, "built " + ", ".join(built) if built else "every study has its resources")
 
 
@@ -92,7 +93,7 @@ def study_prepare_cmd(as_json: bool) -> None:
 def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
     """Prepare, migrate, then serve the configured studies with gunicorn (SCENESUGGEST_STUDIES, DATABASE_URL)."""
     if prepare:
-        _prepare_all()
+        _prepare(config.study_files())
     app = create_app()
     upgrade_database(app)
     password_file = config.ensure_admin_password(config.instance_path())

@@ -36,6 +36,12 @@ def checkout() -> Path | None:
     return root if (root / "pyproject.toml").is_file() else None
 
 
+def part_of_the_package(path: Path) -> bool:
+    """Whether ``path`` belongs to the installed package (a study that ships with it, such as the built-in demo):
+    such files are read-only, as a reinstall would overwrite them. In a checkout they are the project's source."""
+    return checkout() is None and Path(path).resolve().is_relative_to(PACKAGE)
+
+
 def data_home() -> Path:
     """Where the server keeps its data: ``SCENESUGGEST_HOME``, else ``var/`` of the checkout it runs from, else
     ``var/scenesuggest`` under the Python prefix (the virtual environment it is installed in), as Flask places

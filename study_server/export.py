@@ -28,6 +28,7 @@ from sqlalchemy import select, text
 
 import scenesuggest
 from scenesuggest.cells import safe_cell
+from scenesuggest.library import INDEX_FILE
 
 from .extensions import db
 from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial
@@ -155,6 +156,16 @@ def _code_version() -> str:
     return f"{scenesuggest.__version__}" + (f"+{commit}" if commit else "")
 
 
+def _resources(study: Study) -> dict:
+    """Which priors and model library the study ran with (the study file's hash does not say it when the study
+    uses the server's own): the corpus and the SHA-256 of the priors file and of the library's index."""
+    def sha256(path: Path) -> str | None:
+        return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+
+    return {"corpus": study.corpus, "server_resources": study.server_resources,
+            "priors_sha256": sha256(study.priors), "library_index_sha256": sha256(study.library / INDEX_FILE)}
+
+
 def export_files(study: Study) -> dict[str, str]:
     """File name → content of a complete export."""
     from scenesuggest.events import json_schema
@@ -185,6 +196,7 @@ def export_files(study: Study) -> dict[str, str]:
         "files": {n: hashlib.sha256(c.encode()).hexdigest() for n, c in sorted(files.items())},
         "design": {"kind": study.design, "blocking": study.blocking, "rows": study.n_rows,
                    "conditions": [c.id for c in study.conditions], "periods": [list(p) for p in study.periods]},
+        "resources": _resources(study),
     }
     files["manifest.json"] = json.dumps(manifest, indent=1)
     return files

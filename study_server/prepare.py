@@ -1,44 +1,60 @@
-"""Building what a study file names but does not find: its priors file and model library, from its corpus.
+"""Whether a study has the priors file and model library it needs, and building the server's own.
 
-``scenesuggest study prepare`` (and ``study serve``, before it starts) builds them, so that a server installed
-from the package serves the built-in demo with no other step. A priors file that this engine cannot read (an
-older version) is trained again. Both are written whole or not at all (the library into a temporary folder that is
-renamed, the priors file by :meth:`scenesuggest.priors.Priors.save`).
+A study file either names its priors file and model library (made by ``scenesuggest priors train`` and ``assets
+build``, or by the study's own preparation, as the replication's) or names only its corpus and uses the server's
+own for it, in the server's data folder (:func:`.config.data_home`). The server only ever builds its own:
+``scenesuggest study prepare`` (and ``study serve``, before it starts) builds them when they are missing, cannot be
+read by this engine, or were made by other engine code — so that a server installed from the package serves the
+built-in demo with no other step. What a study file names is never overwritten: a problem with it stops the server
+at start-up with a message saying how to make it. Both are written whole or not at all.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Iterable
 
+from scenesuggest.assets.build import code_digest as assets_digest
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.library import INDEX_FILE
-from scenesuggest.priors import Priors
+from scenesuggest.priors import Priors, code_digest
 
 from .study_file import Study
 
 Progress = Callable[[Iterable, str], Iterable]
 
 
-def missing(study: Study) -> list[str]:
-    """What the study lacks: ``"library"`` and/or ``"priors"`` (missing, or a priors file of another version)."""
-    out = []
-    if not (study.library / INDEX_FILE).is_file():
-        out.append("library")
+def problems(study: Study, current: bool = False) -> dict[str, str]:
+    """What is wrong with the study's ``library`` and ``priors`` (key → message; empty when nothing). Cheap: the
+    priors' metadata is read, not its arrays. With ``current``, also what other engine code made."""
+    out = {}
     try:
-        Priors.load(study.priors)
-    except SceneSuggestError:
-        out.append("priors")
+        meta = Priors.read_meta(study.priors)
+        if current and meta.get("code") != code_digest():
+            out["priors"] = f"the priors file {study.priors} was trained by other engine code"
+    except SceneSuggestError as e:
+        out["priors"] = f"no usable priors file at {study.priors} ({e.message})"
+    index = study.library / INDEX_FILE
+    try:
+        library = json.loads(index.read_text(encoding="utf-8"))
+        if current and library.get("code") != assets_digest():
+            out["library"] = f"the model library at {study.library} was built by other code"
+    except (OSError, ValueError, AttributeError):
+        out["library"] = f"no model library at {study.library}"
     return out
 
 
 def prepare(study: Study, progress: Progress, say: Callable[[str], None]) -> list[str]:
-    """Build what :func:`missing` names from the study's corpus; returns what was built."""
-    todo = missing(study)
+    """Build the server's own priors and library for the study's corpus where :func:`problems` finds them
+    missing or stale; returns what was built (nothing for a study that names its own)."""
+    if not study.server_resources:
+        return []
+    todo = sorted(problems(study, current=True))
     if not todo:
         return []
     from scenesuggest.corpora import load_corpus
 
-    say(f"{study.id}: building its {' and '.join(todo)} from the corpus {study.corpus!r} (a few minutes, once)")
+    say(f"{study.id}: building the {' and '.join(todo)} of the corpus {study.corpus!r} (about a minute, once)")
     corpus = load_corpus(study.corpus, progress=progress)
     if "library" in todo:
         from scenesuggest.assets.build import build_library

@@ -16,7 +16,7 @@ from pathlib import Path
 from flask import abort, current_app
 
 from scenesuggest import scene_json
-from scenesuggest.library import INDEX_FILE, ModelInfo, load_index
+from scenesuggest.library import ModelInfo, load_index
 from scenesuggest.priors import Priors
 from scenesuggest.search import SearchIndex
 from scenesuggest.suggest import Engine
@@ -57,15 +57,19 @@ class StudyRuntime:
         self._placeable: dict[str, frozenset[str]] = {}
 
     def check_resources(self) -> None:
-        """Fail at start-up, naming the key, when the priors file or the model library is missing."""
-        if not self.study.priors.is_file():
-            raise StudyFileError(f"no priors file at {self.study.priors} (build it with 'scenesuggest study "
-                                 f"prepare', or 'scenesuggest priors train {self.study.corpus} -o "
-                                 f"{self.study.priors}')", file=str(self.study.path), field="resources.priors")
-        if not (self.study.library / INDEX_FILE).is_file():
-            raise StudyFileError(f"no model library at {self.study.library} (build it with 'scenesuggest study "
-                                 f"prepare', or 'scenesuggest assets build {self.study.corpus} --out "
-                                 f"{self.study.library}')", file=str(self.study.path), field="resources.library")
+        """Fail at start-up, naming the key, when the priors file or the model library is missing or unreadable
+        (:func:`.prepare.problems`), saying how to make it."""
+        from .prepare import problems
+
+        s = self.study
+        for key, problem in problems(s).items():
+            if s.server_resources:
+                how = f"build it with 'scenesuggest study prepare {s.path}'"
+            elif key == "priors":
+                how = f"make it with 'scenesuggest priors train {s.corpus} -o {s.priors}'"
+            else:
+                how = f"build it with 'scenesuggest assets build {s.corpus} --out {s.library}'"
+            raise StudyFileError(f"{problem}: {how}", file=str(s.path), field=f"resources.{key}")
 
     @cached_property
     def priors(self) -> Priors:

@@ -1,4 +1,4 @@
-"""Study files: TOML in ``experiments/``, validated with errors that name the key (``conditions[1].engine``).
+"""Study files: TOML, validated with errors that name the key (``conditions[1].engine``).
 
 Paths inside a study file are relative to the file. See ``study_server/demo/study.toml`` for every key.
 """
@@ -72,6 +72,8 @@ class Study:
     corpus: str
     priors: Path
     library: Path
+    #: the priors and library are the server's own for the corpus (the file names neither; see _resources)
+    server_resources: bool
     design: str
     blocking: str
     participants: int
@@ -333,20 +335,32 @@ def _limits(r: _Reader, doc: dict) -> dict:
     }
 
 
+#: Corpora whose scenes and models come with the package, so the server can build their priors and library itself.
+SERVER_BUILT_CORPORA = ("ai2thor",)
+
+
 def _resources(r: _Reader, doc: dict, base: Path) -> dict:
-    """The corpus, and the priors file and model library (paths relative to the study file). A study that names
-    neither uses the server's own, built from the corpus: ``priors/<corpus>.npz`` and ``library/<corpus>`` in its
-    data folder (:func:`.config.data_home`), which ``scenesuggest study prepare`` builds."""
+    """The corpus, and the priors file and model library: both named (paths relative to the study file), or
+    neither, for a corpus the server builds them for itself (``priors/<corpus>.npz`` and ``library/<corpus>``
+    in its data folder, :func:`.config.data_home`; ``scenesuggest study prepare`` builds them)."""
     res = r.table(doc, "resources", "resources")
     r.unknown(res, ("corpus", "priors", "library"), "resources")
     corpus = r.string(res, "corpus", "resources.corpus")
-    name = corpus.split(":", 1)[0]
+    named = [k for k in ("priors", "library") if k in res]
+    if len(named) == 1:
+        other = "library" if named == ["priors"] else "priors"
+        raise r.fail(f"resources.{other}", f"missing: name both the priors file and the model library, or "
+                                           f"neither (for {', '.join(SERVER_BUILT_CORPORA)})")
+    if named:
+        return {"corpus": corpus, "priors": base / r.string(res, "priors", "resources.priors"),
+                "library": base / r.string(res, "library", "resources.library"), "server_resources": False}
+    if corpus not in SERVER_BUILT_CORPORA:
+        raise r.fail("resources.priors", f"missing: the corpus {corpus!r} needs its priors file and model library "
+                                         f"named (the server builds its own for {', '.join(SERVER_BUILT_CORPORA)} "
+                                         "only)")
     home = data_home()
-    return {"corpus": corpus,
-            "priors": base / r.string(res, "priors", "resources.priors") if "priors" in res
-            else home / "priors" / f"{name}.npz",
-            "library": base / r.string(res, "library", "resources.library") if "library" in res
-            else home / "library" / name}
+    return {"corpus": corpus, "priors": home / "priors" / f"{corpus}.npz", "library": home / "library" / corpus,
+            "server_resources": True}
 
 
 def load_study(path: str | Path) -> Study:

@@ -63,8 +63,8 @@ def ai2thor():
 
 
 def copy_demo_study(tmp: Path) -> Path:
-    """The demo study copied into ``tmp``/demo (its targets may then be written), its resources still those
-    `make demo` built in var/; returns the copy's study file."""
+    """The demo study copied into ``tmp``/demo (its targets may then be written), its resources still the
+    server's own; returns the copy's study file."""
     import shutil
 
     folder = tmp / "demo"
@@ -99,18 +99,12 @@ DEMO_STUDY = ROOT / "study_server" / "demo" / "study.toml"
 
 @pytest.fixture(scope="session")
 def demo_resources():
-    """The demo study's priors and model library, as `make demo` builds them (built here when missing)."""
-    import subprocess
-    import sys
+    """The demo study, with the server's own priors and model library for it (built here when missing or made
+    by other engine code, as `make demo` builds them)."""
+    from study_server.prepare import prepare
+    from study_server.study_file import load_study
 
-    library = ROOT / "var" / "library" / "ai2thor"
-    priors = ROOT / "var" / "priors" / "ai2thor.npz"
-    cli = [sys.executable, "-m", "scenesuggest.cli"]
-    if not (library / "library.json").is_file():
-        subprocess.run([*cli, "assets", "build", "ai2thor", "--out", str(library)], check=True, capture_output=True)
-    if not priors.is_file():
-        priors.parent.mkdir(parents=True, exist_ok=True)
-        subprocess.run([*cli, "priors", "train", "ai2thor", "-o", str(priors)], check=True, capture_output=True)
+    prepare(load_study(DEMO_STUDY), lambda items, label="": items, lambda message: None)
     return DEMO_STUDY
 
 

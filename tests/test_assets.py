@@ -145,7 +145,8 @@ def test_unknown_model_ids_are_refused(ai2thor, tmp_path):
 
 def test_what_is_written_whole_gets_the_usual_permissions(ai2thor, tmp_path):
     """A library folder and the files written atomically get the modes ``mkdir`` and ``open`` would give (the
-    umask applied), not the private modes of their temporary names; a replaced file keeps its mode."""
+    umask applied), not the private modes of their temporary names; a replaced file keeps its mode; a link is
+    written through."""
     import os
     import stat
 
@@ -165,3 +166,7 @@ def test_what_is_written_whole_gets_the_usual_permissions(ai2thor, tmp_path):
     assert stat.S_IMODE((tmp_path / "lib" / "library.json").stat().st_mode) == 0o640
     assert stat.S_IMODE(fresh.stat().st_mode) == 0o640
     assert stat.S_IMODE(kept.stat().st_mode) == 0o600 and kept.read_bytes() == b"new"
+    link = tmp_path / "link.bin"
+    link.symlink_to(kept)
+    write_atomically(link, b"through the link")
+    assert link.is_symlink() and kept.read_bytes() == b"through the link"

@@ -129,3 +129,19 @@ def test_bad_images_are_refused(admin, study_copy, value, status):
     assert r.status_code == status and r.json["field"] == "png"
     assert not (study_copy / "scenes" / "bedside.png").exists()
     assert admin.get("/admin/demo/author/bedside/image").status_code == 404
+
+
+def test_a_study_that_ships_with_the_installed_package_is_read_only(tmp_path, demo_resources, monkeypatch):
+    """Installed, the built-in demo lives in site-packages, which a reinstall overwrites: its targets are not saved."""
+    from study_server import config
+
+    app = make_app(tmp_path, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
+    c = app.test_client()
+    c.post("/admin/login", data={"csrf_token": csrf(c.get("/admin/login")), "password": PASSWORD})
+    c.token = boot(c.get("/admin/demo/author/bedside"))["author"]["csrf"]
+    target = demo_resources.parent / "scenes" / "bedside.json"
+    before = target.read_bytes()
+    monkeypatch.setattr(config, "checkout", lambda: None)  # as when installed from the wheel
+    r = post(c, "/admin/demo/author/bedside", {"scene": json.loads(before)})
+    assert r.status_code == 409 and "installed package" in r.json["error"] and target.read_bytes() == before
+    assert post(c, "/admin/demo/author/bedside/image", {"png": png()}).status_code == 409

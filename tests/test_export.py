@@ -26,6 +26,11 @@ def test_export_command_writes_tidy_tables(app, tmp_path):
     assert manifest["row_counts"]["events"] == 30 and manifest["row_counts"]["trials"] == 10
     assert manifest["row_counts"]["participants"] == 1 and manifest["schema_version"]
     assert manifest["study_hash"] == app.extensions["studies"]["demo"].study.hash
+    study = app.extensions["studies"]["demo"].study  # the priors and library it ran with, which its hash omits
+    assert manifest["resources"] == {
+        "corpus": "ai2thor", "server_resources": True,
+        "priors_sha256": hashlib.sha256(study.priors.read_bytes()).hexdigest(),
+        "library_index_sha256": hashlib.sha256((study.library / "library.json").read_bytes()).hexdigest()}
     for name, digest in manifest["files"].items():
         assert hashlib.sha256((out / name).read_bytes()).hexdigest() == digest
     with (out / "trials.csv").open() as f:

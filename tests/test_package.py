@@ -1,18 +1,16 @@
 """The package ships what it needs: built as a wheel and installed into a fresh virtual environment outside the
 checkout, it prepares, migrates and serves the built-in demo study — templates, static files, migrations, the
-demo's files and three.js all come from the installed package."""
+demo's files and three.js all come from the installed package, and the editor runs in Chromium."""
 
 from __future__ import annotations
 
 import json
 import os
-import re
 import shutil
 import signal
 import subprocess
 import sys
 import sysconfig
-import urllib.request
 from pathlib import Path
 
 import pytest
@@ -21,8 +19,6 @@ from serverproc import free_port
 
 from simulation.transport import HttpTransport
 from simulation.walker import Walker
-
-IMPORT = re.compile(r"""^(?:import|export)\s(?:[^;]*?\sfrom\s*)?["']([^"']+)["']""", re.M | re.S)
 
 
 @pytest.fixture(scope="module")
@@ -59,6 +55,7 @@ def run(venv: Path, *args: str, env: dict, cwd: Path) -> subprocess.CompletedPro
 
 
 @pytest.mark.slow
+@pytest.mark.browser
 def test_the_wheel_installed_elsewhere_prepares_migrates_and_serves_the_demo(installed, tmp_path):
     elsewhere, home = tmp_path / "elsewhere", tmp_path / "home"
     elsewhere.mkdir()
@@ -91,11 +88,9 @@ def test_the_wheel_installed_elsewhere_prepares_migrates_and_serves_the_demo(ins
             {"pid": "installed"}, lambda _: {"age": "40", "experience_3d": "Never", "pointing_device": "Mouse"})
         assert page.step == "trial" and page.boot["trial"]["scene"] == "practice"
         assert http.get("/static/css/study.css").status == 200
-        # every module the trial page loads, through the import map, down to three.js's own imports
-        imports = json.loads(re.search(r'<script type="importmap">(.*?)</script>',
-                                       http.get("/study/demo/").text, re.S).group(1))["imports"]
-        seen = _module_graph(http, "/static/js/trial.js", imports)
-        assert {"/vendor/three/build/three.core.js", "/vendor/three/examples/jsm/loaders/GLTFLoader.js"} <= seen
+        loaded, failed = _open_in_chromium(base, http)
+        assert failed == [] and {"/static/js/trial.js", "/vendor/three/build/three.core.js",
+                                 "/vendor/three/examples/jsm/loaders/GLTFLoader.js"} <= loaded
         models = http.get("/api/models", headers={"Authorization": f"Bearer {page.boot['token']}"}).json()["models"]
         glb = http.get(models[0]["asset"])
         assert glb.status == 200 and glb.body[:4] == b"glTF"
@@ -105,26 +100,27 @@ def test_the_wheel_installed_elsewhere_prepares_migrates_and_serves_the_demo(ins
     assert f"participant link: {base}/study/demo/start" in output
 
 
-def _module_graph(http: HttpTransport, entry: str, imports: dict[str, str]) -> set[str]:
-    """The URLs of every ES module reachable from ``entry`` by static imports (bare specifiers through the import
-    map), each fetched once and required to answer 200 with JavaScript."""
-    todo, seen = [entry], set()
-    while todo:
-        url = todo.pop()
-        if url in seen:
-            continue
-        seen.add(url)
-        r = http.get(url)
-        assert r.status == 200, (url, r.status)
-        for spec in IMPORT.findall(r.text):
-            if spec in imports:
-                todo.append(imports[spec])
-            elif any(spec.startswith(p) for p in imports if p.endswith("/")):
-                prefix = next(p for p in imports if p.endswith("/") and spec.startswith(p))
-                todo.append(imports[prefix] + spec[len(prefix):])
-            else:
-                todo.append(urllib.request.urljoin(url, spec))
-    return seen
+def _open_in_chromium(base: str, http: HttpTransport) -> tuple[set[str], list[str]]:
+    """The participant's trial page in Chromium (the walker's cookies, the page's test hook on): waits until the
+    editor runs; returns the paths of everything it loaded and the URLs that failed."""
+    from browser.conftest import ARGS, CHROMIUM, TEST_HOOK, _require_browser
+    from playwright.sync_api import sync_playwright
+
+    _require_browser()
+    failed = []
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        context = browser.new_context(viewport={"width": 1280, "height": 720})
+        context.add_cookies(http.cookies())
+        context.add_init_script(TEST_HOOK)
+        page = context.new_page()
+        page.on("response", lambda r: r.status >= 400 and failed.append(f"{r.status} {r.url}"))
+        page.on("pageerror", lambda e: failed.append(str(e)))
+        page.goto(f"{base}/study/demo/")
+        page.wait_for_function("() => window.sceneSuggestTest && window.sceneSuggestTest.ready", timeout=60_000)
+        loaded = page.evaluate("() => performance.getEntriesByType('resource').map(r => new URL(r.name).pathname)")
+        browser.close()
+    return set(loaded), failed
 
 
 def test_serving_from_the_checkout_needs_no_copy_of_three(tmp_path):
@@ -135,24 +131,42 @@ def test_serving_from_the_checkout_needs_no_copy_of_three(tmp_path):
     assert checkout() == ROOT and three_folder() == ROOT / "node_modules" / "three"
 
 
-def test_prepare_names_what_a_study_lacks(tmp_path, demo_resources):
-    """Missing resources, and a priors file this engine cannot read, are what ``study prepare`` builds; resources
-    a study file does not name are the server's own for its corpus, in its data folder."""
+def test_prepare_builds_only_the_servers_own_resources(tmp_path, demo_resources):
+    """A study that names only its corpus uses the server's own priors and library, which ``study prepare``
+    builds; what a study file names is checked (missing, or a file this engine cannot read) but never built over."""
     import shutil
 
+    from scenesuggest.priors import Priors
     from study_server.config import data_home
-    from study_server.prepare import missing
-    from study_server.study_file import load_study
+    from study_server.prepare import prepare, problems
+    from study_server.study_file import StudyFileError, load_study
 
     default = load_study(demo_resources)
-    assert default.priors == data_home() / "priors" / "ai2thor.npz" and missing(default) == []
-    study = tmp_path / "study.toml"
+    assert default.server_resources and default.priors == data_home() / "priors" / "ai2thor.npz"
+    assert problems(default, current=True) == {}
     shutil.copytree(demo_resources.parent / "scenes", tmp_path / "scenes")
-    study.write_text(demo_resources.read_text().replace('corpus = "ai2thor"',
-                                                        'corpus = "ai2thor"\npriors = "p.npz"\nlibrary = "lib"'))
-    assert missing(load_study(study)) == ["library", "priors"]
+    study = tmp_path / "study.toml"
+
+    def named(resources: str):
+        study.write_text(demo_resources.read_text().replace('corpus = "ai2thor"', resources))
+        return load_study(study)
+
+    own = named('corpus = "ai2thor"\npriors = "p.npz"\nlibrary = "lib"')
+    assert not own.server_resources and sorted(problems(own)) == ["library", "priors"]
     (tmp_path / "p.npz").write_bytes(b"not a priors file")
-    assert missing(load_study(study)) == ["library", "priors"]
+    assert "not a priors file" in problems(own)["priors"] or "cannot read" in problems(own)["priors"]
+    built = prepare(own, lambda items, label="": items, lambda message: None)
+    assert built == [] and (tmp_path / "p.npz").read_bytes() == b"not a priors file"  # never built over
     shutil.copyfile(default.priors, tmp_path / "p.npz")
     (tmp_path / "lib").symlink_to(default.library)
-    assert missing(load_study(study)) == []
+    assert problems(own) == {}
+    older = Priors.load(default.priors)
+    older.meta["code"] = "trained-by-older-code"
+    (tmp_path / "p.npz").unlink()
+    older.save(tmp_path / "p.npz")
+    assert problems(own) == {} and "other engine code" in problems(own, current=True)["priors"]
+    for resources, key in [('corpus = "ai2thor"\npriors = "p.npz"', "resources.library"),
+                           ('corpus = "json:elsewhere"', "resources.priors")]:
+        with pytest.raises(StudyFileError) as info:
+            named(resources)
+        assert info.value.field == key

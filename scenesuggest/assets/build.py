@@ -22,6 +22,7 @@ from pathlib import Path
 
 from ..atomic import temporary_folder_beside
 from ..corpora.corpus import Corpus, Progress, no_progress
+from ..digest import source_digest
 from ..errors import SceneSuggestError
 from ..library import ModelInfo, save_index
 from .convert import convert_model
@@ -54,6 +55,11 @@ def build_model(model: ModelInfo, out: Path, thumbnail_px: int = 256) -> ModelIn
     return replace(model, asset=glb.as_posix(), thumbnail=png.as_posix())
 
 
+def code_digest() -> str:
+    """A short hash of the asset builders' code: a library built by other code is rebuilt by ``study prepare``."""
+    return source_digest("assets/*.py")
+
+
 def build_library(corpus: Corpus, out: str | Path, model_ids: list[str] | None = None, thumbnail_px: int = 256,
                   progress: Progress = no_progress) -> dict:
     """Build the assets of ``model_ids`` (default: every buildable model) into ``out``; returns a report
@@ -77,7 +83,7 @@ def build_library(corpus: Corpus, out: str | Path, model_ids: list[str] | None =
             t = time.perf_counter()
             index[model.id] = build_model(model, tmp, thumbnail_px)
             timings[model.id] = time.perf_counter() - t
-        save_index(index, tmp, extra={"source": corpus.source})
+        save_index(index, tmp, extra={"source": corpus.source, "code": code_digest()})
         corpus.taxonomy.save(tmp / "taxonomy.json")
         _swap_in(tmp, out)
     except BaseException:

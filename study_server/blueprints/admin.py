@@ -26,6 +26,7 @@ from scenesuggest.atomic import write_atomically
 from ..assignment import fresh_after
 from ..authoring import checked_png, checked_scene, image_path
 from ..boot import trial_boot
+from ..config import part_of_the_package
 from ..errors import RequestError
 from ..export import export_zip
 from ..extensions import db
@@ -221,6 +222,9 @@ def _authoring_request(study_id: str, scene_id: str, key: str):
     rt = runtime(study_id)
     if scene_id not in rt.study.scenes:
         raise RequestError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
+    if part_of_the_package(rt.study.path):
+        raise RequestError(409, "this study ships with the installed package, whose files are read-only: author on "
+                                "a copy of the study", "scene_id")
     started = _frozen(study_id)
     if started:
         raise RequestError(409, f"{started} participant(s) have started this study: its target scenes are frozen "

@@ -87,7 +87,6 @@ export function poseMatrix(point, quaternion, face, size) {
   return m;
 }
 
-
 export function rotationOf(matrix) {
   const q = new THREE.Quaternion();
   matrix.decompose(new THREE.Vector3(), q, new THREE.Vector3());

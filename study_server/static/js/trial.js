@@ -1,6 +1,5 @@
 // The trial page: loads the scenes and models, wires the editor to the study's condition, logs every
 // interaction through the outbox, keeps the scene across reloads, and finishes the trial.
-import { authoring } from "./authoring.js";
 import { setUpCondition } from "./conditions.js";
 import { Editor } from "./editor.js";
 import { ModelLibrary } from "./models.js";
@@ -184,7 +183,8 @@ async function main() {
   setUpCondition(trial.condition, { editor, scene, models, trial: trial.index, api, log, strings, say,
     onEnded: sayEnded, onSuggestions: testHook?.suggested });
   wireToolbar(viewer, editor);
-  if (boot.author) {
+  if (boot.author) {  // the experimenter's target editor: a module participants' pages never load
+    const { authoring } = await import("./authoring.js");
     authoring({ author: boot.author, scene, library, viewer, strings, say, onSaved: testHook?.saved,
       onImageSaved: testHook?.imageSaved });
   } else {

@@ -1,0 +1,19 @@
+"""A short hash of some of the engine's own source files: what decides whether a learned or built artefact (a
+priors file, a model library) was made by the code now installed, so that artefacts the server builds for
+itself are rebuilt when that code changes."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent
+
+
+def source_digest(*patterns: str) -> str:
+    """16 hex digits of the SHA-256 over the package's files matching ``patterns`` (globs relative to the
+    package), in sorted order."""
+    digest = hashlib.sha256()
+    for path in sorted({p for pattern in patterns for p in PACKAGE.glob(pattern)}):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
