@@ -5,6 +5,11 @@ browser client receives it as JSON Schema (:func:`json_schema`), and the analysi
 names. An event is ``{"seq": int ≥ 0, "t": ms since the epoch (client clock), "type": name,
 "trial": trial index or null, "payload": {...}}``; ``seq`` numbers a participant's events from 0 without
 gaps, which is what makes ingestion idempotent and loss detectable.
+
+The vocabulary has versions; a batch says which one its page speaks (``vocabulary``; 1 when absent, as pages
+of the first version sent). Version 2 adds to every scene-changing event (:data:`SCENE_CHANGES`) the state after
+the event of every object it changed (``objects``, :data:`OBJECT_STATE`), so that a trial can be rebuilt from
+its events alone (:mod:`scenesuggest.replay`).
 """
 
 from __future__ import annotations
@@ -19,6 +24,19 @@ MAX_BATCH = 500
 #: Largest seq (the column is a 32-bit integer on PostgreSQL).
 MAX_SEQ = 2**31 - 1
 SOURCES = ("context", "search", "fixed")
+#: The vocabulary's versions: 2 added ``objects`` (the resulting object states) to the scene-changing events.
+VERSION = 2
+VERSIONS = (1, 2)
+#: Events that change the scene; from version 2 each carries ``objects``.
+SCENE_CHANGES = ("insert", "replace", "move_end", "rotate_end", "delete", "undo", "redo")
+FACES = ("top", "bottom", "front", "back", "left", "right")
+#: One object's state after an event: the object as a scene file lists it (:mod:`scenesuggest.scene_json`:
+#: metres, world frame, the 4×4 transform column-major), or ``{"id": …, "removed": true}`` when the event took it
+#: away. Key → (kind, nullable).
+OBJECT_STATE = {"id": ("str", False), "model_id": ("str", False), "category": ("str", False),
+                "size": ("size", False), "transform": ("matrix", False), "parent": ("str", True),
+                "surface_type": ("str", True), "attachment_face": ("face", True), "contact_point": ("vec3", True),
+                "contact_normal": ("vec3", True)}
 
 
 @dataclass(frozen=True)
@@ -77,6 +95,20 @@ VOCABULARY: dict[str, dict[str, Field]] = {
 }
 
 
+#: Version 2's ``objects`` field (see :data:`OBJECT_STATE`).
+STATES = _f("states", "the state after the event of every object it changed, as a scene file lists objects "
+                      "(id, model_id, category, size, transform: 16 numbers column-major, world frame, metres, "
+                      "parent, surface_type, attachment_face, contact_point, contact_normal), or {id, removed: true} "
+                      "for an object it took away: a delete takes the object's children with it, an undo of an "
+                      "insert takes the object away, an undo of a move restores the pose before it")
+
+
+def fields_of(kind: str, version: int = VERSION) -> dict[str, Field]:
+    """The payload fields of an event type in a version of the vocabulary."""
+    fields = VOCABULARY[kind]
+    return {**fields, "objects": STATES} if version >= 2 and kind in SCENE_CHANGES else fields
+
+
 class EventError(ValueError):
     """A malformed event; ``field`` is a path such as ``events[3].payload.rank``."""
 
@@ -109,6 +141,39 @@ def _number(v) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
 
+def _check_states(value, where: str) -> None:
+    if not isinstance(value, list) or len(value) > MAX_LIST:
+        raise EventError(f"expected a list of at most {MAX_LIST} object states", where)
+    for i, state in enumerate(value):
+        at = f"{where}[{i}]"
+        if not isinstance(state, dict):
+            raise EventError("expected an object", at)
+        if "removed" in state:
+            if state["removed"] is not True or set(state) != {"id", "removed"}:
+                raise EventError('a removed object is {"id": …, "removed": true}', at)
+            _text(state.get("id"), f"{at}.id")
+            continue
+        for key in state:
+            if key not in OBJECT_STATE:
+                raise EventError("unknown field", f"{at}.{key}")
+        for key, (kind, nullable) in OBJECT_STATE.items():
+            if key not in state:
+                raise EventError("missing", f"{at}.{key}")
+            v = state[key]
+            if v is None and nullable:
+                continue
+            if kind == "str":
+                _text(v, f"{at}.{key}")
+            elif kind == "face":
+                if v not in FACES:
+                    raise EventError(f"must be one of {', '.join(FACES)}", f"{at}.{key}")
+            elif not isinstance(v, list) or len(v) != {"size": 3, "vec3": 3, "matrix": 16}[kind] or \
+                    not all(_number(x) for x in v) or (kind == "size" and not all(x >= 0 for x in v)):
+                raise EventError({"size": "expected three numbers ≥ 0 (metres)", "vec3": "expected three finite "
+                                  "numbers", "matrix": "expected 16 finite numbers (column-major)"}[kind],
+                                 f"{at}.{key}")
+
+
 def _check_field(name: str, spec: Field, value, path: str) -> None:
     where = f"{path}.{name}"
     if value is None:
@@ -132,6 +197,8 @@ def _check_field(name: str, spec: Field, value, path: str) -> None:
     elif k == "vec3":
         if not isinstance(value, list) or len(value) != 3 or not all(_number(v) for v in value):
             raise EventError("expected three finite numbers", where)
+    elif k == "states":
+        _check_states(value, where)
     elif k == "strs":
         if not isinstance(value, list) or len(value) > MAX_LIST:
             raise EventError(f"expected a list of at most {MAX_LIST} strings", where)
@@ -141,8 +208,9 @@ def _check_field(name: str, spec: Field, value, path: str) -> None:
         raise EventError(f"must be at least {spec.minimum:g}", where)
 
 
-def validate_event(event, path: str = "event") -> dict:
-    """Check one event against the vocabulary; returns it normalised (``trial`` defaults to null)."""
+def validate_event(event, path: str = "event", version: int = VERSION) -> dict:
+    """Check one event against ``version`` of the vocabulary; returns it normalised (``trial`` defaults to
+    null)."""
     if not isinstance(event, dict):
         raise EventError("expected an object", path)
     unknown = set(event) - {"seq", "t", "type", "trial", "payload"}
@@ -163,7 +231,7 @@ def validate_event(event, path: str = "event") -> dict:
     payload = event.get("payload", {})
     if not isinstance(payload, dict):
         raise EventError("expected an object", f"{path}.payload")
-    fields = VOCABULARY[kind]
+    fields = fields_of(kind, version)
     for name in payload:
         if name not in fields:
             raise EventError("unknown field", f"{path}.payload.{name}")
@@ -175,20 +243,46 @@ def validate_event(event, path: str = "event") -> dict:
     return {"seq": seq, "t": float(event["t"]), "type": kind, "trial": trial, "payload": payload}
 
 
-def validate_batch(events) -> list[dict]:
+def check_version(version) -> int:
+    """A batch's ``vocabulary`` (absent: 1, what pages of the first version sent)."""
+    if version is None:
+        return 1
+    if isinstance(version, bool) or version not in VERSIONS:
+        raise EventError(f"must be one of {', '.join(map(str, VERSIONS))}", "vocabulary")
+    return version
+
+
+def validate_batch(events, version: int = VERSION) -> list[dict]:
     """Validate a whole batch before anything is stored (all or nothing)."""
     if not isinstance(events, list):
         raise EventError("expected a list of events", "events")
     if len(events) > MAX_BATCH:
         raise EventError(f"at most {MAX_BATCH} events per batch", "events")
-    out = [validate_event(e, f"events[{i}]") for i, e in enumerate(events)]
+    out = [validate_event(e, f"events[{i}]", version) for i, e in enumerate(events)]
     seqs = [e["seq"] for e in out]
     if len(set(seqs)) != len(seqs):
         raise EventError("the same seq appears twice in one batch", "events")
     return out
 
 
+def _state_schema() -> dict:
+    number = {"type": "number"}
+    kinds = {"str": {"type": "string", "maxLength": MAX_TEXT}, "face": {"type": "string", "enum": list(FACES)},
+             "vec3": {"type": "array", "items": number, "minItems": 3, "maxItems": 3},
+             "size": {"type": "array", "items": {"type": "number", "minimum": 0}, "minItems": 3,
+                      "maxItems": 3},
+             "matrix": {"type": "array", "items": number, "minItems": 16, "maxItems": 16}}
+    present = {"type": "object", "additionalProperties": False, "required": list(OBJECT_STATE),
+               "properties": {k: kinds[kind] if not nullable else {"anyOf": [kinds[kind], {"type": "null"}]}
+                              for k, (kind, nullable) in OBJECT_STATE.items()}}
+    removed = {"type": "object", "additionalProperties": False, "required": ["id", "removed"],
+               "properties": {"id": kinds["str"], "removed": {"const": True}}}
+    return {"type": "array", "maxItems": MAX_LIST, "items": {"oneOf": [present, removed]}}
+
+
 def _field_schema(spec: Field) -> dict:
+    if spec.kind == "states":
+        return {**_state_schema(), "description": spec.description}
     kinds = {"str": {"type": "string", "maxLength": MAX_TEXT}, "int": {"type": "integer"},
              "num": {"type": "number"}, "bool": {"type": "boolean"},
              "vec3": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
@@ -204,19 +298,23 @@ def _field_schema(spec: Field) -> dict:
     return schema
 
 
-def payload_schema(kind: str) -> dict:
-    fields = VOCABULARY[kind]
+def payload_schema(kind: str, version: int = VERSION) -> dict:
+    fields = fields_of(kind, version)
     return {"type": "object", "additionalProperties": False,
             "properties": {n: _field_schema(f) for n, f in fields.items()},
             "required": [n for n, f in fields.items() if f.required]}
 
 
-def json_schema() -> dict:
-    """JSON Schema (2020-12) of one event, with a branch per type."""
+def json_schema(version: int = VERSION) -> dict:
+    """JSON Schema (2020-12) of one event of ``version`` of the vocabulary, with a branch per type."""
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "$id": "scenesuggest-event",
+        "$id": f"scenesuggest-event-v{version}",
         "title": "SceneSuggest Studio interaction event",
+        "description": f"vocabulary version {version} (a batch of events says its version in 'vocabulary'; 1 when "
+                       "absent). Version 2 adds 'objects', the resulting object states, to the scene-changing "
+                       f"events ({', '.join(SCENE_CHANGES)}).",
+        "x-vocabulary-version": version,
         "type": "object",
         "additionalProperties": False,
         "required": ["seq", "t", "type"],
@@ -229,5 +327,5 @@ def json_schema() -> dict:
             "payload": {"type": "object"},
         },
         "allOf": [{"if": {"properties": {"type": {"const": k}}},
-                   "then": {"properties": {"payload": payload_schema(k)}}} for k in sorted(VOCABULARY)],
+                   "then": {"properties": {"payload": payload_schema(k, version)}}} for k in sorted(VOCABULARY)],
     }

@@ -1,11 +1,14 @@
 """The boot data of the scene editor's page (``<script id="boot">``), the same for a participant's trial, an
-admin's preview and the target editor: who is asking (token), which trial, where the API is, where to go next."""
+admin's preview and the target editor: who is asking (token), which trial, where the API is, where to go next,
+and the version of the event vocabulary the page logs in."""
 
 from __future__ import annotations
 
 import secrets
 
 from flask import url_for
+
+from scenesuggest.events import VERSION as EVENT_VOCABULARY
 
 from .study_file import Study
 
@@ -14,4 +17,4 @@ def trial_boot(study: Study, token: str, trial: dict, next_url: str, preview: bo
     """``trial``: index, kind, condition, scene, block, number and of (the trial's place among the trials)."""
     return {"study": study.id, "token": token, "preview": preview, "trial": trial, "page_id": secrets.token_hex(8),
             "api": url_for("api.session_state").rsplit("/", 1)[0], "next": next_url,
-            "limits": {"trial_minutes": study.trial_minutes}}
+            "limits": {"trial_minutes": study.trial_minutes}, "vocabulary": EVENT_VOCABULARY}

@@ -16,7 +16,7 @@ import re
 
 from sqlalchemy import case, func, select, update
 
-from scenesuggest.events import MAX_SEQ, EventError, validate_batch
+from scenesuggest.events import MAX_SEQ, EventError, check_version, validate_batch
 
 from .extensions import db, insert_ignore
 from .models import Event, Participant, log, utcnow
@@ -78,19 +78,22 @@ def contiguous_seq(participant_id: int, start: int) -> int:
 
 
 def store(participant: Participant, page_id: str, events: list, quota: tuple[int, int] | None = None,
-          nbytes: int | None = None) -> int:
+          nbytes: int | None = None, vocabulary=None) -> int:
     """Validate (raising :class:`scenesuggest.events.EventError`) and store a batch of a session that is still
     open (the caller checks :func:`study_server.flow.is_open`); returns acked_seq. Raises :class:`Conflict`
     (nothing stored, the conflict logged) and
     :class:`OverQuota` when ``quota`` = (events, bytes) per participant would be exceeded. ``nbytes`` is the
-    batch's size as sent (counted against the byte quota in proportion to the events it adds). Commits."""
+    batch's size as sent (counted against the byte quota in proportion to the events it adds); ``vocabulary``
+    the version of the event vocabulary the page speaks (absent: 1). Commits."""
     if not isinstance(page_id, str) or not PAGE_ID.fullmatch(page_id):
         raise EventError(f"expected 1 to {PAGE_ID_MAX} letters, digits, '.', '_' or '-'", "page_id")
-    batch = validate_batch(events)
+    version = check_version(vocabulary)
+    batch = validate_batch(events, version)
     now = utcnow()
     if batch:
         rows = [{"participant_id": participant.id, "seq": e["seq"], "page_id": page_id, "type": e["type"],
-                 "trial": e["trial"], "client_t": e["t"], "server_t": now, "payload": e["payload"]} for e in batch]
+                 "trial": e["trial"], "client_t": e["t"], "server_t": now, "payload": e["payload"],
+                 "vocabulary": version} for e in batch]
         inserted = insert_events(rows)
         if len(inserted) < len(batch):
             positions = _conflicts(participant.id, batch, inserted)

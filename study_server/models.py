@@ -7,7 +7,18 @@ from __future__ import annotations
 
 from datetime import UTC, datetime
 
-from sqlalchemy import JSON, BigInteger, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    DateTime,
+    Float,
+    ForeignKey,
+    Integer,
+    SmallInteger,
+    String,
+    Text,
+    UniqueConstraint,
+)
 from sqlalchemy.orm import Mapped, mapped_column
 
 from .extensions import db
@@ -81,6 +92,11 @@ class Trial(db.Model):
     final_scene: Mapped[dict | None] = mapped_column(JSON, nullable=True)
     #: Why the trial's events do not show the study's minimum work (None: they do, or not yet checked).
     review: Mapped[str | None] = mapped_column(Text, nullable=True)
+    #: Whether the trial's events rebuild the final scene it submitted (scenesuggest.replay): "match",
+    #: "mismatch: …" (what differs), or "unavailable: …" (events without object states); empty before "done".
+    replay: Mapped[str | None] = mapped_column(Text, nullable=True)
+    #: How close the final scene came to the target (scenesuggest.scoring), 0..1; empty before "done".
+    score: Mapped[float | None] = mapped_column(Float, nullable=True)
 
 
 class Event(db.Model):
@@ -95,6 +111,8 @@ class Event(db.Model):
     client_t: Mapped[float] = mapped_column(Float)
     server_t: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     payload: Mapped[dict] = mapped_column(JSON, default=dict)
+    #: The version of the event vocabulary the page spoke (scenesuggest.events.VERSIONS).
+    vocabulary: Mapped[int] = mapped_column(SmallInteger, default=1, server_default="1")
 
 
 class ShownList(db.Model):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scenesuggest.events import MAX_BATCH, json_schema
+from scenesuggest.events import MAX_BATCH, VERSIONS, json_schema
 
 ERROR = {"type": "object", "required": ["error"],
          "properties": {"error": {"type": "string"}, "field": {"type": ["string", "null"]}}}
@@ -48,6 +48,9 @@ def openapi_document() -> dict:
                 "security": auth,
                 "requestBody": _body({"type": "object", "required": ["page_id", "events"], "properties": {
                     "page_id": {"type": "string", "pattern": "^[A-Za-z0-9_.-]{1,64}$"},
+                    "vocabulary": {"type": "integer", "enum": list(VERSIONS), "default": 1,
+                                   "description": "the event vocabulary's version the page speaks (2: the "
+                                                  "scene-changing events carry the resulting object states)"},
                     "events": {"type": "array", "maxItems": MAX_BATCH, "items": {"$ref": "#/components/schemas/Event"}},
                 }}),
                 "responses": {**_ok({"type": "object", "required": ["acked_seq"],

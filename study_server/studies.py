@@ -20,6 +20,8 @@ from scenesuggest.library import ModelInfo, load_index
 from scenesuggest.priors import Priors
 from scenesuggest.search import SearchIndex
 from scenesuggest.suggest import Engine
+from scenesuggest.symmetry import NONE, corpus_periods
+from scenesuggest.taxonomy import Taxonomy
 
 from .study_file import Study, StudyFileError, load_study
 
@@ -55,6 +57,7 @@ class StudyRuntime:
         self._lock = threading.RLock()
         self._engines: dict[str, Engine] = {}
         self._placeable: dict[str, frozenset[str]] = {}
+        self._periods: dict[str, float] = {}
 
     def check_resources(self) -> None:
         """Fail at start-up, naming the key, when the priors file or the model library is missing or unreadable
@@ -113,6 +116,22 @@ class StudyRuntime:
     @cached_property
     def search_index(self) -> SearchIndex:
         return SearchIndex.build(self.fixed_list)
+
+    @cached_property
+    def taxonomy(self) -> Taxonomy:
+        """The categories' taxonomy: the one the model library was built with, else the priors'."""
+        path = self.study.library / "taxonomy.json"
+        return Taxonomy.load(path) if path.is_file() else self.priors.taxonomy
+
+    def period_of(self, model_id: str) -> float:
+        """The model's rotational symmetry period (degrees about its up axis; 360: none), measured on its asset
+        once (and cached on disk, :mod:`scenesuggest.symmetry`)."""
+        with self._lock:
+            if model_id not in self._periods:
+                model = self.library.get(model_id)
+                found = corpus_periods([model], base=self.study.library) if model else None
+                self._periods[model_id] = found.of(model_id, model.category)[0] if found else NONE
+            return self._periods[model_id]
 
     def scene(self, scene_id: str, which: str = "target") -> dict:
         """A target (or start) scene as native JSON; the start defaults to the target's room alone."""

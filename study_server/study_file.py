@@ -101,6 +101,8 @@ class Study:
     #: objects placed (insert/replace events) and seconds between its first and last event (client clock).
     min_objects_placed: int = 0
     min_trial_seconds: float = 0.0
+    #: Trials whose final scene scores below this (scenesuggest.scoring, 0..1) are flagged for review.
+    min_target_score: float | None = None
     #: Quotas: new arrivals per client address per hour; events and megabytes stored per participant.
     arrivals_per_address_per_hour: int = 100
     max_events_per_participant: int = 100_000
@@ -308,7 +310,17 @@ def _texts(r: _Reader, doc: dict) -> dict:
 
 
 LIMITS = ("trial_minutes", "session_minutes", "stale_after_minutes", "min_objects_placed", "min_trial_seconds",
-          "arrivals_per_address_per_hour", "max_events_per_participant", "max_mb_per_participant")
+          "min_target_score", "arrivals_per_address_per_hour", "max_events_per_participant", "max_mb_per_participant")
+
+
+def _score(r: _Reader, limits: dict) -> float | None:
+    """``min_target_score``: trials whose scene comes less close to the target are flagged (none when absent)."""
+    if "min_target_score" not in limits:
+        return None
+    value = r.number(limits, "min_target_score", "limits.min_target_score")
+    if value > 1:
+        raise r.fail("limits.min_target_score", "expected a score from 0 to 1")
+    return value
 
 
 def _limits(r: _Reader, doc: dict) -> dict:
@@ -326,6 +338,7 @@ def _limits(r: _Reader, doc: dict) -> dict:
         "stale_after_minutes": number("stale_after_minutes", 5, 0.1),
         "min_objects_placed": int(number("min_objects_placed", 0)),
         "min_trial_seconds": number("min_trial_seconds", 0),
+        "min_target_score": _score(r, limits),
         "arrivals_per_address_per_hour": int(number("arrivals_per_address_per_hour", 100, 1)),
         "max_events_per_participant": int(number("max_events_per_participant", 100_000, 100)),
         "max_mb_per_participant": number("max_mb_per_participant", 32, 0.1),

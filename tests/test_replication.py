@@ -146,3 +146,10 @@ def test_simulated_participants_complete_the_replication(replication, tmp_path):
     app = make_app(tmp_path, studies=[replication])
     report = simulate(3, seed=1, app=app, study="scenesuggest-2015")
     assert report["completed"] == 3 and report["trials"] == 27, report
+    from study_server.extensions import db
+    from study_server.models import Trial
+
+    with app.app_context():  # every trial's events rebuild the scene the bot submitted, close to its target
+        done = db.session.query(Trial).filter(Trial.done_at.isnot(None)).all()
+        assert len(done) == 30 and {t.replay for t in done} == {"match"}
+        assert min(t.score for t in done) > 0.8, sorted(t.score for t in done)

@@ -16,7 +16,7 @@ from scenesuggest import scene_json
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.events import EventError, json_schema, text_problem
 
-from .. import flow, ingest, lists
+from .. import flow, ingest, lists, trial_check
 from ..authoring import live_scene
 from ..errors import RequestError
 from ..extensions import db
@@ -169,10 +169,10 @@ def events():
     who = caller()
     data = body()
     if isinstance(who, Preview):
-        from scenesuggest.events import validate_batch
+        from scenesuggest.events import check_version, validate_batch
 
         try:
-            batch = validate_batch(data.get("events"))
+            batch = validate_batch(data.get("events"), check_version(data.get("vocabulary")))
         except EventError as e:
             raise RequestError(422, e.message, e.field) from None
         return jsonify({"acked_seq": max((e["seq"] for e in batch), default=-1), "stored": False})
@@ -180,7 +180,8 @@ def events():
     study = runtime(who.study_id).study
     quota = (study.max_events_per_participant, int(study.max_mb_per_participant * 1024 * 1024))
     try:
-        acked = ingest.store(who, data.get("page_id"), data.get("events"), quota, request.content_length)
+        acked = ingest.store(who, data.get("page_id"), data.get("events"), quota, request.content_length,
+                             data.get("vocabulary"))
     except EventError as e:
         db.session.rollback()
         raise RequestError(422, e.message, e.field) from None
@@ -292,9 +293,11 @@ def trial_done():
     if final is not None:
         final = scene_json.scene_to_dict(live_scene(final, rt.scene(t.scene_id).get("scene_type", "Room")))
     try:
-        flow.finish_trial(who, rt.study, index, final)
+        finished = flow.finish_trial(who, rt.study, index, final)
     except ValueError as e:
         raise RequestError(409, str(e), "trial") from None
+    if finished.replay is None:  # just finished (a retried request finds it checked)
+        trial_check.check_trial(rt, finished)
     db.session.commit()
     return jsonify({"step": who.step, "position": who.position, "trial": trial_json(flow.current_trial(who)),
                     "next": url_for("participant.current", study_id=who.study_id)})

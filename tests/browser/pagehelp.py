@@ -99,6 +99,13 @@ def db_events(database: Path, pid: str) -> list[tuple[int, str]]:
                             "WHERE p.platform_id = ? ORDER BY e.seq", (pid,)).fetchall()
 
 
+def db_replays(database: Path, pid: str) -> dict[int, str]:
+    """Trial index → whether its events rebuild the scene it submitted (``match``), for the trials done."""
+    with sqlite3.connect(database) as conn:
+        return dict(conn.execute('SELECT t."index", t.replay FROM trials t JOIN participants p ON '
+                                 "p.id = t.participant_id WHERE p.platform_id = ? AND t.done_at IS NOT NULL", (pid,)))
+
+
 def db_event_times(database: Path, pid: str) -> list[tuple[int, str, float]]:
     with sqlite3.connect(database) as conn:
         return conn.execute("SELECT e.seq, e.type, e.client_t FROM events e JOIN participants p ON "

@@ -11,6 +11,8 @@ from .conftest import new_context
 from .pagehelp import (
     db_event_times,
     db_events,
+    db_replays,
+    done,
     floor_pixel,
     hook,
     objects,
@@ -41,6 +43,8 @@ def test_reload_in_the_middle_of_a_trial_resumes_without_loss(page, server):
     assert [s for s, _ in stored] == list(range(len(stored)))  # nothing lost, nothing twice
     assert all(e in stored for e in logged)  # everything the page logged, including what it sent while unloading
     assert {"resume", "visibility"} <= {t for _, t in stored}
+    done(page)  # the scene kept across the reload is the one the events rebuild
+    assert db_replays(database, pid) == {-1: "match"}
 
 
 def test_offline_for_a_while_then_every_event_arrives_once(page, server):
@@ -64,6 +68,8 @@ def test_offline_for_a_while_then_every_event_arrives_once(page, server):
     logged = sorted(tuple(e) for e in hook(page, "events.map(e => [e.seq, e.type])"))
     assert [tuple(e) for e in db_events(database, pid)] == logged
     assert not page.is_visible("#banner") or "Connection lost" not in page.inner_text("#banner")
+    done(page)  # turns and an undo made offline rebuild the scene the page submits
+    assert db_replays(database, pid) == {-1: "match"}
 
 
 def test_while_the_server_cannot_store_the_outbox_keeps_every_event(page, server):

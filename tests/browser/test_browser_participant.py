@@ -12,6 +12,7 @@ import pytest
 
 from .pagehelp import (
     db_events,
+    db_replays,
     done,
     exit_survey,
     floor_pixel,
@@ -139,6 +140,8 @@ def test_a_whole_participant_run(page, server):
     events = db_events(database, pid)
     seqs = [s for s, _ in events]
     assert seqs == list(range(len(seqs)))  # every event stored once, none missing
+    replays = db_replays(database, pid)  # each trial's events rebuild the scene it submitted
+    assert len(replays) == 10 and set(replays.values()) == {"match"}, replays
     types = {t for _, t in events}
     assert {"trial_start", "trial_done", "context_query", "list_shown", "insert", "replace", "move_start", "move_end",
             "rotate_start", "rotate_end", "delete", "undo", "search", "select", "pointer"} <= types

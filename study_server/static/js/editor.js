@@ -74,7 +74,7 @@ export class Editor {
     this.scene.objects.set(id, this.record({ ...spec, id }));
     this.commit("insert", before, [id]);
     this.log("insert", { object: id, model: spec.modelId, category: spec.category, rank: how.rank ?? null,
-      source: how.source, list_id: how.listId ?? null });
+      source: how.source, list_id: how.listId ?? null, objects: this.scene.states([id]) });
     this.select(id, false);
     return id;
   }
@@ -90,7 +90,8 @@ export class Editor {
     for (const cid of moved) this.scene.objects.get(cid).parent = id;
     this.commit("replace", before, [oldId, id, ...moved]);
     this.log("replace", { object: id, replaces: oldId, model: spec.modelId, category: spec.category,
-      rank: how.rank ?? null, source: how.source, list_id: how.listId ?? null });
+      rank: how.rank ?? null, source: how.source, list_id: how.listId ?? null,
+      objects: this.scene.states([oldId, id, ...moved]) });
     this.select(id, false);
     return id;
   }
@@ -103,7 +104,7 @@ export class Editor {
     for (const g of gone) this.scene.objects.delete(g);
     this.select(null, false);
     this.commit("delete", before, gone);
-    this.log("delete", { object: id });
+    this.log("delete", { object: id, objects: this.scene.states(gone) });
   }
 
   /** Apply a new matrix to an object and carry everything resting on it along. */
@@ -164,7 +165,7 @@ export class Editor {
     this.scene.restore(step.before);
     this.redoStack.push(step);
     this.sync([...step.before.keys()]);
-    this.log("undo", { action: step.action });
+    this.log("undo", { action: step.action, objects: this.scene.states([...step.before.keys()]) });
   }
 
   redo() {
@@ -173,7 +174,7 @@ export class Editor {
     this.scene.restore(step.after);
     this.undoStack.push(step);
     this.sync([...step.after.keys()]);
-    this.log("redo", { action: step.action });
+    this.log("redo", { action: step.action, objects: this.scene.states([...step.after.keys()]) });
   }
 
   // --- selection and handles ------------------------------------------------------------------------------
@@ -299,7 +300,7 @@ export class Editor {
       this.undoStack.push({ action: "rotate", before: t.before, after: this.scene.snapshot(ids) });
       this.redoStack = [];
       this.sync(ids);
-      this.log("rotate_end", { object: t.id, angle: THREE.MathUtils.radToDeg(t.angle) });
+      this.log("rotate_end", { object: t.id, angle: THREE.MathUtils.radToDeg(t.angle), objects: this.scene.states(ids) });
       return;
     }
     const d = this.drag;
@@ -310,7 +311,7 @@ export class Editor {
       this.redoStack = [];
       this.sync(ids);
       const o = this.scene.objects.get(d.id);
-      this.log("move_end", { object: d.id, distance: d.distance, parent: o.parent });
+      this.log("move_end", { object: d.id, distance: d.distance, parent: o.parent, objects: this.scene.states(ids) });
       return;
     }
     const p = this.press;
@@ -342,7 +343,7 @@ export class Editor {
       this.undoStack.push({ action: "rotate", before, after: this.scene.snapshot(ids) });
       this.redoStack = [];
       this.sync(ids);
-      this.log("rotate_end", { object: id, angle: THREE.MathUtils.radToDeg(step) });
+      this.log("rotate_end", { object: id, angle: THREE.MathUtils.radToDeg(step), objects: this.scene.states(ids) });
     }
   }
 }

@@ -13,12 +13,15 @@ const MAX_BACKOFF_MS = 30000;
  * sent); entries stored by an older page without one fall back to their client time and type. */
 const identity = (e) => e.uid || `${e.t}|${e.type}`;
 const newId = () => (crypto.randomUUID ? crypto.randomUUID() : `${Date.now()}-${Math.random()}`);
-/** The event as the server takes it (the local id stays here). */
-const wire = ({ uid, ...event }) => event;
+/** The event as the server takes it (the local id and the vocabulary version stay here). */
+const wire = ({ uid, v, ...event }) => event;
+/** The version of the event vocabulary an event was logged in (entries of pages before versions: 1). */
+const versionOf = (e) => e.v ?? 1;
 
 export class Outbox {
-  constructor({ api, token, pageId, study, onStatus = () => {} }) {
+  constructor({ api, token, pageId, study, vocabulary = 1, onStatus = () => {} }) {
     this.api = api;
+    this.vocabulary = vocabulary;  // the version of the event vocabulary this page logs in
     this.token = token;
     this.pageId = pageId;
     this.key = `scenesuggest-outbox-${study}-${token.slice(-12)}`;
@@ -99,7 +102,7 @@ export class Outbox {
     if (this.stopped) return -1;
     const state = this.read();
     const event = { seq: state.nextSeq, t: performance.timeOrigin + performance.now(), type, trial, payload,
-      uid: newId() };
+      uid: newId(), v: this.vocabulary };
     state.nextSeq += 1;
     state.pending.push(event);
     this.mine.set(identity(event), event);
@@ -127,14 +130,17 @@ export class Outbox {
   async send(keepalive) {
     for (;;) {
       const state = this.read();
-      const batch = state.pending.slice(0, MAX_BATCH);
+      // one batch, one vocabulary: events an older page left behind are sent in the version they were logged in
+      const version = state.pending.length ? versionOf(state.pending[0]) : this.vocabulary;
+      const run = state.pending.findIndex((e) => versionOf(e) !== version);
+      const batch = state.pending.slice(0, Math.min(MAX_BATCH, run < 0 ? MAX_BATCH : run));
       if (!batch.length) { this.onStatus("saved"); return true; }
       let response;
       try {
         response = await fetch(`${this.api}/events`, {
           method: "POST", keepalive,
           headers: { "Content-Type": "application/json", Authorization: `Bearer ${this.token}` },
-          body: JSON.stringify({ page_id: this.pageId, events: batch.map(wire) }),
+          body: JSON.stringify({ page_id: this.pageId, vocabulary: version, events: batch.map(wire) }),
         });
       } catch (e) {
         this.retryLater();
@@ -151,6 +157,7 @@ export class Outbox {
         const [dropped] = now.pending.splice(index, 1);
         this.mine.delete(identity(dropped));
         const note = { seq: dropped.seq, t: dropped.t, type: "client_error", trial: dropped.trial, uid: newId(),
+          v: versionOf(dropped),
           payload: { message: `rejected ${dropped.type}: ${problem.field} ${problem.error}`.slice(0, 1900) } };
         now.pending.push(note);
         this.mine.set(identity(note), note);

@@ -25,6 +25,24 @@ export class SceneModel {
       contact_normal: o.contactNormal };
   }
 
+  /** An object's state as the scene-changing events carry it (scenesuggest/events.py OBJECT_STATE): the object
+   * as a scene file lists it, numbers to 0.1 µm (events stay small; a replay matches the scene within 1 µm). */
+  static stateJSON(o) {
+    const r = (x) => Math.round(x * 1e7) / 1e7;
+    const v = (a) => (a ? a.map(r) : null);
+    const j = SceneModel.toJSON(o);
+    return { ...j, size: v(j.size), transform: v(j.transform), contact_point: v(j.contact_point),
+      contact_normal: v(j.contact_normal) };
+  }
+
+  /** The states after a change of the objects ``ids`` (an object no longer there: ``{id, removed: true}``). */
+  states(ids) {
+    return [...new Set(ids)].map((id) => {
+      const o = this.objects.get(id);
+      return o ? SceneModel.stateJSON(o) : { id, removed: true };
+    });
+  }
+
   toJSON() {
     return { format: "scenesuggest-scene", version: 1, id: this.id, scene_type: this.sceneType, source: this.source,
       objects: [...this.objects.values()].map(SceneModel.toJSON) };

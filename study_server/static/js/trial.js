@@ -28,6 +28,7 @@ function say(text, { action = null, onAction = null } = {}) {
 
 const sayEnded = () => say(strings.ended, { action: strings.continue, onAction: () => location.assign(boot.next) });
 const outbox = new Outbox({ api: boot.api, token: boot.token, pageId: boot.page_id, study: boot.study,
+  vocabulary: boot.vocabulary,
   onStatus: (s) => {
     if (s === "offline") say(strings.offline);
     else if (s === "ended") sayEnded();
