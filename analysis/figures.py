@@ -1,5 +1,6 @@
 """The report's figures (PNG and SVG): total time by condition per target scene (the paper's box plots), the
-distribution of chosen ranks, and per-participant learning curves over trial position.
+distribution of chosen ranks, per-participant learning curves over trial position, and how close the scenes came
+to their targets over the trials' elapsed time.
 
 Figures are built on :class:`matplotlib.figure.Figure` directly (no pyplot state, no display needed).
 """
@@ -92,3 +93,26 @@ def learning_curves(trials: pd.DataFrame, conditions: list[str], out: Path) -> l
     ax.legend(frameon=False, fontsize=8)
     ax.set_title("Learning curves")
     return _save(fig, out, "learning_curves")
+
+
+def closeness_over_time(scores: pd.DataFrame, conditions: list[str], out: Path) -> list[Path]:
+    """Median score (how close the scene is to its target, 0..1) over elapsed seconds per condition, with the
+    interquartile band; a finished trial keeps its final score."""
+    fig = Figure(figsize=(6.5, 3.8), layout="constrained")
+    ax = fig.subplots()
+    for i, c in enumerate(conditions):
+        here = scores[scores["condition"] == c]
+        if here.empty:
+            continue
+        q = here.groupby("elapsed_s")["score"].quantile([0.25, 0.5, 0.75]).unstack()
+        n = here.groupby(["participant", "trial"]).ngroups
+        colour = COLOURS[i % len(COLOURS)]
+        ax.plot(q.index, q[0.5], color=colour, label=f"{c} (n = {n} trials)")
+        ax.fill_between(q.index, q[0.25], q[0.75], color=colour, alpha=0.15, linewidth=0)
+    ax.set_xlabel("seconds since the trial started")
+    ax.set_ylabel("score (median, interquartile band)")
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(frameon=False, loc="lower right")
+    ax.set_title("How close to the target, over time")
+    return _save(fig, out, "closeness_over_time")

@@ -1,8 +1,9 @@
 """Read a study's data: an export folder (``scenesuggest study export``) or the study database itself.
 
 Either way the result is a :class:`StudyData` of tidy tables — participants, trials, events (payload decoded)
-and survey answers — plus a manifest saying where they came from. The database is read with plain SQL over the
-server's tables; the study server is never imported.
+and survey answers — plus a manifest saying where they came from and, from an export, ``scenes.json`` (each
+scene's start and target, the taxonomy and symmetry periods that rebuilding and scoring a trial need). The
+database is read with plain SQL over the server's tables; the study server is never imported.
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ class StudyData:
     events: pd.DataFrame
     survey: pd.DataFrame
     manifest: dict = field(default_factory=dict)
+    #: ``scenes.json`` of an export ({} when the data has none: a database, or an export made before it existed)
+    scenes: dict = field(default_factory=dict)
 
     @property
     def conditions(self) -> list[str]:
@@ -105,7 +108,12 @@ def read_export(folder: str | Path) -> StudyData:
     manifest_path = folder / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
     manifest["source"] = str(folder)
-    return _normalise(StudyData(**tables, manifest=manifest))
+    scenes_path = folder / "scenes.json"
+    try:
+        scenes = json.loads(scenes_path.read_text()) if scenes_path.exists() else {}
+    except ValueError as e:
+        raise AnalysisError(f"is not valid JSON ({e})", str(scenes_path)) from None
+    return _normalise(StudyData(**tables, manifest=manifest, scenes=scenes))
 
 
 def _mask(url: str) -> str:
@@ -116,7 +124,7 @@ def _mask(url: str) -> str:
 
 def read_database(url: str, study: str | None = None) -> StudyData:
     """Read one study's tables straight from the server's database (SQLite or PostgreSQL URL)."""
-    from sqlalchemy import create_engine, text
+    from sqlalchemy import create_engine, inspect, text
     from sqlalchemy.exc import SQLAlchemyError
 
     try:
@@ -125,6 +133,7 @@ def read_database(url: str, study: str | None = None) -> StudyData:
         raise AnalysisError(f"not a database URL ({e})", "--db") from None
     try:
         with engine.connect() as con:
+            scored = "score" in {c["name"] for c in inspect(con).get_columns("trials")}
             studies = pd.read_sql(text("SELECT id, title, hash FROM studies ORDER BY id"), con)
             if study is None:
                 if len(studies) != 1:
@@ -138,7 +147,8 @@ def read_database(url: str, study: str | None = None) -> StudyData:
                                       "finished_at FROM participants WHERE study_id = :s ORDER BY id"), con, params=q)
             trials = pd.read_sql(text(
                 "SELECT t.participant_id AS participant, t.position, t.\"index\" AS trial, t.kind, t.condition, "
-                "t.scene_id AS scene, t.period, t.block, t.started_at, t.done_at FROM trials t JOIN participants p "
+                "t.scene_id AS scene, t.period, t.block, t.started_at, t.done_at"
+                + (", t.score" if scored else "") + " FROM trials t JOIN participants p "
                 "ON p.id = t.participant_id WHERE p.study_id = :s ORDER BY t.participant_id, t.position"),
                 con, params=q)
             events = pd.read_sql(text(

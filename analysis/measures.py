@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from scenesuggest.picks import PICKS, picks
+
 from .load import StudyData
 
 TRIAL_MEASURES = {
@@ -122,27 +124,31 @@ def trials_table(data: StudyData) -> pd.DataFrame:
     return out.reset_index(drop=True)
 
 
+def event_dicts(events: pd.DataFrame) -> list[dict]:
+    """Event rows as the shared functions of :mod:`scenesuggest` read them (``seq``, ``t``, ``type``, ``trial``,
+    ``payload``), in the frame's order."""
+    return [{"seq": s, "t": t, "type": k, "trial": None if tr != tr else int(tr), "payload": p}
+            for s, t, k, tr, p in zip(events["seq"], events["client_t_ms"], events["type"], events["trial"],
+                                      events["payload"], strict=True)]
+
+
+PICK_COLUMNS = ["participant", "trial", "seq", "action", "model", "category", "source", "rank", "final"]
+
+
 def picks_table(data: StudyData, trials: pd.DataFrame) -> pd.DataFrame:
-    """One row per model placed from a list: its rank there (1-based), the list's source (``fixed`` list /
-    ``search`` / ``context``), reciprocal rank, the trial's condition and scene, and ``final``: False when a
-    later pick replaced it in place (the top suggestion is placed at once; the participant's choice is the
-    last pick of such a chain, and only final picks count for MRR and the rank distribution)."""
-    ev = data.events[data.events["type"].isin(["insert", "replace"])].dropna(subset=["trial"])
-    rows = []
-    replaced = {(e.participant, e.trial, e.payload.get("replaces")) for e in ev.itertuples(index=False)
-                if e.type == "replace"}
-    for e in ev.itertuples(index=False):
-        p = e.payload
-        rank = p.get("rank")
-        rows.append({"participant": e.participant, "trial": int(e.trial), "seq": e.seq, "action": e.type,
-                     "model": p.get("model"), "category": p.get("category"), "source": p.get("source"),
-                     "rank": float(rank) if rank else np.nan,
-                     "final": (e.participant, e.trial, p.get("object")) not in replaced})
-    picks = pd.DataFrame(rows, columns=["participant", "trial", "seq", "action", "model", "category", "source",
-                                        "rank", "final"])
-    picks["reciprocal_rank"] = 1.0 / picks["rank"]
+    """One row per model placed from a list (:func:`scenesuggest.picks.picks`, the definition the export's
+    ``picks.csv`` uses): its rank there (1-based), the list's source (``fixed`` list / ``search`` / ``context``),
+    reciprocal rank, ``final`` (False when a later pick replaced it in place; only final picks count for MRR and
+    the rank distribution), and the trial's condition and scene."""
+    ev = data.events[data.events["type"].isin(PICKS)].dropna(subset=["trial"]).sort_values(["participant", "seq"])
+    rows = [{"participant": participant, "trial": int(p.trial), "seq": p.seq, "action": p.action,
+             "model": p.model, "category": p.category, "source": p.source,
+             "rank": float(p.rank) if p.rank else np.nan, "final": p.final}
+            for participant, own in ev.groupby("participant", sort=False) for p in picks(event_dicts(own))]
+    table = pd.DataFrame(rows, columns=PICK_COLUMNS)
+    table["reciprocal_rank"] = 1.0 / table["rank"]
     design = trials.loc[trials["complete"], ["participant", "trial", "condition", "scene"]]
-    return picks.merge(design, on=["participant", "trial"], how="inner")
+    return table.merge(design, on=["participant", "trial"], how="inner")
 
 
 def participants_table(data: StudyData) -> pd.DataFrame:

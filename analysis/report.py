@@ -13,11 +13,14 @@ from pathlib import Path
 
 import pandas as pd
 
+from scenesuggest.scoring import FORMULA
+
 from . import figures
+from .closeness import SCORE_TEST, closeness_table, score_over_time
 from .jsonout import dumps
 from .load import StudyData
 from .measures import TRIAL_MEASURES, participants_table, picks_table, trials_table
-from .tables import Table, condition_tests, contrasts_table, survey_table, table1, table2, tests_table
+from .tables import MEASURES, Table, condition_tests, contrasts_table, survey_table, table1, table2, tests_table
 
 
 def select(data: StudyData, completed_only: bool = False
@@ -95,7 +98,13 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
 
     progress("bootstrap intervals")
     tables: list[Table] = [table1(trials, picks, conditions, resamples, seed, unit), table2(picks, conditions)]
-    results = condition_tests(trials, picks, conditions, progress)
+    close = closeness_table(trials, conditions, resamples, seed, unit)
+    scored = close is not None
+    if scored:
+        tables.append(close)
+    else:
+        notes.append("how close to the target: the data has no scores (an export made before trials were scored)")
+    results = condition_tests(trials, picks, conditions, progress, MEASURES + ([SCORE_TEST] if scored else []))
     tables += [tests_table(results), contrasts_table(results), survey_table(people)]
     for r in results:
         if r.error:
@@ -104,11 +113,17 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
         for ext, text in (("md", t.markdown()), ("tex", t.latex()), ("csv", t.csv())):
             (out / "tables" / f"{t.name}.{ext}").write_text(text, encoding="utf-8")
 
+    progress("score over time")
+    over_time, time_notes = score_over_time(data, trials)
+    notes += time_notes
+    over_time.to_csv(measures_dir / "score_over_time.csv", index=False)
+
     progress("figures")
     figure_files = []
     for make, frame in ((figures.time_by_scene, trials), (figures.rank_distribution, picks),
-                        (figures.learning_curves, trials)):
-        if frame is picks and picks.dropna(subset=["rank"]).empty or frame is trials and done.empty:
+                        (figures.learning_curves, trials), (figures.closeness_over_time, over_time)):
+        if frame is picks and picks.dropna(subset=["rank"]).empty or frame is trials and done.empty \
+                or frame is over_time and over_time.empty:
             notes.append(f"figure {make.__name__}: no data")
             continue
         figure_files += make(frame, conditions, out / "figures")
@@ -123,7 +138,7 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
                          "completed": int((data.participants["status"] == "completed").sum()),
                          "analysed": int(people_analysed)},
         "trials": {"scheduled": len(trials), "completed": len(done)}, "picks": len(picks), "notes": notes,
-        "table1": tables[0].data, "table2": tables[1].data,
+        "table1": tables[0].data, "table2": tables[1].data, "closeness": close.data if scored else None,
         "tests": {r.measure: (r.comparison.to_dict() | {"contrasts": [c.to_dict() for c in r.contrasts]}
                               if r.comparison else {"error": r.error}) for r in results},
     }
@@ -150,6 +165,7 @@ def _readme(data, summary, tables, figure_files, out, conditions) -> str:
     lines += [f"- {n}" for n in summary["notes"]] or ["- none"]
     lines += ["", "## Measures", ""] + [f"- `{k}`: {v}" for k, v in TRIAL_MEASURES.items()]
     lines += ["- MRR: mean of 1 / rank over every pick with a rank (fixed list, search results or suggestions).",
+              f"- `score` (how close to the target): {FORMULA}.",
               "", "## Tables", ""]
     for table in tables:
         lines += [table.markdown(), f"Also as `tables/{table.name}.tex` (booktabs) and `tables/{table.name}.csv`.",

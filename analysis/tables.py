@@ -138,14 +138,14 @@ class TestResult:
 
 
 def condition_tests(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str],
-                    progress=lambda label: None) -> list[TestResult]:
-    """Per measure: the model with and without condition, the LR test, and pairwise contrasts. A measure that
-    cannot be modelled keeps its error message instead."""
+                    progress=lambda label: None, measures=None) -> list[TestResult]:
+    """Per measure (default: :data:`MEASURES`): the model with and without condition, the LR test, and pairwise
+    contrasts. A measure that cannot be modelled keeps its error message instead."""
     out = []
-    for m, label, _, family, table in MEASURES:
+    for m, label, _, family, table in measures or MEASURES:
         progress(f"model of {m}")
         frame = _frame(trials, picks, table)
-        frame = frame[frame["condition"].isin(conditions)].copy()
+        frame = frame[frame["condition"].isin(conditions)].dropna(subset=[m]).copy()
         frame["condition"] = pd.Categorical(frame["condition"], conditions)
         result = TestResult(m, label, family)
         try:

@@ -123,6 +123,6 @@ def study_export_cmd(study_id: str, out: str, database_url: str | None, as_json:
         raise SceneSuggestError(f"no study {study_id!r} among {', '.join(app.extensions['studies'])}",
                                 field="study")
     with app.app_context():
-        manifest = export_to(app.extensions["studies"][study_id].study, Path(out))
+        manifest = export_to(app.extensions["studies"][study_id], Path(out))
     emit(manifest, as_json, f"exported {study_id} to {out}: " + ", ".join(f"{n} {k}" for k, n in
                                                                         manifest["row_counts"].items()))

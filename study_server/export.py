@@ -9,8 +9,10 @@ than failing the export.
 
 Tables (one row per …): ``participants`` (participant), ``trials`` (trial), ``events`` (logged event),
 ``suggestions`` (item of a list the server showed: context suggestions and search results, with ranks),
-``picks`` (model placed: insert/replace events with their rank and source), ``survey`` (answer),
-``session_log`` (server-side observation: arrival, resume, device check, failures).
+``picks`` (model placed: insert/replace events with their rank, source and whether it was final, by the one
+definition in :mod:`scenesuggest.picks`), ``survey`` (answer), ``session_log`` (server-side observation: arrival,
+resume, device check, failures). ``scenes.json`` holds what rebuilding and scoring a trial needs: each scene's
+start and target objects, the categories' taxonomy parents and the target models' symmetry periods.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import json
 import subprocess
 import zipfile
 from datetime import UTC, datetime
+from itertools import groupby
 from pathlib import Path
 
 from sqlalchemy import select, text
@@ -29,10 +32,14 @@ from sqlalchemy import select, text
 import scenesuggest
 from scenesuggest.cells import safe_cell
 from scenesuggest.library import INDEX_FILE
+from scenesuggest.picks import picks
+from scenesuggest.scoring import FORMULA
 
 from .extensions import db
 from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial
+from .studies import StudyRuntime
 from .study_file import Study
+from .trial_check import target_closeness
 
 DICTIONARY: dict[str, dict[str, str]] = {
     "participants": {
@@ -54,12 +61,23 @@ DICTIONARY: dict[str, dict[str, str]] = {
         "scene": "target scene id", "period": "period of the schedule row", "block": "block within the session",
         "started_at": "trial page first shown (UTC)", "done_at": "done acknowledged (UTC)",
         "final_objects": "objects in the final scene",
-        "review": "why the trial's events do not show the study's minimum work (empty: they do)"},
+        "review": "why the trial should be reviewed: its events do not show the study's minimum work, or its scene "
+                  "came less close to the target than [limits] min_target_score (empty: neither)",
+        "replay": "whether the trial's events rebuild the final scene it submitted: match, mismatch: what differs, "
+                  "or unavailable: why (events of vocabulary 1 carry no object states)",
+        "score": f"how close the final scene came to the target, 0..1: {FORMULA}",
+        "matched": "target objects matched by an object of the final scene",
+        "missing": "target objects nothing matched", "extra": "objects of the final scene that match nothing",
+        "position_error_m": "mean distance of the matched objects from their targets (metres)",
+        "orientation_error_deg": "mean angle of the matched objects from their targets' orientations, folded by "
+                                 "each model's rotational symmetry (degrees)"},
     "events": {
         "participant": "participant number", "seq": "per-participant event number from 0", "page_id":
         "page load that sent it", "type": "event type (see the event vocabulary in manifest.json)",
         "trial": "trial index or empty", "client_t_ms": "client clock, ms since the epoch",
-        "server_t": "server receive time (UTC)", "payload": "event payload as JSON"},
+        "server_t": "server receive time (UTC)", "payload": "event payload as JSON",
+        "vocabulary": "version of the event vocabulary the page spoke (2: scene changes carry the resulting object "
+                      "states; see event_schema.json)"},
     "suggestions": {
         "participant": "participant number", "list_id": "id of the list", "trial": "trial index",
         "source": "context | search", "rank": "1-based rank in the list", "category": "category",
@@ -71,7 +89,9 @@ DICTIONARY: dict[str, dict[str, str]] = {
         "client_t_ms": "client clock (ms)", "action": "insert | replace", "object": "editor object id",
         "model": "model id", "category": "category", "rank": "rank in the list it was picked from (empty if none)",
         "reciprocal_rank": "1 / rank (empty if none)", "source": "context | search | fixed",
-        "list_id": "list it was picked from, when known"},
+        "list_id": "list it was picked from, when known",
+        "final": "true unless a later pick of the trial replaced this one in place (the top suggestion is placed "
+                 "at once; the participant's choice is the last pick of such a chain; MRR counts final picks)"},
     "survey": {"participant": "participant number", "survey": "demographics | exit", "question": "question id",
                "answer": "the answer (Likert 1..scale, choice text, number or free text)"},
     "session_log": {"participant": "participant number (empty for failures before arrival)", "kind":
@@ -84,7 +104,30 @@ def _iso(t) -> str:
     return t.isoformat() if t else ""
 
 
-def _rows(study: Study) -> dict[str, list[dict]]:
+def _closeness(rt: StudyRuntime, t: Trial) -> dict:
+    """How close the trial's final scene came to its target (empty cells without a final scene)."""
+    if not t.final_scene:
+        return dict.fromkeys(("score", "matched", "missing", "extra", "position_error_m", "orientation_error_deg"),
+                             "")
+    c = target_closeness(rt, t.scene_id, t.final_scene["objects"]).to_dict()
+    c.pop("matches")
+    return {k: ("" if isinstance(v, float) and v != v else v) for k, v in c.items()}
+
+
+def scenes_document(rt: StudyRuntime) -> dict:
+    """``scenes.json``: each scene's start and target objects, the taxonomy parent of every category the study's
+    library and targets name, and the symmetry period of every target model (degrees; 360: none)."""
+    scenes = {sid: {"title": s.title, "start": rt.scene(sid, "start")["objects"],
+                    "target": rt.scene(sid, "target")["objects"]} for sid, s in rt.study.scenes.items()}
+    library = rt.library.values() if (rt.study.library / INDEX_FILE).is_file() else []
+    categories = {m.category for m in library} | {o["category"] for s in scenes.values() for o in s["target"]}
+    models = sorted({o["model_id"] for s in scenes.values() for o in s["target"] if o["parent"] is not None})
+    return {"scenes": scenes, "taxonomy": {c: rt.taxonomy.parent(c) for c in sorted(categories)},
+            "symmetry_deg": {m: rt.period_of(m) for m in models}, "scoring": FORMULA}
+
+
+def _rows(rt: StudyRuntime) -> dict[str, list[dict]]:
+    study = rt.study
     s = db.session
     people = list(s.scalars(select(Participant).where(Participant.study_id == study.id).order_by(Participant.id)))
     ids = [p.id for p in people]
@@ -107,19 +150,24 @@ def _rows(study: Study) -> dict[str, list[dict]]:
             "participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
             "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
             "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
-            "final_objects": len(t.final_scene["objects"]) if t.final_scene else "", "review": t.review or ""})
-    for e in s.scalars(select(Event).where(Event.participant_id.in_(ids)).order_by(Event.participant_id, Event.seq)):
+            "final_objects": len(t.final_scene["objects"]) if t.final_scene else "", "review": t.review or "",
+            "replay": t.replay or "", **_closeness(rt, t)})
+    events = list(s.scalars(select(Event).where(Event.participant_id.in_(ids)).order_by(Event.participant_id,
+                                                                                          Event.seq)))
+    for e in events:
         out["events"].append({"participant": e.participant_id, "seq": e.seq, "page_id": e.page_id, "type": e.type,
                               "trial": "" if e.trial is None else e.trial, "client_t_ms": repr(e.client_t),
-                              "server_t": _iso(e.server_t), "payload": json.dumps(e.payload, sort_keys=True)})
-        if e.type in ("insert", "replace"):
-            rank = e.payload.get("rank")
+                              "server_t": _iso(e.server_t), "payload": json.dumps(e.payload, sort_keys=True),
+                              "vocabulary": e.vocabulary})
+    for participant, own in groupby(events, key=lambda e: e.participant_id):
+        for pick in picks([{"seq": e.seq, "t": e.client_t, "type": e.type, "trial": e.trial, "payload": e.payload}
+                           for e in own]):
             out["picks"].append({
-                "participant": e.participant_id, "seq": e.seq, "trial": "" if e.trial is None else e.trial,
-                "client_t_ms": repr(e.client_t), "action": e.type, "object": e.payload.get("object", ""),
-                "model": e.payload.get("model", ""), "category": e.payload.get("category", ""),
-                "rank": "" if rank is None else rank, "reciprocal_rank": "" if not rank else 1.0 / rank,
-                "source": e.payload.get("source", ""), "list_id": e.payload.get("list_id") or ""})
+                "participant": participant, "seq": pick.seq, "trial": "" if pick.trial is None else pick.trial,
+                "client_t_ms": repr(pick.t), "action": pick.action, "object": pick.object, "model": pick.model,
+                "category": pick.category, "rank": "" if pick.rank is None else pick.rank,
+                "reciprocal_rank": "" if pick.reciprocal_rank is None else pick.reciprocal_rank,
+                "source": pick.source, "list_id": pick.list_id or "", "final": "true" if pick.final else "false"})
     for li in s.scalars(select(ShownList).where(ShownList.participant_id.in_(ids)).order_by(ShownList.created_at,
                                                                                            ShownList.id)):
         for item in li.items:
@@ -166,11 +214,12 @@ def _resources(study: Study) -> dict:
             "priors_sha256": sha256(study.priors), "library_index_sha256": sha256(study.library / INDEX_FILE)}
 
 
-def export_files(study: Study) -> dict[str, str]:
-    """File name → content of a complete export."""
+def export_files(rt: StudyRuntime) -> dict[str, str]:
+    """File name → content of a complete export of the study ``rt`` runs."""
     from scenesuggest.events import json_schema
 
-    rows = _rows(study)
+    study = rt.study
+    rows = _rows(rt)
     files = {f"{name}.csv": _csv(rows[name], list(columns)) for name, columns in DICTIONARY.items()}
     try:
         schema_version = db.session.execute(text("SELECT version_num FROM alembic_version")).scalar()
@@ -189,6 +238,7 @@ def export_files(study: Study) -> dict[str, str]:
                    "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
     files["data_dictionary.md"] = "\n".join(dictionary)
     files["event_schema.json"] = json.dumps(json_schema(), indent=1)
+    files["scenes.json"] = json.dumps(scenes_document(rt), indent=1, sort_keys=True)
     manifest = {
         "study": study.id, "title": study.title, "study_hash": study.hash, "study_file": study.path.name,
         "code_version": _code_version(), "schema_version": schema_version,
@@ -202,17 +252,17 @@ def export_files(study: Study) -> dict[str, str]:
     return files
 
 
-def export_to(study: Study, out: Path) -> dict:
+def export_to(rt: StudyRuntime, out: Path) -> dict:
     out.mkdir(parents=True, exist_ok=True)
-    files = export_files(study)
+    files = export_files(rt)
     for name, content in files.items():
         (out / name).write_text(content, encoding="utf-8")
     return json.loads(files["manifest.json"])
 
 
-def export_zip(study: Study) -> bytes:
+def export_zip(rt: StudyRuntime) -> bytes:
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
-        for name, content in export_files(study).items():
-            z.writestr(f"{study.id}/{name}", content)
+        for name, content in export_files(rt).items():
+            z.writestr(f"{rt.study.id}/{name}", content)
     return buf.getvalue()

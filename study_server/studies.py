@@ -16,7 +16,7 @@ from pathlib import Path
 from flask import abort, current_app
 
 from scenesuggest import scene_json
-from scenesuggest.library import ModelInfo, load_index
+from scenesuggest.library import INDEX_FILE, ModelInfo, load_index
 from scenesuggest.priors import Priors
 from scenesuggest.search import SearchIndex
 from scenesuggest.suggest import Engine
@@ -121,14 +121,16 @@ class StudyRuntime:
     def taxonomy(self) -> Taxonomy:
         """The categories' taxonomy: the one the model library was built with, else the priors'."""
         path = self.study.library / "taxonomy.json"
-        return Taxonomy.load(path) if path.is_file() else self.priors.taxonomy
+        if path.is_file():
+            return Taxonomy.load(path)
+        return self.priors.taxonomy if self.study.priors.is_file() else Taxonomy()
 
     def period_of(self, model_id: str) -> float:
         """The model's rotational symmetry period (degrees about its up axis; 360: none), measured on its asset
         once (and cached on disk, :mod:`scenesuggest.symmetry`)."""
         with self._lock:
             if model_id not in self._periods:
-                model = self.library.get(model_id)
+                model = self.library.get(model_id) if (self.study.library / INDEX_FILE).is_file() else None
                 found = corpus_periods([model], base=self.study.library) if model else None
                 self._periods[model_id] = found.of(model_id, model.category)[0] if found else NONE
             return self._periods[model_id]

@@ -180,7 +180,7 @@ def test_report_reads_the_database_directly_like_the_export(app, tmp_path):
     finish_all_trials(c, to_trials(c))
     url = app.config["SQLALCHEMY_DATABASE_URI"]
     with app.app_context():
-        export_to(app.extensions["studies"]["demo"].study, tmp_path / "export")
+        export_to(app.extensions["studies"]["demo"], tmp_path / "export")
     from_db, from_export = read_database(url), read_export(tmp_path / "export")
     assert from_db.conditions == from_export.conditions == ["none", "basic", "full"]
     a, b = trials_table(from_db), trials_table(from_export)

@@ -83,7 +83,7 @@ def test_export_cells_cannot_run_as_formulas_and_load_back_unchanged(client, app
     b = to_trials(client)
     assert post_events(client, b, [event(i, text=t) for i, t in enumerate(hostile)]).status_code == 200
     with app.app_context():
-        export_to(app.extensions["studies"]["demo"].study, tmp_path / "export")
+        export_to(app.extensions["studies"]["demo"], tmp_path / "export")
     raw = (tmp_path / "export" / "session_log.csv").read_text()
     assert all(not line.startswith(("=", "+", "@")) for line in raw.splitlines())
     assert [safe_cell(t) for t in hostile[:-1]] == ["'" + t for t in hostile[:-1]] and safe_cell("-12.5") == "-12.5"

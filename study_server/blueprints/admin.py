@@ -265,8 +265,7 @@ def author_image(study_id: str, scene_id: str):
 @bp.get("/<study_id>/export.zip")
 @admin_required
 def export(study_id: str):
-    study = runtime(study_id).study
-    data = export_zip(study)
+    data = export_zip(runtime(study_id))
     stamp = utcnow().strftime("%Y%m%dT%H%M%SZ")
     return Response(data, mimetype="application/zip",
                     headers={"Content-Disposition": f"attachment; filename={study_id}-{stamp}.zip"})
