@@ -5,25 +5,15 @@ for review."""
 
 from __future__ import annotations
 
-from sqlalchemy import select
-
 from scenesuggest.replay import ReplayUnavailable, differences, final_scene
 from scenesuggest.scoring import Closeness, closeness
 
-from .extensions import db
-from .models import Event, Trial
+from .models import Trial
+from .replays import trial_events
 from .studies import StudyRuntime
 
 #: How many differences a mismatch names.
 SHOWN = 3
-
-
-def trial_events(participant_id: int, index: int) -> list[dict]:
-    """A trial's stored events, in seq order, as the replay reads them."""
-    rows = db.session.scalars(select(Event).where(Event.participant_id == participant_id, Event.trial == index)
-                              .order_by(Event.seq))
-    return [{"seq": e.seq, "t": e.client_t, "type": e.type, "trial": e.trial, "payload": e.payload,
-             "vocabulary": e.vocabulary} for e in rows]
 
 
 def replay_check(rt: StudyRuntime, t: Trial, events: list[dict]) -> str:

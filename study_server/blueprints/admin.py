@@ -31,6 +31,7 @@ from ..errors import RequestError
 from ..export import export_zip
 from ..extensions import db
 from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
+from ..replays import replay_document
 from ..security import (
     DEVICE_COOKIE,
     DEVICE_LIFETIME,
@@ -140,6 +141,34 @@ def participant(study_id: str, pid: int):
     surveys = list(db.session.scalars(select(SurveyResponse).where(SurveyResponse.participant_id == pid)))
     return render_template("admin/participant.html", study=study, p=p, timeline=timeline, trials=trials,
                            surveys=surveys)
+
+
+def _trial_of(study_id: str, pid: int, index: int) -> Trial:
+    p = db.session.get(Participant, pid)
+    t = db.session.scalar(select(Trial).where(Trial.participant_id == pid, Trial.index == index)) \
+        if p is not None and p.study_id == study_id else None
+    if t is None:
+        abort(404)
+    return t
+
+
+@bp.get("/<study_id>/participants/<int:pid>/trials/<int(signed=True):index>/replay")
+@admin_required
+def replay(study_id: str, pid: int, index: int):
+    """A trial rebuilt from its events, step by step: the participants' editor, read-only."""
+    rt = runtime(study_id)
+    t = _trial_of(study_id, pid, index)
+    boot = {"data": url_for(".replay_data", study_id=study_id, pid=pid, index=index),
+            "back": url_for(".participant", study_id=study_id, pid=pid)}
+    return render_template("admin/replay.html", study=rt.study, t=t, boot=boot,
+                           scene_title=rt.study.scenes[t.scene_id].title)
+
+
+@bp.get("/<study_id>/participants/<int:pid>/trials/<int(signed=True):index>/replay.json")
+@admin_required
+def replay_data(study_id: str, pid: int, index: int):
+    rt = runtime(study_id)
+    return jsonify(replay_document(rt, _trial_of(study_id, pid, index)))
 
 
 @bp.post("/<study_id>/participants/<int:pid>/exclude")

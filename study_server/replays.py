@@ -1,0 +1,72 @@
+"""A trial as its events rebuild it (:mod:`scenesuggest.replay`): for the check when it is done and for the admin's
+replay, which shows any trial, finished or in progress, step by step."""
+
+from __future__ import annotations
+
+from flask import url_for
+from sqlalchemy import select
+
+from scenesuggest.replay import ReplayUnavailable, replay
+
+from .extensions import db
+from .models import Event, Trial
+from .studies import StudyRuntime
+
+
+def trial_events(participant_id: int, index: int) -> list[dict]:
+    """A trial's stored events, in seq order, as the replay reads them."""
+    rows = db.session.scalars(select(Event).where(Event.participant_id == participant_id, Event.trial == index)
+                              .order_by(Event.seq))
+    return [{"seq": e.seq, "t": e.client_t, "type": e.type, "trial": e.trial, "payload": e.payload,
+             "vocabulary": e.vocabulary} for e in rows]
+
+
+def label(event: dict) -> str:
+    """One line of the admin's event list."""
+    p, kind = event["payload"], event["type"]
+    if kind in ("insert", "replace"):
+        rank = f", rank {p['rank']}" if p.get("rank") else ""
+        return f"{kind} {p.get('object')} ({p.get('category')}{rank}, {p.get('source')})"
+    if kind == "move_end":
+        return f"moved {p.get('object')} {p.get('distance', 0):.2f} m"
+    if kind == "rotate_end":
+        return f"turned {p.get('object')} {p.get('angle', 0):+.0f}°"
+    if kind in ("delete", "select"):
+        return f"{kind} {p.get('object') or 'nothing'}"
+    if kind in ("undo", "redo"):
+        return f"{kind} ({p.get('action')})"
+    if kind == "search":
+        return f"search “{p.get('text', '')}”"
+    if kind == "list_shown":
+        return f"{p.get('source')} list shown ({len(p.get('items', []))})"
+    if kind == "camera":
+        return f"camera {p.get('action')}"
+    return kind.replace("_", " ")
+
+
+def replay_document(rt: StudyRuntime, t: Trial) -> dict:
+    """What the replay page shows: the trial, its start and target, the models, every event (client time, a
+    label, and the index of the scene after it in ``scenes``, the distinct scenes in order, the start first)."""
+    start = rt.scene(t.scene_id, "start")["objects"]
+    events = trial_events(t.participant_id, t.index)
+    doc = {"trial": {"participant": t.participant_id, "index": t.index, "kind": t.kind, "condition": t.condition,
+                     "scene": t.scene_id, "title": rt.study.scenes[t.scene_id].title,
+                     "done": t.done_at is not None, "replay": t.replay, "score": t.score},
+           "target": rt.scene(t.scene_id, "target")["objects"], "scenes": [start], "events": [], "problem": None}
+    try:
+        scenes = replay(start, events)
+    except ReplayUnavailable as e:
+        doc["problem"] = f"this trial cannot be replayed: {e}"
+        scenes = [None] * len(events)
+    previous = None
+    for e, scene in zip(events, scenes, strict=True):
+        if scene is not None and scene is not previous:
+            doc["scenes"].append(list(scene.values()))
+            previous = scene
+        doc["events"].append({"seq": e["seq"], "t": e["t"], "type": e["type"], "label": label(e),
+                              "scene": len(doc["scenes"]) - 1})
+    used = {o["model_id"] for s in doc["scenes"] for o in s} | {o["model_id"] for o in doc["target"]}
+    doc["models"] = [{"id": m.id, "name": m.name, "category": m.category, "size": list(m.size),
+                      "asset": url_for("participant.asset", study_id=rt.study.id, filename=m.asset)}
+                     for m in rt.library.values() if m.id in used]
+    return doc
