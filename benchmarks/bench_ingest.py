@@ -1,13 +1,19 @@
 """Ingestion benchmark: concurrent participants posting batched events over real HTTP to the study server run as
 `make serve` runs it (gunicorn, 2 workers, SQLite in WAL mode), with some batches sent twice on purpose.
 
+The events are those a participant logs: the stream of one simulated participant taking the demo (recorded in
+process first), renumbered — its scene changes carry their objects' states (event vocabulary 2; ``--vocabulary
+1`` sends them as pages of the first version did, without states, to measure a server of that version).
+
 Two phases: *paced* — every participant flushes a batch once a second, as the client's outbox does (with 50
 participants and 100-event batches that offers 5,000 events/s) — and *saturated* — every participant posts
 back to back, which measures the most the server can take (latency then is queueing).
 During the paced phase every participant also asks for suggestions (one context query every ~5 s, as a person
 placing objects would), so the latencies are those of ingestion and suggestion under each other's load.
-Prints events/s stored, acknowledgement and suggestion latency percentiles, and events sent vs rows stored.
-Budget on a 2-core machine: ≥ 5,000 events/s with p95 ≤ 100 ms, nothing lost or duplicated.
+Prints events/s stored, acknowledgement and suggestion latency percentiles, events sent vs rows stored, the server
+processes' CPU time per 1,000 events stored (saturated: ingestion alone; paced: with the suggestions) and the
+median size of an event as sent. Budget on a 2-core machine: ≥ 5,000 events/s with p95 ≤ 100 ms, nothing lost or
+duplicated, ≤ 80 ms of server CPU per 1,000 events.
 Usage: .venv/bin/python benchmarks/bench_ingest.py [--participants 50] [--batches 40] [--batch-size 100]
 """
 
@@ -30,6 +36,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from serverproc import StudyServer, demo_missing  # noqa: E402
 
+from scenesuggest.events import SCENE_CHANGES  # noqa: E402
 from simulation.transport import HttpTransport  # noqa: E402
 from simulation.walker import Walker  # noqa: E402
 
@@ -43,29 +50,61 @@ def enrol(base: str, pid: str) -> str:
     return page.boot["token"]
 
 
+def event_mix(vocabulary: int) -> list[dict]:
+    """The events (type, trial, payload) one simulated participant logs taking the demo study, in order, as a page
+    of ``vocabulary`` sends them: recorded in process on a throwaway database."""
+    from simulation.participant import Bot
+    from simulation.transport import FlaskTransport
+    from study_server import create_app, upgrade_database
+
+    with tempfile.TemporaryDirectory() as tmp:
+        app = create_app({"INSTANCE_PATH": tmp, "SQLALCHEMY_DATABASE_URI": f"sqlite:///{tmp}/mix.sqlite3",
+                          "SECRET_KEY": "bench", "TESTING": True})
+        upgrade_database(app)
+        sent = []
+        transport = FlaskTransport(app.test_client())
+        post = transport.post
+
+        def recording(path, form=None, json_body=None, headers=None):
+            if path == "/api/events":
+                sent.extend(json_body["events"])
+            return post(path, form=form, json_body=json_body, headers=headers)
+
+        transport.post = recording
+        Bot(transport, "demo", "mix", __import__("numpy").random.default_rng(0)).run()
+    mix = [{"type": e["type"], "trial": e["trial"], "payload": e["payload"]} for e in sent]
+    if vocabulary == 1:
+        mix = [{**e, "payload": {k: v for k, v in e["payload"].items() if k != "objects"}}
+               if e["type"] in SCENE_CHANGES else e for e in mix]
+    return mix
+
+
 def participant(base: str, token: str, first_seq: int, batches: int, size: int, interval: float, resend: float,
-                rng: random.Random, lat: list, errors: list, lock: threading.Lock) -> int:
-    """Post ``batches`` batches of ``size`` events, one every ``interval`` seconds (0: back to back); returns the
-    next seq."""
+                rng: random.Random, lat: list, errors: list, lock: threading.Lock, mix: list[dict],
+                vocabulary: int) -> int:
+    """Post ``batches`` batches of ``size`` events of ``mix`` (in turn, from a random place), one every
+    ``interval`` seconds (0: back to back); returns the next seq."""
     import requests
 
     s = requests.Session()
     headers = {"Authorization": f"Bearer {token}"}
     seq = first_seq
+    at = rng.randrange(len(mix))
     next_at = time.perf_counter() + rng.uniform(0, interval)
     for _ in range(batches):
         if interval:
             time.sleep(max(0.0, next_at - time.perf_counter()))
             next_at += interval
-        events = [{"seq": seq + i, "t": time.time() * 1000, "type": "camera", "trial": -1,
-                   "payload": {"action": "orbit", "distance": 3.5}} for i in range(size)]
+        now = time.time() * 1000
+        events = [{"seq": seq + i, "t": now + i, **mix[(at + i) % len(mix)]} for i in range(size)]
+        at += size
         seq += size
+        body = {"page_id": "bench", "events": events} | ({"vocabulary": vocabulary} if vocabulary > 1 else {})
         sends = 2 if rng.random() < resend else 1
         for _ in range(sends):
             t = time.perf_counter()
             try:
-                r = s.post(f"{base}/api/events", json={"page_id": "bench", "events": events}, headers=headers,
-                           timeout=60)
+                r = s.post(f"{base}/api/events", json=body, headers=headers, timeout=60)
                 ok = r.status_code == 200 and r.json()["acked_seq"] == seq - 1
             except Exception as e:  # counted, not fatal
                 ok = False
@@ -105,21 +144,24 @@ def suggester(base: str, token: str, every: float, rng: random.Random, stop: thr
                 errors.append(str(getattr(r, "status_code", r)))
 
 
-def run_phase(base: str, tokens: list[str], seqs: list[int], args, interval: float, suggest_every: float = 0.0
-              ) -> dict:
+def run_phase(server, tokens: list[str], seqs: list[int], args, interval: float, mix: list[dict],
+              suggest_every: float = 0.0) -> dict:
+    base = server.base
     lat, errors, lock = [], [], threading.Lock()
     suggest_lat, suggest_errors, stop = [], [], threading.Event()
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), server.cpu_seconds()
     with ThreadPoolExecutor(max_workers=2 * len(tokens)) as pool:
         helpers = [pool.submit(suggester, base, tokens[k], suggest_every, random.Random(1000 + k), stop,
                                suggest_lat, suggest_errors, lock) for k in range(len(tokens)) if suggest_every]
         futures = [pool.submit(participant, base, tokens[k], seqs[k], args.batches, args.batch_size, interval,
-                               args.resend, random.Random(k), lat, errors, lock) for k in range(len(tokens))]
+                               args.resend, random.Random(k), lat, errors, lock, mix, args.vocabulary)
+                   for k in range(len(tokens))]
         ends = [f.result() for f in futures]
         stop.set()
         for h in helpers:
             h.result()
-    return {"seconds": time.perf_counter() - started, "lat": lat, "errors": errors, "ends": ends,
+    return {"seconds": time.perf_counter() - started, "cpu_s": server.cpu_seconds() - cpu, "lat": lat,
+            "errors": errors, "ends": ends,
             "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True)), "suggest_lat": suggest_lat,
             "suggest_errors": suggest_errors}
 
@@ -139,6 +181,8 @@ def main() -> int:
                              "its outbox about once a second)")
     parser.add_argument("--resend", type=float, default=0.05, help="fraction of batches sent twice")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--vocabulary", type=int, choices=(1, 2), default=2,
+                        help="event vocabulary version to send (1: no object states, as pages of that version)")
     parser.add_argument("--suggest-every", type=float, default=5.0,
                         help="seconds between one participant's context queries during the paced phase "
                              "(0: ingestion alone)")
@@ -146,6 +190,8 @@ def main() -> int:
     if demo_missing():
         print(json.dumps({"benchmark": "ingest", "error": demo_missing()}))
         return 1
+    mix = event_mix(args.vocabulary)
+    sizes = sorted(len(json.dumps({"seq": 12345, "t": 1.7e12, **e})) for e in mix)
     with tempfile.TemporaryDirectory() as tmp:
         database = Path(tmp) / "bench.sqlite3"
         with StudyServer(Path(tmp) / "instance", f"sqlite:///{database}", args.workers) as server:
@@ -155,7 +201,7 @@ def main() -> int:
             phases = {}
             seqs = [0] * args.participants
             for name, interval in (("paced", args.interval), ("saturated", 0.0)):
-                phases[name] = run_phase(base, tokens, seqs, args, interval,
+                phases[name] = run_phase(server, tokens, seqs, args, interval, mix,
                                          args.suggest_every if name == "paced" else 0.0)
                 seqs = phases[name]["ends"]
         with sqlite3.connect(database) as conn:
@@ -172,6 +218,9 @@ def main() -> int:
         "batch_interval_s": args.interval,
         "gunicorn_workers": args.workers,
         "database": "sqlite-wal",
+        "vocabulary": args.vocabulary,
+        "median_event_bytes": sizes[len(sizes) // 2],
+        "mean_event_bytes": round(sum(sizes) / len(sizes), 1),
         "events_per_s": round(paced["events"] / paced["seconds"], 1),
         "p50_ms": round(percentile(paced["lat"], 50), 1),
         "p95_ms": round(percentile(paced["lat"], 95), 1),
@@ -183,6 +232,8 @@ def main() -> int:
         "suggest_errors": len(paced["suggest_errors"]),
         "saturated_events_per_s": round(saturated["events"] / saturated["seconds"], 1),
         "saturated_p95_ms": round(percentile(saturated["lat"], 95), 1),
+        "server_cpu_ms_per_1000_events": round(1e6 * saturated["cpu_s"] / saturated["events"], 1),
+        "paced_server_cpu_ms_per_1000_events": round(1e6 * paced["cpu_s"] / paced["events"], 1),
         "posts": len(paced["lat"]) + len(saturated["lat"]),
         "events_sent": sent_total,
         "events_stored": stored,

@@ -64,6 +64,19 @@ class StudyServer:
                 time.sleep(0.1)
         raise RuntimeError("the study server did not start")
 
+    def cpu_seconds(self) -> float:
+        """CPU time (user + system, seconds) used so far by the server's processes (gunicorn and its workers, one
+        process group)."""
+        total, tick = 0.0, os.sysconf("SC_CLK_TCK")
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                fields = stat.read_text().rsplit(")", 1)[1].split()
+            except OSError:  # the process ended meanwhile
+                continue
+            if int(fields[2]) == self.proc.pid:  # fields from the state on: state, ppid, pgrp, …, utime, stime
+                total += (int(fields[11]) + int(fields[12])) / tick
+        return total
+
     def kill(self, sig: int = signal.SIGKILL) -> None:
         os.killpg(self.proc.pid, sig)
         self.proc.wait(timeout=30)

@@ -109,6 +109,9 @@ def fields_of(kind: str, version: int = VERSION) -> dict[str, Field]:
     return {**fields, "objects": STATES} if version >= 2 and kind in SCENE_CHANGES else fields
 
 
+_FIELDS = {(kind, version): fields_of(kind, version) for kind in VOCABULARY for version in VERSIONS}
+
+
 class EventError(ValueError):
     """A malformed event; ``field`` is a path such as ``events[3].payload.rank``."""
 
@@ -122,90 +125,146 @@ def text_problem(value: str) -> str | None:
     """Why a string cannot be stored as text (a lone surrogate is not Unicode; PostgreSQL refuses NUL), or None."""
     if "\x00" in value:
         return "must not contain NUL characters"
-    try:
-        value.encode("utf-8")
-    except UnicodeEncodeError:
-        return "must be valid Unicode (it contains a lone surrogate)"
+    if not value.isascii():
+        try:
+            value.encode("utf-8")
+        except UnicodeEncodeError:
+            return "must be valid Unicode (it contains a lone surrogate)"
     return None
 
 
-def _text(value, where: str, limit: int = MAX_TEXT) -> None:
+# Validation runs on every event a participant sends, so it is written for speed: checks return what is wrong
+# (or None), and the field's path is only spelled out for an event that is refused.
+class _Bad(Exception):
+    """What is wrong with a value, and where below the field being checked (``[3].transform``)."""
+
+    def __init__(self, message: str, below: str = ""):
+        self.message, self.below = message, below
+
+
+_NUMBER_TYPES = frozenset((int, float))
+_STR = frozenset((str,))
+_LENGTHS = {"size": 3, "vec3": 3, "matrix": 16}
+_NUMBERS_MESSAGE = {"size": "expected three numbers ≥ 0 (metres)", "vec3": "expected three finite numbers",
+                    "matrix": "expected 16 finite numbers (column-major)"}
+
+
+def _text(value, limit: int = MAX_TEXT) -> None:
     if not isinstance(value, str) or len(value) > limit:
-        raise EventError(f"expected a string of at most {limit} characters", where)
+        raise _Bad(f"expected a string of at most {limit} characters")
     problem = text_problem(value)
     if problem:
-        raise EventError(problem, where)
+        raise _Bad(problem)
+
+
+def _plain_texts(values: list) -> bool:
+    """Every item is an ASCII string without NUL of at most MAX_TEXT characters (checked in C, all at once)."""
+    if not values:
+        return True
+    if type(values[0]) is not str or not _STR.issuperset(map(type, values)):
+        return False
+    joined = "".join(values)
+    return joined.isascii() and "\x00" not in joined and max(map(len, values)) <= MAX_TEXT
 
 
 def _number(v) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    return type(v) in _NUMBER_TYPES and math.isfinite(v)
 
 
-def _check_states(value, where: str) -> None:
-    if not isinstance(value, list) or len(value) > MAX_LIST:
-        raise EventError(f"expected a list of at most {MAX_LIST} object states", where)
-    for i, state in enumerate(value):
-        at = f"{where}[{i}]"
-        if not isinstance(state, dict):
-            raise EventError("expected an object", at)
-        if "removed" in state:
-            if state["removed"] is not True or set(state) != {"id", "removed"}:
-                raise EventError('a removed object is {"id": …, "removed": true}', at)
-            _text(state.get("id"), f"{at}.id")
+def _numbers(v, n: int) -> bool:
+    """A list of ``n`` finite numbers (booleans are not numbers)."""
+    return type(v) is list and len(v) == n and _NUMBER_TYPES.issuperset(map(type, v)) and all(map(math.isfinite, v))
+
+
+_STATE_KEYS = frozenset(OBJECT_STATE)
+_STATE_TEXTS = tuple((k, nullable) for k, (kind, nullable) in OBJECT_STATE.items() if kind == "str")
+_STATE_NUMBERS = tuple((k, nullable, kind) for k, (kind, nullable) in OBJECT_STATE.items()
+                       if kind in _LENGTHS)
+
+
+def _check_state(state) -> None:
+    if type(state) is not dict:
+        raise _Bad("expected an object")
+    if "removed" in state:
+        if state["removed"] is not True or len(state) != 2 or "id" not in state:
+            raise _Bad('a removed object is {"id": …, "removed": true}')
+        try:
+            _text(state["id"])
+        except _Bad as e:
+            raise _Bad(e.message, ".id") from None
+        return
+    if state.keys() != _STATE_KEYS:
+        unknown = [k for k in state if k not in _STATE_KEYS]
+        if unknown:
+            raise _Bad("unknown field", f".{unknown[0]}")
+        raise _Bad("missing", f".{next(k for k in OBJECT_STATE if k not in state)}")
+    for key, nullable in _STATE_TEXTS:
+        v = state[key]
+        if v is None and nullable:
             continue
-        for key in state:
-            if key not in OBJECT_STATE:
-                raise EventError("unknown field", f"{at}.{key}")
-        for key, (kind, nullable) in OBJECT_STATE.items():
-            if key not in state:
-                raise EventError("missing", f"{at}.{key}")
-            v = state[key]
-            if v is None and nullable:
-                continue
-            if kind == "str":
-                _text(v, f"{at}.{key}")
-            elif kind == "face":
-                if v not in FACES:
-                    raise EventError(f"must be one of {', '.join(FACES)}", f"{at}.{key}")
-            elif not isinstance(v, list) or len(v) != {"size": 3, "vec3": 3, "matrix": 16}[kind] or \
-                    not all(_number(x) for x in v) or (kind == "size" and not all(x >= 0 for x in v)):
-                raise EventError({"size": "expected three numbers ≥ 0 (metres)", "vec3": "expected three finite "
-                                  "numbers", "matrix": "expected 16 finite numbers (column-major)"}[kind],
-                                 f"{at}.{key}")
+        try:
+            _text(v)
+        except _Bad as e:
+            raise _Bad(e.message, f".{key}") from None
+    face = state["attachment_face"]
+    if face is not None and face not in FACES:
+        raise _Bad(f"must be one of {', '.join(FACES)}", ".attachment_face")
+    for key, nullable, kind in _STATE_NUMBERS:
+        v = state[key]
+        if v is None and nullable:
+            continue
+        if not _numbers(v, _LENGTHS[kind]) or (kind == "size" and min(v) < 0):
+            raise _Bad(_NUMBERS_MESSAGE[kind], f".{key}")
 
 
-def _check_field(name: str, spec: Field, value, path: str) -> None:
-    where = f"{path}.{name}"
+def _check_states(value) -> None:
+    if type(value) is not list or len(value) > MAX_LIST:
+        raise _Bad(f"expected a list of at most {MAX_LIST} object states")
+    for i, state in enumerate(value):
+        try:
+            _check_state(state)
+        except _Bad as e:
+            raise _Bad(e.message, f"[{i}]{e.below}") from None
+
+
+def _check_field(spec: Field, value) -> None:
     if value is None:
         if spec.nullable:
             return
-        raise EventError("must not be null", where)
+        raise _Bad("must not be null")
     k = spec.kind
-    if k in ("str", "enum"):
-        _text(value, where)
+    if k == "str" or k == "enum":
+        _text(value)
         if k == "enum" and value not in spec.choices:
-            raise EventError(f"must be one of {', '.join(spec.choices)}", where)
+            raise _Bad(f"must be one of {', '.join(spec.choices)}")
     elif k == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise EventError("expected an integer", where)
+        if type(value) is not int:
+            raise _Bad("expected an integer")
     elif k == "num":
         if not _number(value):
-            raise EventError("expected a finite number", where)
+            raise _Bad("expected a finite number")
     elif k == "bool":
         if not isinstance(value, bool):
-            raise EventError("expected true or false", where)
+            raise _Bad("expected true or false")
     elif k == "vec3":
-        if not isinstance(value, list) or len(value) != 3 or not all(_number(v) for v in value):
-            raise EventError("expected three finite numbers", where)
+        if not _numbers(value, 3):
+            raise _Bad("expected three finite numbers")
     elif k == "states":
-        _check_states(value, where)
+        _check_states(value)
     elif k == "strs":
-        if not isinstance(value, list) or len(value) > MAX_LIST:
-            raise EventError(f"expected a list of at most {MAX_LIST} strings", where)
-        for i, v in enumerate(value):
-            _text(v, f"{where}[{i}]")
-    if spec.minimum is not None and k in ("int", "num") and value < spec.minimum:
-        raise EventError(f"must be at least {spec.minimum:g}", where)
+        if type(value) is not list or len(value) > MAX_LIST:
+            raise _Bad(f"expected a list of at most {MAX_LIST} strings")
+        if not _plain_texts(value):  # only then look at each string, to say which one is wrong
+            for i, v in enumerate(value):
+                try:
+                    _text(v)
+                except _Bad as e:
+                    raise _Bad(e.message, f"[{i}]") from None
+    if spec.minimum is not None and (k == "int" or k == "num") and value < spec.minimum:
+        raise _Bad(f"must be at least {spec.minimum:g}")
+
+
+_EVENT_KEYS = frozenset(("seq", "t", "type", "trial", "payload"))
 
 
 def validate_event(event, path: str = "event", version: int = VERSION) -> dict:
@@ -213,34 +272,37 @@ def validate_event(event, path: str = "event", version: int = VERSION) -> dict:
     null)."""
     if not isinstance(event, dict):
         raise EventError("expected an object", path)
-    unknown = set(event) - {"seq", "t", "type", "trial", "payload"}
-    if unknown:
-        raise EventError("unknown field", f"{path}.{sorted(unknown)[0]}")
+    if not _EVENT_KEYS.issuperset(event):
+        raise EventError("unknown field", f"{path}.{sorted(set(event) - _EVENT_KEYS)[0]}")
     seq = event.get("seq")
-    if isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq <= MAX_SEQ:
+    if type(seq) is not int or not 0 <= seq <= MAX_SEQ:
         raise EventError(f"expected an integer from 0 to {MAX_SEQ}", f"{path}.seq")
-    if not _number(event.get("t")):
+    t = event.get("t")
+    if not _number(t):
         raise EventError("expected a finite number (ms since the epoch)", f"{path}.t")
     kind = event.get("type")
     if kind not in VOCABULARY:
         raise EventError(f"unknown event type {kind!r}" if isinstance(kind, str) else "expected a string",
                          f"{path}.type")
     trial = event.get("trial")
-    if trial is not None and (isinstance(trial, bool) or not isinstance(trial, int) or not -1 <= trial < 1000):
+    if trial is not None and (type(trial) is not int or not -1 <= trial < 1000):
         raise EventError("expected a trial index or null", f"{path}.trial")
     payload = event.get("payload", {})
     if not isinstance(payload, dict):
         raise EventError("expected an object", f"{path}.payload")
-    fields = fields_of(kind, version)
+    fields = _FIELDS[kind, version]
     for name in payload:
         if name not in fields:
             raise EventError("unknown field", f"{path}.payload.{name}")
     for name, spec in fields.items():
         if name in payload:
-            _check_field(name, spec, payload[name], f"{path}.payload")
+            try:
+                _check_field(spec, payload[name])
+            except _Bad as e:
+                raise EventError(e.message, f"{path}.payload.{name}{e.below}") from None
         elif spec.required:
             raise EventError("missing", f"{path}.payload.{name}")
-    return {"seq": seq, "t": float(event["t"]), "type": kind, "trial": trial, "payload": payload}
+    return {"seq": seq, "t": float(t), "type": kind, "trial": trial, "payload": payload}
 
 
 def check_version(version) -> int:
@@ -258,7 +320,12 @@ def validate_batch(events, version: int = VERSION) -> list[dict]:
         raise EventError("expected a list of events", "events")
     if len(events) > MAX_BATCH:
         raise EventError(f"at most {MAX_BATCH} events per batch", "events")
-    out = [validate_event(e, f"events[{i}]", version) for i, e in enumerate(events)]
+    out = []
+    for i, e in enumerate(events):
+        try:
+            out.append(validate_event(e, "", version))
+        except EventError as error:  # the path of the event in the batch, spelled out only now
+            raise EventError(error.message, f"events[{i}]{error.field}") from None
     seqs = [e["seq"] for e in out]
     if len(set(seqs)) != len(seqs):
         raise EventError("the same seq appears twice in one batch", "events")

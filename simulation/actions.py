@@ -50,6 +50,12 @@ def turned(transform: list[float], normal, degrees: float, position) -> list[flo
     return m.T.reshape(-1).tolist()
 
 
+def _rounded(state: dict) -> dict:
+    """An object state with its numbers to 0.1 µm, as the browser logs them (scene-model.js ``stateJSON``)."""
+    return {k: [round(float(x), 7) for x in v] if k in ("size", "transform", "contact_point", "contact_normal")
+            and v is not None else v for k, v in state.items()}
+
+
 def words(category: str) -> str:
     """The search text a person would type for a category: ``DeskLamp`` → ``desk lamp``."""
     return re.sub(r"(?<=[a-z])(?=[A-Z])", " ", category).lower()
@@ -78,6 +84,7 @@ class Trial:
     def change(self, kind: str, payload: dict, states: list[dict]) -> None:
         """Apply ``states`` (objects as a scene file lists them, or ``{"id", "removed": True}``) to the scene and
         log the event that made them, carrying them."""
+        states = [s if s.get("removed") else _rounded(s) for s in states]
         for s in states:
             if s.get("removed"):
                 self.objects.pop(s["id"], None)

@@ -1,6 +1,6 @@
 """Event ingestion: batches stored all or nothing, idempotent by (participant, seq), never overwritten.
 
-Concurrency assumptions: a batch is one transaction of ``INSERT … ON CONFLICT DO NOTHING … RETURNING seq`` rows,
+Concurrency assumptions: a batch is one transaction of ``INSERT … ON CONFLICT DO NOTHING`` rows (one executemany),
 so a batch sent twice (a retry after a lost answer, a second tab, a reload replaying its outbox under a new
 page id) stores each event once, whichever copy wins; batches of one participant may arrive in any order and in
 parallel. A seq that is already stored with *different* content (type, trial, client time or payload) is a
@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import re
 
-from sqlalchemy import case, func, select, update
+from sqlalchemy import BigInteger, Integer, bindparam, case, func, select, update
 
 from scenesuggest.events import MAX_SEQ, EventError, check_version, validate_batch
 
@@ -23,6 +23,22 @@ from .models import Event, Participant, log, utcnow
 
 PAGE_ID_MAX = 64
 PAGE_ID = re.compile(rf"[A-Za-z0-9_.-]{{1,{PAGE_ID_MAX}}}")
+
+
+def _count_statement(quota: bool):
+    """The one UPDATE of a stored batch: acked seq, event and byte counters, last seen (and the quota check)."""
+    p = Participant.__table__.c
+    n, size, acked = bindparam("n", type_=Integer), bindparam("size", type_=BigInteger), bindparam("acked", Integer)
+    statement = update(Participant.__table__).where(p.id == bindparam("pid"))
+    if quota:
+        statement = statement.where(p.events_stored + n <= bindparam("max_events", type_=Integer),
+                                    p.bytes_stored + size <= bindparam("max_bytes", type_=BigInteger))
+    return statement.values(acked_seq=case((p.acked_seq < acked, acked), else_=p.acked_seq),
+                            events_stored=p.events_stored + n, bytes_stored=p.bytes_stored + size,
+                            last_seen_at=bindparam("now"))
+
+
+_COUNT, _COUNT_WITH_QUOTA = _count_statement(False), _count_statement(True)
 
 
 class Conflict(Exception):
@@ -37,10 +53,10 @@ class OverQuota(Exception):
     """The participant's event or byte quota is used up."""
 
 
-def insert_events(rows: list[dict]) -> set[int]:
-    """Insert the rows that are new; returns the seqs inserted."""
-    statement = insert_ignore(Event, ["participant_id", "seq"]).returning(Event.seq)
-    return set(db.session.scalars(statement, rows))
+def insert_events(rows: list[dict]) -> int:
+    """Insert the rows that are new; returns how many were. One executemany of a Core insert into the table (the
+    ORM's bulk path, and RETURNING, cost more than the database here; nothing needs the rows as objects)."""
+    return db.session.execute(insert_ignore(Event.__table__, ["participant_id", "seq"]), rows).rowcount
 
 
 def _same(stored: Event, e: dict) -> bool:
@@ -48,12 +64,10 @@ def _same(stored: Event, e: dict) -> bool:
             and stored.payload == e["payload"])
 
 
-def _conflicts(participant_id: int, batch: list[dict], inserted: set[int]) -> list[int]:
-    """Positions of batch events whose seq was already stored with other content, and that are not stored
-    under another seq either (a copy renumbered by another tab counts as stored)."""
-    rest = {e["seq"]: i for i, e in enumerate(batch) if e["seq"] not in inserted}
-    if not rest:
-        return []
+def _conflicts(participant_id: int, batch: list[dict]) -> list[int]:
+    """Positions of batch events whose seq is stored with other content, and that are not stored under another
+    seq either (a copy renumbered by another tab counts as stored)."""
+    rest = {e["seq"]: i for i, e in enumerate(batch)}
     stored = db.session.scalars(select(Event).where(Event.participant_id == participant_id,
                                                     Event.seq.in_(list(rest))))
     differing = sorted(rest[s.seq] for s in stored if not _same(s, batch[rest[s.seq]]))
@@ -67,6 +81,12 @@ def _conflicts(participant_id: int, batch: list[dict], inserted: set[int]) -> li
 
 def contiguous_seq(participant_id: int, start: int) -> int:
     """The highest seq s ≥ start−1 such that every event from ``start`` to s is stored."""
+    count, top = db.session.execute(select(func.count(), func.max(Event.seq)).where(
+        Event.participant_id == participant_id, Event.seq >= start)).one()
+    if not count:
+        return start - 1
+    if top - start + 1 == count:  # no gap: the usual case, answered without reading every seq
+        return top
     seqs = db.session.scalars(select(Event.seq).where(Event.participant_id == participant_id, Event.seq >= start)
                               .order_by(Event.seq))
     last = start - 1
@@ -89,36 +109,34 @@ def store(participant: Participant, page_id: str, events: list, quota: tuple[int
         raise EventError(f"expected 1 to {PAGE_ID_MAX} letters, digits, '.', '_' or '-'", "page_id")
     version = check_version(vocabulary)
     batch = validate_batch(events, version)
-    now = utcnow()
+    now, pid, before = utcnow(), participant.id, participant.acked_seq
     if batch:
-        rows = [{"participant_id": participant.id, "seq": e["seq"], "page_id": page_id, "type": e["type"],
+        rows = [{"participant_id": pid, "seq": e["seq"], "page_id": page_id, "type": e["type"],
                  "trial": e["trial"], "client_t": e["t"], "server_t": now, "payload": e["payload"],
                  "vocabulary": version} for e in batch]
         inserted = insert_events(rows)
-        if len(inserted) < len(batch):
-            positions = _conflicts(participant.id, batch, inserted)
+        if inserted < len(batch):  # some seqs were stored before: the same events (a resend), or others
+            positions = _conflicts(pid, batch)
             if positions:
                 _refuse_conflict(participant, page_id, batch, positions)
         if nbytes is None:
             nbytes = sum(len(json.dumps(e["payload"])) for e in batch)
-        size = nbytes * len(inserted) // len(batch)
+        size = nbytes * inserted // len(batch)
     else:
-        inserted, size = set(), 0
-    acked = contiguous_seq(participant.id, participant.acked_seq + 1)
+        inserted, size = 0, 0
+    acked = contiguous_seq(pid, before + 1)
     # one statement: acked_seq only ever moves forwards (a slower parallel batch may commit after a faster one);
     # the quota is checked on the row as it is now, so parallel batches cannot each slip under it
-    where = [Participant.id == participant.id]
-    if quota is not None and inserted:
-        where += [Participant.events_stored + len(inserted) <= quota[0], Participant.bytes_stored + size <= quota[1]]
-    counted = db.session.execute(update(Participant).where(*where).values(
-        acked_seq=case((Participant.acked_seq < acked, acked), else_=Participant.acked_seq),
-        events_stored=Participant.events_stored + len(inserted), bytes_stored=Participant.bytes_stored + size,
-        last_seen_at=now))
+    limited = quota is not None and inserted > 0
+    values = {"pid": pid, "acked": acked, "n": inserted, "size": size, "now": now}
+    if limited:
+        values |= {"max_events": quota[0], "max_bytes": quota[1]}
+    counted = db.session.execute(_COUNT_WITH_QUOTA if limited else _COUNT, values)
     if counted.rowcount != 1:
         db.session.rollback()
         raise OverQuota()
     db.session.commit()
-    return participant.acked_seq  # reloaded after the commit
+    return max(before, acked)  # at least: a parallel batch may have moved it further
 
 
 def _refuse_conflict(participant: Participant, page_id: str, batch: list[dict], positions: list[int]):

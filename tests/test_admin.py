@@ -138,3 +138,35 @@ def test_every_admin_form_needs_its_csrf_token(admin_app):
         r = c.post(path, data={"reason": "x", "password": PASSWORD})
         assert r.status_code == 400, (path, r.status_code)
     assert c.get("/admin/").status_code == 200  # still logged in: nothing was done without the token
+
+
+def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(admin_app):
+    """The replay's data: the trial so far, the scene after each event (from the server's replay), the models to
+    draw; events of vocabulary 1 give the events without scenes and say why; admins only."""
+    from test_replay import insert, obj
+
+    participant = admin_app.test_client()
+    b = to_trials(participant)
+    rt = admin_app.extensions["studies"]["demo"]
+    table = next(o for o in rt.scene(b["trial"]["scene"], "target")["objects"] if o["category"] == "DiningTable")
+    events = [{**insert(0, table), "trial": -1}, {**insert(1, obj("plate", 0.1, parent=table["id"],
+                                                                model=table["model_id"])), "trial": -1}]
+    assert participant.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2,
+                                                                  "events": events}).status_code == 200
+    with admin_app.app_context():
+        pid = db.session.query(Participant).one().id
+    path = f"/admin/demo/participants/{pid}/trials/-1/replay.json"
+    assert participant.get(path).status_code == 302  # not an admin
+    c = admin_app.test_client()
+    login(c)
+    doc = c.get(path).json
+    assert doc["trial"]["done"] is False and doc["problem"] is None and len(doc["events"]) == 2
+    assert [len(doc["scenes"][e["scene"]]) for e in doc["events"]] == [2, 3]  # the room, then one more each
+    assert {m["id"] for m in doc["models"]} >= {table["model_id"]}
+    assert c.get(f"/admin/demo/participants/{pid}/trials/-1/replay").status_code == 200
+    assert c.get(f"/admin/demo/participants/{pid}/trials/7/replay.json").status_code == 200
+    assert c.get(f"/admin/demo/participants/{pid}/trials/42/replay.json").status_code == 404
+    old = {"seq": 2, "t": 1.7e12, "type": "delete", "trial": -1, "payload": {"object": "plate"}}
+    assert participant.post("/api/events", headers=auth(b), json={"page_id": "p", "events": [old]}).status_code == 200
+    doc = c.get(path).json
+    assert "cannot be replayed" in doc["problem"] and len(doc["events"]) == 3 and len(doc["scenes"]) == 1

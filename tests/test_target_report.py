@@ -9,6 +9,7 @@ from conftest import make_app
 
 from analysis.load import read_export
 from analysis.report import build_report
+from scenesuggest.events import SCENE_CHANGES
 from simulation.run import simulate
 from study_server.export import export_to
 from study_server.extensions import db
@@ -66,7 +67,8 @@ def test_a_database_written_before_events_carried_states_still_exports_and_analy
     simulate(2, seed=2, study="demo", app=app)
     with app.app_context():
         downgrade(directory=str(MIGRATIONS), revision="8e0bab6dcada")
-        for id_, payload in db.session.execute(text("SELECT id, payload FROM events")).all():
+        for id_, payload in db.session.execute(text("SELECT id, payload FROM events WHERE type IN "
+                                                    f"{tuple(SCENE_CHANGES)}")).all():
             old = {k: v for k, v in json.loads(payload).items() if k != "objects"}
             db.session.execute(text("UPDATE events SET payload = :p WHERE id = :i"), {"p": json.dumps(old), "i": id_})
         db.session.commit()
