@@ -6,9 +6,6 @@ Paths inside a study file are relative to the file. See ``study_server/demo/stud
 from __future__ import annotations
 
 import hashlib
-import math
-import re
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +14,9 @@ from scenesuggest.suggest import EngineOptions
 
 from . import schedule
 from .config import data_home
+from .toml_reader import Reader, StudyFileError, parse
+
+__all__ = ["Condition", "Question", "Study", "StudyFileError", "TargetScene", "load_study"]
 
 CONDITIONS = ("none", "basic", "full")
 DESIGNS = ("williams", "random", "fixed")
@@ -26,10 +26,6 @@ CODES = ("complete", "no_consent", "screened_out", "technical")
 QUESTION_KINDS = ("likert", "choice", "number", "text")
 ENGINE_OPTIONS = ("lambda1", "lambda2", "backoff", "orientation", "collision_aware", "collision_penalty",
                   "anchor_refinement", "refine_radius_m", "infer_scene_type")
-
-
-class StudyFileError(SceneSuggestError):
-    pass
 
 
 @dataclass(frozen=True)
@@ -120,60 +116,7 @@ class Study:
                              [list(p) for p in self.periods], row, seed, self.practice)
 
 
-class _Reader:
-    def __init__(self, file: Path):
-        self.file = str(file)
-
-    def fail(self, key: str, message: str) -> StudyFileError:
-        return StudyFileError(message, file=self.file, field=key)
-
-    def table(self, doc: dict, key: str, path: str, required: bool = True) -> dict:
-        v = doc.get(key)
-        if v is None and not required:
-            return {}
-        if not isinstance(v, dict):
-            raise self.fail(path, "missing table" if v is None else "expected a table")
-        return v
-
-    def tables(self, doc: dict, key: str, path: str, required: bool = True) -> list[dict]:
-        v = doc.get(key)
-        if v is None and not required:
-            return []
-        if not isinstance(v, list) or not v or not all(isinstance(t, dict) for t in v):
-            raise self.fail(path, "expected one or more [[" + key + "]] tables")
-        return v
-
-    def string(self, doc: dict, key: str, path: str, default: str | None = None) -> str:
-        v = doc.get(key, default)
-        if not isinstance(v, str) or not v.strip():
-            raise self.fail(path, "missing" if key not in doc else "expected a non-empty string")
-        return v
-
-    def number(self, doc: dict, key: str, path: str, default=None, minimum: float = 0.0) -> float:
-        v = doc.get(key, default)
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < minimum:
-            raise self.fail(path, f"expected a finite number ≥ {minimum:g}" if key in doc else "missing")
-        return float(v)
-
-    def boolean(self, doc: dict, key: str, path: str, default: bool) -> bool:
-        v = doc.get(key, default)
-        if not isinstance(v, bool):
-            raise self.fail(path, "expected true or false")
-        return v
-
-    def choice(self, doc: dict, key: str, path: str, allowed, default: str | None = None) -> str:
-        v = doc.get(key, default)
-        if v not in allowed:
-            raise self.fail(path, f"{v!r} is not one of {', '.join(allowed)}")
-        return v
-
-    def unknown(self, doc: dict, allowed, path: str) -> None:
-        for key in doc:
-            if key not in allowed:
-                raise self.fail(f"{path}.{key}" if path else key, "unknown key")
-
-
-def _questions(r: _Reader, items: list[dict], path: str) -> tuple[Question, ...]:
+def _questions(r: Reader, items: list[dict], path: str) -> tuple[Question, ...]:
     out, seen = [], set()
     for i, q in enumerate(items):
         p = f"{path}[{i}]"
@@ -197,7 +140,7 @@ def _questions(r: _Reader, items: list[dict], path: str) -> tuple[Question, ...]
     return tuple(out)
 
 
-def _engine(r: _Reader, doc: dict, path: str) -> EngineOptions:
+def _engine(r: Reader, doc: dict, path: str) -> EngineOptions:
     r.unknown(doc, ENGINE_OPTIONS, path)
     try:
         return EngineOptions(**doc)
@@ -207,22 +150,7 @@ def _engine(r: _Reader, doc: dict, path: str) -> EngineOptions:
         raise r.fail(path, str(e)) from None
 
 
-def _parse(path: Path) -> tuple[bytes, dict]:
-    """The file's bytes and its TOML document (errors give the line)."""
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        raise StudyFileError(f"cannot read: {e}", file=str(path)) from None
-    try:
-        return data, tomllib.loads(data.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        where = re.search(r"\(at line (\d+), column (\d+)\)", str(e))
-        message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(e))
-        raise StudyFileError(f"not valid TOML: {message}" + (f" (column {where.group(2)})" if where else ""),
-                             file=str(path), line=int(where.group(1)) if where else None) from None
-
-
-def _conditions(r: _Reader, doc: dict) -> list[Condition]:
+def _conditions(r: Reader, doc: dict) -> list[Condition]:
     conditions: list[Condition] = []
     for i, c in enumerate(r.tables(doc, "conditions", "conditions")):
         p = f"conditions[{i}]"
@@ -235,7 +163,7 @@ def _conditions(r: _Reader, doc: dict) -> list[Condition]:
     return conditions
 
 
-def _scenes(r: _Reader, doc: dict, base: Path) -> dict[str, TargetScene]:
+def _scenes(r: Reader, doc: dict, base: Path) -> dict[str, TargetScene]:
     scenes = {}
     for i, s in enumerate(r.tables(doc, "scenes", "scenes")):
         p = f"scenes[{i}]"
@@ -251,7 +179,7 @@ def _scenes(r: _Reader, doc: dict, base: Path) -> dict[str, TargetScene]:
     return scenes
 
 
-def _periods(r: _Reader, doc: dict, scenes: dict) -> list[tuple[str, ...]]:
+def _periods(r: Reader, doc: dict, scenes: dict) -> list[tuple[str, ...]]:
     periods = []
     for i, per in enumerate(r.tables(doc, "periods", "periods")):
         p = f"periods[{i}]"
@@ -268,7 +196,7 @@ def _periods(r: _Reader, doc: dict, scenes: dict) -> list[tuple[str, ...]]:
     return periods
 
 
-def _practice(r: _Reader, doc: dict, scenes: dict, conditions: list[Condition]) -> tuple[str, str] | None:
+def _practice(r: Reader, doc: dict, scenes: dict, conditions: list[Condition]) -> tuple[str, str] | None:
     practice_doc = r.table(doc, "practice", "practice", required=False)
     if not practice_doc:
         return None
@@ -279,7 +207,7 @@ def _practice(r: _Reader, doc: dict, scenes: dict, conditions: list[Condition]) 
     return sid, r.choice(practice_doc, "condition", "practice.condition", [c.id for c in conditions])
 
 
-def _platform(r: _Reader, doc: dict) -> dict:
+def _platform(r: Reader, doc: dict) -> dict:
     platform = r.table(doc, "platform", "platform")
     r.unknown(platform, ("kind", "codes", "completion_url", "study_id"), "platform")
     codes_doc = r.table(platform, "codes", "platform.codes")
@@ -294,7 +222,7 @@ def _platform(r: _Reader, doc: dict) -> dict:
             else None}
 
 
-def _texts(r: _Reader, doc: dict) -> dict:
+def _texts(r: Reader, doc: dict) -> dict:
     """Consent, instructions and surveys."""
     consent = r.table(doc, "consent", "consent")
     r.unknown(consent, ("version", "text"), "consent")
@@ -313,7 +241,7 @@ LIMITS = ("trial_minutes", "session_minutes", "stale_after_minutes", "min_object
           "min_target_score", "arrivals_per_address_per_hour", "max_events_per_participant", "max_mb_per_participant")
 
 
-def _score(r: _Reader, limits: dict) -> float | None:
+def _score(r: Reader, limits: dict) -> float | None:
     """``min_target_score``: trials whose scene comes less close to the target are flagged (none when absent)."""
     if "min_target_score" not in limits:
         return None
@@ -323,7 +251,7 @@ def _score(r: _Reader, limits: dict) -> float | None:
     return value
 
 
-def _limits(r: _Reader, doc: dict) -> dict:
+def _limits(r: Reader, doc: dict) -> dict:
     """Time limits, the minimum work of a trial, quotas, and the device check."""
     limits = r.table(doc, "limits", "limits", required=False)
     r.unknown(limits, LIMITS, "limits")
@@ -352,7 +280,7 @@ def _limits(r: _Reader, doc: dict) -> dict:
 SERVER_BUILT_CORPORA = ("ai2thor",)
 
 
-def _resources(r: _Reader, doc: dict, base: Path) -> dict:
+def _resources(r: Reader, doc: dict, base: Path) -> dict:
     """The corpus, and the priors file and model library: both named (paths relative to the study file), or
     neither, for a corpus the server builds them for itself (``priors/<corpus>.npz`` and ``library/<corpus>``
     in its data folder, :func:`.config.data_home`; ``scenesuggest study prepare`` builds them)."""
@@ -379,8 +307,8 @@ def _resources(r: _Reader, doc: dict, base: Path) -> dict:
 def load_study(path: str | Path) -> Study:
     """Read and validate a study file; every problem names its key."""
     path = Path(path).resolve()
-    data, doc = _parse(path)
-    r = _Reader(path)
+    data, doc = parse(path)
+    r = Reader(path)
     base = path.parent
     r.unknown(doc, ("id", "title", "description", "resources", "design", "conditions", "scenes", "periods",
                     "practice", "platform", "consent", "instructions", "demographics", "exit_survey", "limits",
