@@ -164,7 +164,8 @@ def _readme(data, summary, tables, figure_files, out, conditions) -> str:
              f"{summary['seed']}.", "", "## Exclusions and notes", ""]
     lines += [f"- {n}" for n in summary["notes"]] or ["- none"]
     lines += ["", "## Measures", ""] + [f"- `{k}`: {v}" for k, v in TRIAL_MEASURES.items()]
-    lines += ["- MRR: mean of 1 / rank over every pick with a rank (fixed list, search results or suggestions).",
+    lines += ["- MRR: mean of 1 / rank over every final pick with a rank (fixed list, search results or "
+              "suggestions); a pick replaced in place by another (`final` false in `picks.csv`) does not count.",
               f"- `score` (how close to the target): {FORMULA}.",
               "", "## Tables", ""]
     for table in tables:

@@ -168,12 +168,20 @@ def _plain_texts(values: list) -> bool:
 
 
 def _number(v) -> bool:
-    return type(v) in _NUMBER_TYPES and math.isfinite(v)
+    """A finite number (booleans are not numbers; nor is an integer too large for a float)."""
+    try:
+        return type(v) in _NUMBER_TYPES and math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 def _numbers(v, n: int) -> bool:
-    """A list of ``n`` finite numbers (booleans are not numbers)."""
-    return type(v) is list and len(v) == n and _NUMBER_TYPES.issuperset(map(type, v)) and all(map(math.isfinite, v))
+    """A list of ``n`` finite numbers (as :func:`_number`)."""
+    try:
+        return (type(v) is list and len(v) == n and _NUMBER_TYPES.issuperset(map(type, v))
+                and all(map(math.isfinite, v)))
+    except OverflowError:
+        return False
 
 
 _STATE_KEYS = frozenset(OBJECT_STATE)
@@ -309,7 +317,7 @@ def check_version(version) -> int:
     """A batch's ``vocabulary`` (absent: 1, what pages of the first version sent)."""
     if version is None:
         return 1
-    if isinstance(version, bool) or version not in VERSIONS:
+    if type(version) is not int or version not in VERSIONS:  # 2.0 is not a version
         raise EventError(f"must be one of {', '.join(map(str, VERSIONS))}", "vocabulary")
     return version
 

@@ -19,8 +19,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from .events import SCENE_CHANGES
 
 Scene = dict[str, dict]
-#: Numbers of two scenes that differ by no more than this are the same (the client rounds nothing, JSON keeps
-#: 17 significant digits; this absorbs float noise of a transform composed twice, metres).
+#: Numbers of two scenes that differ by no more than this are the same (the client rounds states to 1e-7,
+#: JSON keeps 17 significant digits; this absorbs float noise of a transform composed twice, metres).
 TOLERANCE = 1e-6
 
 
@@ -33,19 +33,31 @@ def start_scene(objects: Iterable[dict]) -> Scene:
     return {o["id"]: o for o in objects}
 
 
-def apply(scene: Scene, event: Mapping) -> Scene:
-    """The scene after ``event``: the same scene for an event that changes nothing, else a new one."""
+def _states(event: Mapping) -> list[dict] | None:
+    """The object states an event carries (None: it changes nothing)."""
     if event["type"] not in SCENE_CHANGES:
-        return scene
+        return None
     states = event["payload"].get("objects")
     if states is None:
         raise ReplayUnavailable(f"a {event['type']} event without object states (vocabulary 1)")
-    after = dict(scene)
+    return states
+
+
+def _put(scene: Scene, states: list[dict]) -> None:
     for state in states:
         if state.get("removed"):
-            after.pop(state["id"], None)
+            scene.pop(state["id"], None)
         else:
-            after[state["id"]] = state
+            scene[state["id"]] = state
+
+
+def apply(scene: Scene, event: Mapping) -> Scene:
+    """The scene after ``event``: the same scene for an event that changes nothing, else a new one."""
+    states = _states(event)
+    if states is None:
+        return scene
+    after = dict(scene)
+    _put(after, states)
     return after
 
 
@@ -60,14 +72,26 @@ def replay(start: Iterable[dict] | Scene, events: Iterable[Mapping]) -> list[Sce
 
 
 def final_scene(start: Iterable[dict] | Scene, events: Iterable[Mapping]) -> Scene:
-    """The scene after the last event (the start scene when there is none)."""
-    scenes = replay(start, events)
-    return scenes[-1] if scenes else (dict(start) if isinstance(start, Mapping) else start_scene(start))
+    """The scene after the last event (the start scene when there is none): one scene changed in place, so time
+    and memory grow with the events' states, not with events × objects as :func:`replay`'s do."""
+    scene = dict(start) if isinstance(start, Mapping) else start_scene(start)
+    for event in events:
+        states = _states(event)
+        if states is not None:
+            _put(scene, states)
+    return scene
 
 
 def scene_at(start: Iterable[dict] | Scene, events: Sequence[Mapping], t: float) -> Scene:
-    """The scene at client time ``t`` (ms): after the last event at or before it."""
-    return final_scene(start, [e for e in events if e["t"] <= t])
+    """The scene at client time ``t`` (ms): after the events, in seq order, up to the first that the clock puts
+    after ``t`` (a clock that stepped back after a reload never reorders events)."""
+    upto, latest = 0, -math.inf
+    for i, e in enumerate(events):
+        latest = max(latest, e["t"])
+        if latest > t:
+            break
+        upto = i + 1
+    return final_scene(start, events[:upto])
 
 
 def differences(replayed: Scene, submitted: Iterable[dict], tolerance: float = TOLERANCE) -> list[str]:

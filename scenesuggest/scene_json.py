@@ -76,6 +76,14 @@ def save(scene: Scene, path: str | Path) -> None:
     write_atomically(path, dumps(scene).encode("utf-8"))
 
 
+def finite(x) -> bool:
+    """A JSON number a float holds, finite (booleans are not numbers; an integer too large for a float is not)."""
+    try:
+        return not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x)
+    except OverflowError:
+        return False
+
+
 class _Reader:
     """Validates one parsed document, raising errors that name file, line and field."""
 
@@ -102,8 +110,8 @@ class _Reader:
         if not isinstance(v, list) or len(v) != n:
             raise self.fail(f"expected a list of {n} numbers" if key in obj else "missing", obj, key)
         for x in v:
-            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
-                raise self.fail(f"bad number {x!r}", obj, key)
+            if not finite(x):
+                raise self.fail(f"bad number {x!r:.40}", obj, key)
         return tuple(float(x) for x in v)
 
     def choice(self, obj: dict, key: str, allowed) -> str | None:
@@ -159,7 +167,7 @@ class _Reader:
             for key, n in _WALL_KEYS.items():
                 if n == 1:
                     v = w.get(key)
-                    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                    if not finite(v):
                         raise self.fail("expected a number" if key in w else "missing", w, key)
                     values[key] = float(v)
                 else:

@@ -37,8 +37,9 @@ BACKOFF_CREDIT = 0.5
 #: How the assignment weighs category agreement against distance: a category step outweighs any distance.
 _CATEGORY_COST_M = 1000.0
 FORMULA = (f"score = Σ q / (target objects + extra objects); per matched pair q = category credit (1 same "
-           f"category, {BACKOFF_CREDIT} a category sharing the taxonomy parent) × position credit (1 within "
-           f"{POSITION_FULL_M * 100:g} cm, falling linearly to 0 at {POSITION_NONE_M * 100:g} cm) × orientation "
+           f"category, {BACKOFF_CREDIT} a category sharing its taxonomy parent, or its parent or child) × position "
+           f"credit (1 within {POSITION_FULL_M * 100:g} cm, falling linearly to 0 at {POSITION_NONE_M * 100:g} "
+           "cm) × orientation "
            f"credit (1 within {ORIENTATION_FULL_DEG:g}°, falling linearly to 0 at {ORIENTATION_NONE_DEG:g}°, the "
            "angle folded by the model's rotational symmetry); objects matched one to one by category, then by "
            "distance (Hungarian)")

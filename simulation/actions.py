@@ -139,7 +139,8 @@ class Trial:
         self.spend(M + P + B + P + B)  # "done", then confirm
         self.event("trial_done", {"objects": len(self.objects) - len(present)})
         self.flush()
-        self.api("POST", "/trial/done", {"trial": index, "scene": {"objects": self.scene_list()}})
+        self.api("POST", "/trial/done", {"trial": index, "scene": {"objects": self.scene_list()},
+                                         "last_seq": self.who.seq - 1})
         return self.clock.elapsed
 
     def reopen(self) -> None:

@@ -235,10 +235,22 @@ def check_work(p: Participant, study: Study) -> list[str]:
             why.append(f"{placed} object(s) placed < {study.min_objects_placed}")
         if seconds < study.min_trial_seconds:
             why.append(f"{seconds:.0f} s of events < {study.min_trial_seconds:g} s" if n else "no events")
+        below = below_target(study, t)
+        if below:
+            why.append(below)
         t.review = ", ".join(why) or None
         if why:
             reasons.append(f"trial {t.index}: {t.review}")
     return reasons
+
+
+def below_target(study: Study, t: Trial) -> str | None:
+    """Why a scored trial is flagged for review under the study's ``[limits] min_target_score`` (None: it is
+    not). Flag only: the participant is never told or held back."""
+    least = study.min_target_score
+    if least is None or t.kind != "trial" or t.score is None or t.score >= least:
+        return None
+    return f"scene {t.score:.2f} close to the target < {least:g}"
 
 
 def completion_url(study: Study, p: Participant) -> str | None:

@@ -11,6 +11,7 @@ seq up to which every event is stored (``acked_seq``): the client may forget eve
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 
@@ -55,8 +56,28 @@ class OverQuota(Exception):
 
 def insert_events(rows: list[dict]) -> int:
     """Insert the rows that are new; returns how many were. One executemany of a Core insert into the table (the
-    ORM's bulk path, and RETURNING, cost more than the database here; nothing needs the rows as objects)."""
-    return db.session.execute(insert_ignore(Event.__table__, ["participant_id", "seq"]), rows).rowcount
+    ORM's bulk path, and RETURNING, cost more than the database here; nothing needs the rows as objects). On
+    SQLite the statement is compiled once and its parameters made by the columns' own bind processors, straight
+    to the driver: the same rows, without the per-row work of a general execute (a third of the insert's CPU)."""
+    bind = db.session.get_bind()
+    if bind.dialect.name != "sqlite":  # PostgreSQL: the dialect's own batching of many rows
+        return db.session.execute(insert_ignore(Event.__table__, ["participant_id", "seq"]), rows).rowcount
+    sql, columns = _sqlite_insert(bind.dialect)
+    params = [tuple(r[c] if p is None else p(r[c]) for c, p in columns) for r in rows]
+    return db.session.connection().exec_driver_sql(sql, params).rowcount
+
+
+@functools.lru_cache(maxsize=8)
+def _sqlite_insert(dialect) -> tuple[str, tuple]:
+    """The events insert compiled for SQLite: its SQL and, in parameter order, (column, bind processor)."""
+    from sqlalchemy.dialects.sqlite import insert
+
+    table = Event.__table__
+    names = ("participant_id", "seq", "page_id", "type", "trial", "client_t", "server_t", "payload", "vocabulary")
+    compiled = insert(table).values({n: bindparam(n) for n in names}).on_conflict_do_nothing(
+        index_elements=["participant_id", "seq"]).compile(dialect=dialect)
+    return compiled.string, tuple((n, table.c[n].type.dialect_impl(dialect).bind_processor(dialect))
+                                  for n in compiled.positiontup)
 
 
 def _same(stored: Event, e: dict) -> bool:

@@ -103,7 +103,8 @@ class Event(db.Model):
     __tablename__ = "events"
     __table_args__ = (UniqueConstraint("participant_id", "seq", name="uq_event_seq"),)
     id: Mapped[int] = mapped_column(BigId, primary_key=True)
-    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), index=True)
+    #: Looked up through uq_event_seq, whose leading column it is (no index of its own).
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"))
     seq: Mapped[int] = mapped_column(Integer)
     page_id: Mapped[str] = mapped_column(String(64))
     type: Mapped[str] = mapped_column(String(32))

@@ -6,11 +6,14 @@ from __future__ import annotations
 from flask import url_for
 from sqlalchemy import select
 
-from scenesuggest.replay import ReplayUnavailable, replay
+from scenesuggest.replay import ReplayUnavailable, apply, start_scene
 
 from .extensions import db
 from .models import Event, Trial
 from .studies import StudyRuntime
+
+#: The most object states a replay page carries (every scene in full, one per change): a bound on its size.
+MAX_SHOWN_STATES = 200_000
 
 
 def trial_events(participant_id: int, index: int) -> list[dict]:
@@ -53,16 +56,23 @@ def replay_document(rt: StudyRuntime, t: Trial) -> dict:
                      "scene": t.scene_id, "title": rt.study.scenes[t.scene_id].title,
                      "done": t.done_at is not None, "replay": t.replay, "score": t.score},
            "target": rt.scene(t.scene_id, "target")["objects"], "scenes": [start], "events": [], "problem": None}
-    try:
-        scenes = replay(start, events)
-    except ReplayUnavailable as e:
-        doc["problem"] = f"this trial cannot be replayed: {e}"
-        scenes = [None] * len(events)
-    previous = None
-    for e, scene in zip(events, scenes, strict=True):
-        if scene is not None and scene is not previous:
-            doc["scenes"].append(list(scene.values()))
-            previous = scene
+    scene, shown = start_scene(start), len(start)
+    for e in events:
+        if doc["problem"] is None:
+            try:
+                after = apply(scene, e)
+            except ReplayUnavailable as problem:
+                doc["problem"] = f"this trial cannot be replayed from seq {e['seq']} on: {problem}"
+            else:
+                if after is not scene:
+                    shown += len(after)
+                    if shown > MAX_SHOWN_STATES:
+                        doc["problem"] = (f"this trial changed its scene too often to show every step here (more "
+                                          f"than {MAX_SHOWN_STATES} object states); the steps stop at seq "
+                                          f"{e['seq']}")
+                    else:
+                        doc["scenes"].append(list(after.values()))
+                        scene = after
         doc["events"].append({"seq": e["seq"], "t": e["t"], "type": e["type"], "label": label(e),
                               "scene": len(doc["scenes"]) - 1})
     used = {o["model_id"] for s in doc["scenes"] for o in s} | {o["model_id"] for o in doc["target"]}

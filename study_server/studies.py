@@ -129,11 +129,14 @@ class StudyRuntime:
         """The model's rotational symmetry period (degrees about its up axis; 360: none), measured on its asset
         once (and cached on disk, :mod:`scenesuggest.symmetry`)."""
         with self._lock:
-            if model_id not in self._periods:
-                model = self.library.get(model_id) if (self.study.library / INDEX_FILE).is_file() else None
-                found = corpus_periods([model], base=self.study.library) if model else None
-                self._periods[model_id] = found.of(model_id, model.category)[0] if found else NONE
-            return self._periods[model_id]
+            known = self._periods.get(model_id)
+        if known is None:  # measured outside the lock, which suggestions wait on (twice at worst, alike)
+            model = self.library.get(model_id) if (self.study.library / INDEX_FILE).is_file() else None
+            found = corpus_periods([model], base=self.study.library) if model else None
+            known = found.of(model_id, model.category)[0] if found else NONE
+            with self._lock:
+                self._periods[model_id] = known
+        return known
 
     def scene(self, scene_id: str, which: str = "target") -> dict:
         """A target (or start) scene as native JSON; the start defaults to the target's room alone."""

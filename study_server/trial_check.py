@@ -5,15 +5,22 @@ for review."""
 
 from __future__ import annotations
 
+import re
+
+from flask import current_app
+
 from scenesuggest.replay import ReplayUnavailable, differences, final_scene
 from scenesuggest.scoring import Closeness, closeness
 
-from .models import Trial
+from .flow import below_target, trials
+from .models import Participant, Trial
 from .replays import trial_events
 from .studies import StudyRuntime
 
 #: How many differences a mismatch names.
 SHOWN = 3
+#: How a check waiting for the trial's last events begins (then the seq it waits for).
+PENDING = "pending: events up to seq"
 
 
 def replay_check(rt: StudyRuntime, t: Trial, events: list[dict]) -> str:
@@ -36,14 +43,31 @@ def target_closeness(rt: StudyRuntime, scene_id: str, objects: list[dict]) -> Cl
     return closeness(objects, rt.scene(scene_id, "target")["objects"], start, rt.taxonomy.parent, rt.period_of)
 
 
-def check_trial(rt: StudyRuntime, t: Trial) -> None:
-    """Record on a trial just done whether its events rebuild its final scene, and its score; below the study's
-    ``min_target_score`` the trial is flagged for review. The caller commits."""
-    t.replay = replay_check(rt, t, trial_events(t.participant_id, t.index))
-    if t.final_scene is None:
+def check_trial(rt: StudyRuntime, p: Participant, t: Trial, last_seq: int | None = None) -> None:
+    """Record on ``p``'s trial just done whether its events rebuild its final scene, and its score; below the study's
+    ``min_target_score`` the trial is flagged for review. While the server lacks events up to ``last_seq`` (the
+    last the page logged) the check is ``pending`` and :func:`settle` makes it later. A check that fails is
+    recorded as unavailable and logged: the participant goes on. The caller commits."""
+    try:
+        if last_seq is not None and p.acked_seq < last_seq:
+            t.replay = f"{PENDING} {last_seq} not stored yet"
+        else:
+            t.replay = replay_check(rt, t, trial_events(t.participant_id, t.index))
+        if t.final_scene is None:
+            return
+        t.score = target_closeness(rt, t.scene_id, t.final_scene["objects"]).score
+    except Exception as e:  # noqa: BLE001 - a participant is never held up by the experimenter's check
+        current_app.logger.exception("checking trial %s of participant %s", t.index, t.participant_id)
+        t.replay = f"unavailable: the check failed ({type(e).__name__})"
         return
-    t.score = target_closeness(rt, t.scene_id, t.final_scene["objects"]).score
-    least = rt.study.min_target_score
-    if least is not None and t.kind == "trial" and t.score < least:
-        reason = f"scene {t.score:.2f} close to the target < {least:g}"
-        t.review = f"{t.review}; {reason}" if t.review else reason
+    below = below_target(rt.study, t)
+    if below:
+        t.review = f"{t.review}; {below}" if t.review else below
+
+
+def settle(rt: StudyRuntime, p: Participant) -> None:
+    """Make the pending replay checks of ``p``'s trials whose events have all arrived since. The caller commits."""
+    for t in trials(p):
+        waiting = re.fullmatch(rf"{PENDING} (\d+) not stored yet", t.replay or "")
+        if waiting and p.acked_seq >= int(waiting.group(1)):
+            t.replay = replay_check(rt, t, trial_events(t.participant_id, t.index))

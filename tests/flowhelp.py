@@ -41,10 +41,10 @@ def auth(b: dict) -> dict:
     return {"Authorization": f"Bearer {b['token']}"}
 
 
-def finish_all_trials(client, b: dict, study="demo") -> list[dict]:
-    """Work through every trial: a trial_start, one object inserted, a trial_done 12 s later, and 'done';
-    returns each trial's boot data."""
-    seen, seq = [], 0
+def finish_all_trials(client, b: dict, study="demo", first_seq: int = 0) -> list[dict]:
+    """Work through every trial (events numbered from ``first_seq``): a trial_start, one object inserted, a
+    trial_done 12 s later, and 'done'; returns each trial's boot data."""
+    seen, seq = [], first_seq
 
     def trial(b: dict) -> bool:
         nonlocal seq

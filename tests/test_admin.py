@@ -140,7 +140,7 @@ def test_every_admin_form_needs_its_csrf_token(admin_app):
     assert c.get("/admin/").status_code == 200  # still logged in: nothing was done without the token
 
 
-def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(admin_app):
+def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(monkeypatch, admin_app):
     """The replay's data: the trial so far, the scene after each event (from the server's replay), the models to
     draw; events of vocabulary 1 give the events without scenes and say why; admins only."""
     from test_replay import insert, obj
@@ -166,7 +166,15 @@ def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(admin_app):
     assert c.get(f"/admin/demo/participants/{pid}/trials/-1/replay").status_code == 200
     assert c.get(f"/admin/demo/participants/{pid}/trials/7/replay.json").status_code == 200
     assert c.get(f"/admin/demo/participants/{pid}/trials/42/replay.json").status_code == 404
+    from study_server import replays
+
+    with monkeypatch.context() as m:
+        m.setattr(replays, "MAX_SHOWN_STATES", 4)  # the start's room, then 2 objects: the 3 after is too many
+        doc = c.get(path).json
+        assert doc["problem"].startswith("this trial changed its scene too often to show every step here")
+        assert [e["scene"] for e in doc["events"]] == [1, 1] and len(doc["scenes"]) == 2
     old = {"seq": 2, "t": 1.7e12, "type": "delete", "trial": -1, "payload": {"object": "plate"}}
     assert participant.post("/api/events", headers=auth(b), json={"page_id": "p", "events": [old]}).status_code == 200
     doc = c.get(path).json
-    assert "cannot be replayed" in doc["problem"] and len(doc["events"]) == 3 and len(doc["scenes"]) == 1
+    assert doc["problem"].startswith("this trial cannot be replayed from seq 2 on: a delete event without object")
+    assert [e["scene"] for e in doc["events"]] == [1, 2, 2] and len(doc["scenes"]) == 3  # the steps before it

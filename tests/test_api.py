@@ -219,3 +219,31 @@ def test_unknown_urls_and_methods(client):
     page = client.get("/study/demo/no-such-page")
     assert page.status_code == 404 and b"use the link you were given" in page.data
     assert client.get("/study/nope/").status_code == 404
+
+
+def test_numbers_too_large_for_a_float_are_named_not_a_server_error(client, app):
+    """JSON integers have no bound; a client that sends 10**400 where a number belongs gets a 4xx naming it."""
+    b = to_trials(client)
+    huge = 10**400
+    target = editor_scene(app, b["trial"]["scene"], "target")
+    state = next(o for o in target["objects"] if o["parent"] is not None)
+    move = {"seq": 0, "t": 1.0, "type": "move_end", "trial": -1, "payload": {
+        "object": state["id"], "distance": 0.1, "objects": [dict(state, transform=[huge] + state["transform"][1:])]}}
+    for body, field in (
+            ({"page_id": "p", "vocabulary": 2, "events": [dict(move, payload={"object": "x", "distance": 0.1,
+                                                                          "objects": []}, t=huge)]}, "events[0].t"),
+            ({"page_id": "p", "vocabulary": 2, "events": [move]}, "events[0].payload.objects[0].transform"),
+            ({"page_id": "p", "vocabulary": 2.0, "events": []}, "vocabulary")):
+        r = client.post("/api/events", headers=auth(b), json=body)
+        assert r.status_code == 422 and r.json["field"] == field, r.json
+    scene = {"objects": [dict(o, transform=[huge] + o["transform"][1:]) if o is state else o
+                         for o in target["objects"]]}
+    r = client.post("/api/trial/done", headers=auth(b), json={"trial": -1, "scene": scene})
+    assert r.status_code == 400 and r.json["field"] == "scene.transform", r.json
+    for trial, last_seq in ((huge, None), (2**64, None), (-1, huge), (-1, 1.5), (-1, True)):
+        r = client.post("/api/trial/done", headers=auth(b), json={"trial": trial, "last_seq": last_seq} | (
+            {} if last_seq is not None else {"last_seq": None}))
+        assert r.status_code == 400, (trial, last_seq, r.json)
+    with app.app_context():
+        assert db.session.query(Event).count() == 0 and db.session.query(Trial).filter(
+            Trial.done_at.isnot(None)).count() == 0

@@ -12,7 +12,8 @@ from study_server.extensions import db
 from study_server.models import Event, ShownList, SurveyResponse, Trial
 
 JSON = st.recursive(
-    st.none() | st.booleans() | st.integers(-2**40, 2**40) | st.floats(allow_nan=False) | st.text(max_size=30),
+    st.none() | st.booleans() | st.integers(-2**40, 2**40) | st.sampled_from([2**64, -10**400, 10**400])
+    | st.floats(allow_nan=False) | st.text(max_size=30),
     lambda inner: st.lists(inner, max_size=5) | st.dictionaries(st.text(max_size=10), inner, max_size=5),
     max_leaves=20)
 # what a client can put in a URL path segment and in a header at all (the test client refuses the rest)
@@ -24,8 +25,8 @@ EVENT_TYPES = ["insert", "focus", "move_end", "rotate_end", "context_query", "se
 
 def near_valid_event():
     return st.fixed_dictionaries({
-        "seq": st.one_of(st.integers(-3, 3000), st.text(max_size=3), st.none()),
-        "t": st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=3)),
+        "seq": st.one_of(st.integers(-3, 3000), st.text(max_size=3), st.none(), st.just(10**400)),
+        "t": st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=3), st.just(10**400)),
         "type": st.sampled_from(EVENT_TYPES),
         "trial": st.one_of(st.none(), st.integers(-5, 20), st.booleans()),
         "payload": st.dictionaries(st.sampled_from(["object", "model", "rank", "source", "state", "point",
@@ -80,7 +81,7 @@ def test_fuzz_suggest(fuzz_app, body):
 
 
 @FUZZ
-@given(body=st.one_of(JSON, st.fixed_dictionaries({"trial": JSON, "scene": JSON})))
+@given(body=st.one_of(JSON, st.fixed_dictionaries({"trial": JSON, "scene": JSON, "last_seq": JSON})))
 def test_fuzz_trial_done(fuzz_app, body):
     app, c, b = fuzz_app
     with app.app_context():

@@ -5,13 +5,13 @@ import json
 
 import numpy as np
 import pytest
-from flowhelp import auth, to_trials
+from flowhelp import EXIT, auth, boot, csrf, finish_all_trials, to_trials
 
 from scenesuggest.events import EventError, json_schema, validate_batch
 from scenesuggest.replay import ReplayUnavailable, differences, final_scene, replay, scene_at
 from scenesuggest.scoring import BACKOFF_CREDIT, category_credit, closeness
 from study_server.extensions import db
-from study_server.models import Event, Trial
+from study_server.models import Event, Participant, Trial
 
 
 def obj(id_, x=0.0, z=0.0, parent="room", model="m-chair", category="Chair", turn_deg=0.0):
@@ -145,6 +145,56 @@ def test_done_replays_the_trial_and_scores_it_against_its_target(client, app):
         t = db.session.query(Trial).filter_by(index=b2["trial"]["index"]).one()
         assert t.replay.startswith("mismatch: ") and "transform differs" in t.replay
         assert t.score == 0.0 and "close to the target < 0.3" in t.review  # a table top's plate is no sofa's
+
+
+def test_a_check_waits_for_late_events_and_a_low_score_stays_flagged_after_completion(client, app):
+    """'done' can arrive before the page's last events (their request failed, 'done' did not): the check waits
+    for them (``pending``) and is made when they are stored; the flag of a low score outlives the work check
+    at completion."""
+    b = to_trials(client)
+    rt = app.extensions["studies"]["demo"]
+    _finish(client, b, [], rt.scene(b["trial"]["scene"], "start")["objects"])  # the practice, left empty
+    t = boot(client.get("/study/demo/"))["trial"]
+    target = [o for o in rt.scene(t["scene"], "target")["objects"] if o["parent"] is not None]
+    far = {**target[0], "transform": target[0]["transform"][:12] + [9.0, 0.0, 9.0, 1.0]}
+    scene = rt.scene(t["scene"], "start")["objects"] + [far]
+    r = client.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2,
+                                                        "events": [{**insert(0, far), "trial": t["index"]}]})
+    assert r.status_code == 200
+    r = client.post("/api/trial/done", headers=auth(b), json={"trial": t["index"], "scene": {"objects": scene},
+                                                               "last_seq": 1})
+    assert r.status_code == 200
+    with app.app_context():
+        done = db.session.query(Trial).filter_by(index=t["index"]).one()
+        assert done.replay == "pending: events up to seq 1 not stored yet" and done.score == 0.0
+    late = {**event(1, "camera", action="orbit"), "trial": t["index"]}
+    assert client.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2,
+                                                            "events": [late]}).status_code == 200
+    finish_all_trials(client, boot(client.get("/study/demo/")), first_seq=2)  # the next 'done' makes the check
+    page = client.get("/study/demo/")
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "25", "attempt": "0"})
+    assert r.status_code == 302
+    with app.app_context():
+        assert db.session.query(Participant).one().status == "completed"
+        done = db.session.query(Trial).filter_by(index=t["index"]).one()
+        assert done.replay == "match"
+        assert done.review == "1 s of events < 10 s, scene 0.00 close to the target < 0.3"
+
+
+def test_a_check_that_fails_never_holds_the_participant_up(client, app, monkeypatch):
+    from study_server import trial_check
+
+    def broken(*_):
+        raise RuntimeError("a mesh that cannot be read")
+
+    monkeypatch.setattr(trial_check, "target_closeness", broken)
+    b = to_trials(client)
+    start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")["objects"]
+    _finish(client, b, [], start)
+    assert boot(client.get("/study/demo/"))["trial"]["index"] == 0  # on to the first trial
+    with app.app_context():
+        practice = db.session.query(Trial).filter_by(index=-1).one()
+        assert practice.replay == "unavailable: the check failed (RuntimeError)"
 
 
 # --- how close to the target ----------------------------------------------------------------------------------

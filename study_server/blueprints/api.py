@@ -14,7 +14,7 @@ from sqlalchemy import select
 
 from scenesuggest import scene_json
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.events import EventError, json_schema, text_problem
+from scenesuggest.events import MAX_SEQ, EventError, json_schema, text_problem
 
 from .. import flow, ingest, lists, trial_check
 from ..authoring import live_scene
@@ -282,12 +282,16 @@ def trial_done():
         _check_trial(who, data)
         return jsonify({"step": "trial", "preview": True})
     index = data.get("trial")
-    if isinstance(index, bool) or not isinstance(index, int):
+    if isinstance(index, bool) or not isinstance(index, int) or not -1 <= index <= MAX_SEQ:
         raise RequestError(400, "expected the trial index", "trial")
     _open(who)
     t = db.session.scalar(select(Trial).where(Trial.participant_id == who.id, Trial.index == index))
     if t is None:
         raise RequestError(409, f"trial {index} is not in this session", "trial")
+    last_seq = data.get("last_seq")  # the last event the page logged (pages of vocabulary 1 do not say)
+    if last_seq is not None and (isinstance(last_seq, bool) or not isinstance(last_seq, int)
+                                 or not -1 <= last_seq <= MAX_SEQ):
+        raise RequestError(400, f"expected the seq of the page's last event (-1 to {MAX_SEQ})", "last_seq")
     rt = runtime(who.study_id)
     final = data.get("scene")
     if final is not None:
@@ -296,8 +300,9 @@ def trial_done():
         finished = flow.finish_trial(who, rt.study, index, final)
     except ValueError as e:
         raise RequestError(409, str(e), "trial") from None
+    trial_check.settle(rt, who)
     if finished.replay is None:  # just finished (a retried request finds it checked)
-        trial_check.check_trial(rt, finished)
+        trial_check.check_trial(rt, who, finished, last_seq)
     db.session.commit()
     return jsonify({"step": who.step, "position": who.position, "trial": trial_json(flow.current_trial(who)),
                     "next": url_for("participant.current", study_id=who.study_id)})

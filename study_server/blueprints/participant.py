@@ -13,7 +13,7 @@ from flask import Blueprint, current_app, redirect, render_template, request, se
 from sqlalchemy import select
 from werkzeug.exceptions import NotFound
 
-from .. import assignment, flow
+from .. import assignment, flow, trial_check
 from ..boot import trial_boot
 from ..extensions import db
 from ..models import Participant, SessionLog, flag, log, utcnow
@@ -297,6 +297,7 @@ def exit_survey(study_id: str):
             db.session.commit()
             return render_template("saving.html", study=study, p=p, answers=answers, attempt=attempt + 1,
                                    last_seq=last_seq), 202
+        trial_check.settle(runtime(study_id), p)  # every event is stored now: the pending replay checks
         _unless_ended(flow.submit_exit, p, study, answers)
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))

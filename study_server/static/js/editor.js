@@ -16,6 +16,8 @@ export class Editor {
     this.trial = trial;
     this.log = log;
     this.onChange = onChange;
+    /** True once another page of the session took over: keys do nothing (the page takes no pointer input). */
+    this.disabled = false;
     this.strings = strings;
     this.selected = null;
     this.undoStack = [];
@@ -324,6 +326,7 @@ export class Editor {
   }
 
   keyDown(e) {
+    if (this.disabled) return;  // another page of the session took over
     const tag = (e.target && e.target.tagName) || "";
     if (tag === "INPUT" || tag === "TEXTAREA") return;
     const key = e.key.toLowerCase();

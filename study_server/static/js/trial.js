@@ -86,6 +86,10 @@ function logInputs(viewer) {
   });
 }
 
+/** Whether another page of this session took over, and the editor to disable then. */
+let steppedAside = false;
+let activeEditor = null;
+
 /** One editing page at a time: a newer tab or window of the same session takes over and this one steps aside
  * (flushing what it logged), so two pages never number events or edit the scene side by side. */
 function handOver() {
@@ -94,6 +98,8 @@ function handOver() {
   channel.onmessage = async (e) => {
     if (e.data?.type !== "hello" || e.data.page === boot.page_id) return;
     channel.close();
+    steppedAside = true;
+    if (activeEditor) activeEditor.disabled = true;
     document.body.classList.add("inactive");
     await outbox.flush();
     outbox.stop();
@@ -137,9 +143,12 @@ function makeEditor(viewer, models, scene) {
   const library = new ModelLibrary(models, { onError: () => modelFailed(library, scene, editor) });
   const editor = new Editor({ viewer, models: library, scene, condition: trial.condition, trial: trial.index, log, strings,
     onChange: () => {
+      if (steppedAside) return;  // the newer page keeps the scene now
       try { localStorage.setItem(sceneKey, JSON.stringify(scene.toJSON())); } catch (e) { /* storage full */ }
       $("delete-button").disabled = !editor.selected;
     } });
+  editor.disabled = steppedAside;
+  activeEditor = editor;
   return { library, editor };
 }
 
@@ -201,7 +210,7 @@ async function finish(scene) {
   await outbox.flush();
   for (let attempt = 0; ; attempt += 1) {
     try {
-      const r = await api("/trial/done", { method: "POST", body: JSON.stringify({ trial: trial.index, scene: scene.objectsJSON() }) });
+      const r = await api("/trial/done", { method: "POST", body: JSON.stringify({ trial: trial.index, scene: scene.objectsJSON(), last_seq: outbox.lastSeq }) });
       if (r.ok || r.status === 409 || r.status === 410) {  // done, done before, or the session has ended
         localStorage.removeItem(sceneKey);
         location.assign(boot.next);
