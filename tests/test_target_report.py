@@ -82,3 +82,27 @@ def test_a_database_written_before_events_carried_states_still_exports_and_analy
     assert summary["closeness"] and summary["trials"]["completed"] == 18
     assert any("without object states" in n for n in summary["notes"])
     assert not (tmp_path / "report" / "figures" / "closeness_over_time.png").exists()
+
+
+def test_scores_that_differ_by_condition_get_the_same_test_as_the_times(bot_study, tmp_path):
+    """Bots rebuild every target, so their scores cannot be modelled; scores set to differ by condition (none
+    0.6, basic 0.75, full 0.9, with noise) through the export give the LR test and contrasts in that order."""
+    import shutil
+
+    import numpy as np
+
+    tmp, _ = bot_study
+    shutil.copytree(tmp / "export", tmp_path / "export")
+    trials = pd.read_csv(tmp_path / "export" / "trials.csv")
+    rng = np.random.default_rng(0)
+    level = trials["condition"].map({"none": 0.6, "basic": 0.75, "full": 0.9})
+    trials["score"] = np.where(trials["score"].notna(), level + rng.normal(0.0, 0.05, len(trials)), np.nan)
+    trials.to_csv(tmp_path / "export" / "trials.csv", index=False)
+    summary = build_report(read_export(tmp_path / "export"), tmp_path / "report", resamples=200)
+    test = summary["tests"]["score"]
+    assert not test.get("error") and test["lrt"]["df"] == 2 and test["lrt"]["p"] < 1e-6, test
+    contrasts = {c["contrast"]: c["estimate"] for c in test["contrasts"]}
+    assert contrasts["full − none"] == pytest.approx(0.3, abs=0.06)
+    assert contrasts["basic − none"] == pytest.approx(0.15, abs=0.06)
+    rows = {r["condition"]: r["score_mean"] for r in summary["closeness"]}
+    assert rows["none"] < rows["basic"] < rows["full"]
