@@ -36,6 +36,8 @@ def closeness_table(trials: pd.DataFrame, conditions: list[str], resamples: int 
     columns = [c for c in CLOSENESS if c in done.columns and done[c].notna().any()]
     if not columns:
         return None
+    if "score" in columns:  # trials without a final scene have no score, nor a row here
+        done = done[done["score"].notna()]
     stats = {c: bootstrap_by(done.dropna(subset=[c]), c, "condition", conditions, unit, resamples, seed)
              for c in columns}
     rows, data = [], []

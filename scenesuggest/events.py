@@ -233,6 +233,10 @@ def _check_states(value) -> None:
             _check_state(state)
         except _Bad as e:
             raise _Bad(e.message, f"[{i}]{e.below}") from None
+    if len({state["id"] for state in value}) < len(value):  # one state per object: which would count?
+        seen = set()
+        i = next(i for i, state in enumerate(value) if state["id"] in seen or seen.add(state["id"]))
+        raise _Bad("a second state of the same object", f"[{i}].id")
 
 
 def _check_field(spec: Field, value) -> None:

@@ -77,7 +77,7 @@ DICTIONARY: dict[str, dict[str, str]] = {
         "trial": "trial index or empty", "client_t_ms": "client clock, ms since the epoch",
         "server_t": "server receive time (UTC)", "payload": "event payload as JSON",
         "vocabulary": "version of the event vocabulary the page spoke (2: scene changes carry the resulting object "
-                      "states; see event_schema.json)"},
+                      "states; see event_schema.json, and event_schema_v1.json when the data holds version 1)"},
     "suggestions": {
         "participant": "participant number", "list_id": "id of the list", "trial": "trial index",
         "source": "context | search", "rank": "1-based rank in the list", "category": "category",
@@ -216,7 +216,7 @@ def _resources(study: Study) -> dict:
 
 def export_files(rt: StudyRuntime) -> dict[str, str]:
     """File name → content of a complete export of the study ``rt`` runs."""
-    from scenesuggest.events import json_schema
+    from scenesuggest.events import VERSION, json_schema
 
     study = rt.study
     rows = _rows(rt)
@@ -238,6 +238,8 @@ def export_files(rt: StudyRuntime) -> dict[str, str]:
                    "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
     files["data_dictionary.md"] = "\n".join(dictionary)
     files["event_schema.json"] = json.dumps(json_schema(), indent=1)
+    for version in sorted({int(e["vocabulary"]) for e in rows["events"]} - {VERSION}):  # older pages' events
+        files[f"event_schema_v{version}.json"] = json.dumps(json_schema(version), indent=1)
     files["scenes.json"] = json.dumps(scenes_document(rt), indent=1, sort_keys=True)
     manifest = {
         "study": study.id, "title": study.title, "study_hash": study.hash, "study_file": study.path.name,

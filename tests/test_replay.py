@@ -225,3 +225,10 @@ def test_a_rebuilt_scene_scores_1_and_each_shortfall_costs():
     swapped = score([obj("x", -1.0, 0.0), obj("y", 1.0, 0.0, model="m-table", category="Table")])
     assert {(m.target, m.placed) for m in swapped.matches} == {("a", "x"), ("b", "y")} and swapped.score == 0.0
     assert category_credit("Sofa", "Chair", _parent) == 0.0 and category_credit("Seat", "Chair", _parent) == 0.5
+
+
+def test_an_event_gives_each_object_one_state():
+    a = obj("a")
+    with pytest.raises(EventError) as info:
+        validate_batch([insert(0, a) | {"payload": insert(0, a)["payload"] | {"objects": [a, {**a, "model_id": "x"}]}}])
+    assert info.value.field == "events[0].payload.objects[1].id"

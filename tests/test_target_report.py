@@ -24,6 +24,7 @@ def bot_study(tmp_path_factory, demo_resources):
     with app.app_context():
         export_to(app.extensions["studies"]["demo"], tmp / "export")
     summary = build_report(read_export(tmp / "export"), tmp / "report", resamples=200)
+    assert not (tmp / "export" / "event_schema_v1.json").exists()  # nothing of version 1 to describe
     return tmp, summary
 
 
@@ -78,6 +79,8 @@ def test_a_database_written_before_events_carried_states_still_exports_and_analy
     trials = pd.read_csv(tmp_path / "export" / "trials.csv")
     assert set(events["vocabulary"]) == {1} and trials["replay"].isna().all()
     assert trials["score"].notna().sum() == 20  # scored from the final scenes
+    old_schema = json.loads((tmp_path / "export" / "event_schema_v1.json").read_text())
+    assert old_schema["x-vocabulary-version"] == 1  # the version the data speaks is described
     summary = build_report(read_export(tmp_path / "export"), tmp_path / "report", resamples=100)
     assert summary["closeness"] and summary["trials"]["completed"] == 18
     assert any("without object states" in n for n in summary["notes"])
