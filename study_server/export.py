@@ -216,7 +216,8 @@ def _resources(study: Study) -> dict:
 
 def export_files(rt: StudyRuntime) -> dict[str, str]:
     """File name → content of a complete export of the study ``rt`` runs."""
-    from scenesuggest.events import VERSION, json_schema
+    from scenesuggest.event_schema import json_schema
+    from scenesuggest.events import VERSION
 
     study = rt.study
     rows = _rows(rt)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from scenesuggest.events import MAX_BATCH, VERSIONS, json_schema
+from scenesuggest.event_schema import json_schema
+from scenesuggest.events import MAX_BATCH, VERSIONS
 
 ERROR = {"type": "object", "required": ["error"],
          "properties": {"error": {"type": "string"}, "field": {"type": ["string", "null"]}}}

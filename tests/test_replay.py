@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from flowhelp import EXIT, auth, boot, csrf, finish_all_trials, to_trials
 
-from scenesuggest.events import EventError, json_schema, validate_batch
+from scenesuggest.event_schema import json_schema
+from scenesuggest.events import EventError, validate_batch
 from scenesuggest.replay import ReplayUnavailable, differences, final_scene, replay, scene_at
 from scenesuggest.scoring import BACKOFF_CREDIT, category_credit, closeness
 from study_server.extensions import db

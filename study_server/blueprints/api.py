@@ -14,7 +14,8 @@ from sqlalchemy import select
 
 from scenesuggest import scene_json
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.events import MAX_SEQ, EventError, json_schema, text_problem
+from scenesuggest.event_schema import json_schema
+from scenesuggest.events import MAX_SEQ, EventError, text_problem
 
 from .. import flow, ingest, lists, trial_check
 from ..authoring import live_scene
