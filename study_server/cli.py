@@ -41,6 +41,28 @@ def study() -> None:
     """Study files, the study server and its data."""
 
 
+@study.command("init")
+@click.argument("folder", type=click.Path(file_okay=False))
+@click.option("--corpus", default="ai2thor", show_default=True, help="The scene corpus the study's priors and "
+              "models come from.")
+@click.option("--title", default=None, help="The title participants see (default: from the folder's name).")
+@click.option("--id", "study_id", default=None, help="The study id in URLs and exports (default: the folder's name).")
+@click.option("--json", "as_json", is_flag=True)
+def study_init_cmd(folder: str, corpus: str, title: str | None, study_id: str | None, as_json: bool) -> None:
+    """Start a new study in FOLDER (absent or empty): a study file with every key, commented, a practice and a
+    target scene, and a README of the next steps. Never overwrites anything."""
+    from .new_study import init_study
+
+    written = init_study(folder, corpus, title, study_id)
+    study_file = Path(folder) / "study.toml"
+    load_studies([study_file], check=False)  # what was written validates
+    emit({"folder": str(Path(folder).resolve()), "files": [str(p) for p in written]}, as_json,
+         "\n".join([f"wrote {p}" for p in written] + [
+             "", f"next: scenesuggest study validate {study_file}",
+             f"      SCENESUGGEST_STUDIES={study_file} scenesuggest study serve",
+             f"      (the steps after that are in {Path(folder) / 'README.md'})"]))
+
+
 @study.command("validate")
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--resources/--no-resources", default=True, help="Also check the priors file and model library.")

@@ -56,7 +56,7 @@ def run(venv: Path, *args: str, env: dict, cwd: Path) -> subprocess.CompletedPro
 
 @pytest.mark.slow
 @pytest.mark.browser
-def test_the_wheel_installed_elsewhere_prepares_migrates_and_serves_the_demo(installed, tmp_path):
+def test_the_wheel_installed_elsewhere_starts_a_study_prepares_migrates_and_serves(installed, tmp_path):
     elsewhere, home = tmp_path / "elsewhere", tmp_path / "home"
     elsewhere.mkdir()
     env = {k: v for k, v in os.environ.items() if not k.startswith(("SCENESUGGEST_", "DATABASE_URL"))}
@@ -65,6 +65,13 @@ def test_the_wheel_installed_elsewhere_prepares_migrates_and_serves_the_demo(ins
                             "print(study_server.__file__); print(simulation.__file__)"],
                            env=env, cwd=elsewhere, capture_output=True, text=True, check=True).stdout.split()
     assert all(Path(w).is_relative_to(installed) for w in where), where
+
+    started = run(installed, "study", "init", "kitchen-study", "--title", "Kitchens", env=env, cwd=elsewhere)
+    assert started.returncode == 0 and "wrote" in started.stdout, started.stderr
+    valid = run(installed, "study", "validate", "--no-resources", "kitchen-study/study.toml", env=env, cwd=elsewhere)
+    assert "study 'kitchen-study' is valid" in valid.stdout, valid.stderr
+    demo = Path(where[0]).parent / "demo" / "study.toml"
+    env["SCENESUGGEST_STUDIES"] = f"{demo}:{elsewhere / 'kitchen-study' / 'study.toml'}"
 
     prepared = run(installed, "study", "prepare", "--json", env=env, cwd=elsewhere)
     assert prepared.returncode == 0, prepared.stderr
@@ -94,6 +101,9 @@ def test_the_wheel_installed_elsewhere_prepares_migrates_and_serves_the_demo(ins
         models = http.get("/api/models", headers={"Authorization": f"Bearer {page.boot['token']}"}).json()["models"]
         glb = http.get(models[0]["asset"])
         assert glb.status == 200 and glb.body[:4] == b"glTF"
+        mine = Walker(HttpTransport(base), "kitchen-study").to_first_trial(
+            {"pid": "new-study"}, lambda _: {"age": "40", "experience_3d": "Never", "pointing_device": "Mouse"})
+        assert mine.step == "trial" and mine.boot["trial"]["scene"] == "practice"  # the new study runs as written
     finally:
         os.killpg(server.pid, signal.SIGTERM)
         output = server.communicate(timeout=30)[0].decode(errors="replace")
