@@ -68,7 +68,7 @@ def create_app(config: dict | None = None) -> Flask:
     app.extensions["studies"] = load_studies(app.config["STUDY_FILES"], check=app.config.get("CHECK_RESOURCES", True))
 
     from . import errors
-    from .blueprints import admin, api, participant, vendor
+    from .blueprints import admin, api, health, participant, vendor
     from .importmap import IMPORT_MAP
     from .security import csrf_token, security_headers
 
@@ -76,6 +76,12 @@ def create_app(config: dict | None = None) -> Flask:
     app.register_blueprint(participant.bp)
     app.register_blueprint(api.bp)
     app.register_blueprint(admin.bp)
+    app.register_blueprint(health.bp)
+    hops = app.config.get("PROXY_HOPS", 0)
+    if hops:  # behind that many reverse proxies: their X-Forwarded-* say the client's address, scheme and host
+        from werkzeug.middleware.proxy_fix import ProxyFix
+
+        app.wsgi_app = ProxyFix(app.wsgi_app, x_for=hops, x_proto=hops, x_host=hops, x_port=hops)
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token
     app.jinja_env.globals["import_map"] = IMPORT_MAP

@@ -10,6 +10,9 @@ study files name by corpus only | ``var/`` of the checkout; installed: ``var/sce
 | ``SCENESUGGEST_SECRET_KEY`` | signs cookies | generated once into the instance folder |
 | ``SCENESUGGEST_ADMIN_PASSWORD_HASH`` | werkzeug hash of the admin password | ``instance/admin.json`` |
 | ``SCENESUGGEST_FRAME_ANCESTORS`` | CSP frame-ancestors, for platforms that embed the study | ``'self'`` |
+| ``SCENESUGGEST_PROXY_HOPS`` | how many reverse proxies stand before the app: their ``X-Forwarded-For``, \
+``-Proto``, ``-Host`` and ``-Port`` are believed for that many hops, no more (the client's address for rate \
+limits, ``https`` for URLs) | ``0``: none believed |
 | ``SCENESUGGEST_ENV`` | ``development`` or ``production`` (a secret key from the environment is then required, \
 cookies are ``Secure``) | ``development`` |
 """
@@ -68,6 +71,7 @@ class ConfigError(SceneSuggestError):
 
 ENVIRONMENTS = ("development", "production")
 MIN_SECRET = 32
+MAX_PROXY_HOPS = 5
 
 
 def from_environment(instance: Path) -> dict:
@@ -82,8 +86,13 @@ def from_environment(instance: Path) -> dict:
         raise ConfigError(f"production needs a secret key of at least {MIN_SECRET} characters in the environment "
                           "(e.g. python -c 'import secrets; print(secrets.token_hex(32))')",
                           field="SCENESUGGEST_SECRET_KEY")
+    hops = os.environ.get("SCENESUGGEST_PROXY_HOPS", "0")
+    if not hops.isdigit() or int(hops) > MAX_PROXY_HOPS:
+        raise ConfigError(f"expected the number of reverse proxies before the app, 0 to {MAX_PROXY_HOPS}",
+                          field="SCENESUGGEST_PROXY_HOPS")
     return {
         "ENV_NAME": env,
+        "PROXY_HOPS": int(hops),
         "DEBUG": False,
         "SESSION_COOKIE_SECURE": production,
         "STUDY_FILES": study_files(),

@@ -1,0 +1,111 @@
+"""Running behind a reverse proxy: ``/healthz`` and the proxy hops the app believes (in process; the nginx test
+puts a real proxy in front)."""
+
+import json
+
+import pytest
+from conftest import make_app
+from flowhelp import csrf
+from integrityhelp import PASSWORD
+from werkzeug.security import generate_password_hash
+
+
+def test_healthz_says_ok_and_names_what_is_wrong_without_secrets(tmp_path, demo_resources):
+    from flask_migrate import downgrade
+    from sqlalchemy import text
+
+    from study_server import MIGRATIONS
+    from study_server.extensions import db
+
+    app = make_app(tmp_path)
+    c = app.test_client()
+    r = c.get("/healthz")
+    assert r.status_code == 200 and r.headers["Cache-Control"] == "no-store"
+    assert r.json == {"ok": True, "database": "ok", "schema": "ok", "studies": {"demo": "ok"}}
+    with app.app_context():
+        downgrade(directory=str(MIGRATIONS), revision="-1")
+    r = c.get("/healthz")
+    assert r.status_code == 503 and r.json["schema"] == "behind: run 'scenesuggest study migrate'"
+    with app.app_context():
+        db.session.execute(text("DROP TABLE alembic_version"))
+        db.session.commit()
+    assert c.get("/healthz").json["schema"] == "not migrated"
+    text_ = json.dumps(c.get("/healthz").json)
+    assert str(tmp_path) not in text_ and "sqlite" not in text_.lower()
+
+
+def test_healthz_names_a_study_whose_priors_cannot_be_loaded(tmp_path, demo_resources):
+    import shutil
+
+    from conftest import DEMO_STUDY
+
+    from study_server.config import data_home
+
+    folder = tmp_path / "study"
+    shutil.copytree(DEMO_STUDY.parent, folder)
+    (folder / "bad.npz").write_bytes(b"not a priors file")
+    study_file = folder / "study.toml"
+    study_file.write_text(study_file.read_text().replace(
+        '[resources]\ncorpus = "ai2thor"\n',
+        f'[resources]\ncorpus = "ai2thor"\npriors = "bad.npz"\nlibrary = "{data_home() / "library" / "ai2thor"}"\n'))
+    app = make_app(tmp_path, studies=[study_file], CHECK_RESOURCES=False)
+    r = app.test_client().get("/healthz")
+    assert r.status_code == 503 and r.json["studies"]["demo"].startswith("unavailable (")
+    assert r.json["database"] == "ok" and "bad.npz" not in r.get_data(as_text=True)
+
+
+@pytest.mark.parametrize("hops", [0, 1])
+def test_the_app_believes_exactly_the_configured_proxy_hops(tmp_path, demo_resources, hops):
+    """One proxy appends the address it saw to X-Forwarded-For; a client's own entries before it count for
+    nothing. Without a proxy configured, the header counts for nothing at all."""
+    from flask import request, url_for
+
+    app = make_app(tmp_path, PROXY_HOPS=hops, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
+    app.add_url_rule("/whoami", "whoami", lambda: f"{url_for('health.healthz', _external=True)[:-7]} "
+                                                  f"{request.remote_addr}")
+
+    def guess(spoofed, proxy_saw="203.0.113.9", password="guess"):
+        c = app.test_client()
+        c.environ_base["REMOTE_ADDR"] = "127.0.0.1"  # the proxy
+        headers = {"X-Forwarded-For": f"{spoofed}, {proxy_saw}", "X-Forwarded-Proto": "https"}
+        page = c.get("/admin/login", headers=headers)
+        return c.post("/admin/login", headers=headers,
+                      data={"csrf_token": csrf(page), "password": password}).status_code
+
+    assert [guess(f"198.51.100.{i}") for i in range(7)] == [401] * 5 + [429] * 2  # spoofing buys no guesses
+    # another client behind the same proxy is another client only when the proxy is believed
+    assert guess("x", proxy_saw="192.0.2.7", password=PASSWORD) == (302 if hops else 429)
+    c = app.test_client()
+    c.environ_base["REMOTE_ADDR"] = "127.0.0.1"
+    seen = c.get("/whoami", headers={"X-Forwarded-For": "198.51.100.1, 192.0.2.1", "X-Forwarded-Proto": "https",
+                                     "X-Forwarded-Host": "study.example"}).get_data(as_text=True)
+    assert seen == ("https://study.example/ 192.0.2.1" if hops else "http://localhost/ 127.0.0.1")
+
+
+def test_proxy_hops_must_be_a_small_number(monkeypatch, tmp_path):
+    from study_server.config import ConfigError, from_environment
+
+    for bad in ("one", "-1", "9"):
+        monkeypatch.setenv("SCENESUGGEST_PROXY_HOPS", bad)
+        with pytest.raises(ConfigError) as info:
+            from_environment(tmp_path / "instance")
+        assert info.value.field == "SCENESUGGEST_PROXY_HOPS"
+    monkeypatch.setenv("SCENESUGGEST_PROXY_HOPS", "2")
+    assert from_environment(tmp_path / "instance")["PROXY_HOPS"] == 2
+
+
+def test_healthz_says_when_the_database_cannot_be_reached(tmp_path, demo_resources):
+    import socket
+
+    from conftest import DEMO_STUDY
+
+    from study_server import create_app
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    app = create_app({"INSTANCE_PATH": str(tmp_path / "instance"), "STUDY_FILES": [DEMO_STUDY],
+                      "SECRET_KEY": "test", "SQLALCHEMY_DATABASE_URI": f"postgresql+psycopg://u:secret@127.0.0.1:{port}/x"})
+    r = app.test_client().get("/healthz")
+    assert r.status_code == 503 and r.json["database"] == "unreachable" and r.json["schema"] == "unknown"
+    assert "secret" not in r.get_data(as_text=True) and str(port) not in r.get_data(as_text=True)
