@@ -148,3 +148,35 @@ def study_export_cmd(study_id: str, out: str, database_url: str | None, as_json:
         manifest = export_to(app.extensions["studies"][study_id], Path(out))
     emit(manifest, as_json, f"exported {study_id} to {out}: " + ", ".join(f"{n} {k}" for k, n in
                                                                         manifest["row_counts"].items()))
+
+
+def _database_url(database_url: str | None) -> str:
+    """--db, else what the server uses (DATABASE_URL, else the instance folder's SQLite file)."""
+    return database_url or config.from_environment(config.instance_path())["SQLALCHEMY_DATABASE_URI"]
+
+
+@study.command("backup")
+@click.option("--out", "out", required=True, type=click.Path(dir_okay=False), help="The backup file (new).")
+@click.option("--db", "database_url", default=None, help="Database URL (default: DATABASE_URL or the instance DB).")
+@click.option("--json", "as_json", is_flag=True)
+def study_backup_cmd(out: str, database_url: str | None, as_json: bool) -> None:
+    """Back up the database while the server runs: SQLite's online backup, or pg_dump's custom format."""
+    from .backup import backup
+
+    done = backup(_database_url(database_url), out)
+    emit(done, as_json, f"backed up {done['participants']} participants and {done['events']} events "
+                        f"(schema {done['revision']}, {done['kind']}) to {out}: {done['bytes']} bytes")
+
+
+@study.command("restore")
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--db", "database_url", default=None, help="Database URL (default: DATABASE_URL or the instance DB).")
+@click.option("--json", "as_json", is_flag=True)
+def study_restore_cmd(file: str, database_url: str | None, as_json: bool) -> None:
+    """Restore a backup into an empty database (one with no tables; anything else is refused)."""
+    from .backup import restore
+
+    done = restore(file, _database_url(database_url))
+    emit(done, as_json, f"restored {done['participants']} participants and {done['events']} events (schema "
+                        f"{done['revision']}; integrity {done['integrity']}); run 'scenesuggest study migrate' if "
+                        "the server's code is newer than the backup")
