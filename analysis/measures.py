@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from scenesuggest.picks import PICKS, picks
+from scenesuggest.picks import picks
 
 from .load import StudyData
 
@@ -138,13 +138,14 @@ PICK_COLUMNS = ["participant", "trial", "seq", "action", "model", "category", "s
 def picks_table(data: StudyData, trials: pd.DataFrame) -> pd.DataFrame:
     """One row per model placed from a list (:func:`scenesuggest.picks.picks`, the definition the export's
     ``picks.csv`` uses): its rank there (1-based), the list's source (``fixed`` list / ``search`` / ``context``),
-    reciprocal rank, ``final`` (False when a later pick replaced it in place; only final picks count for MRR and
-    the rank distribution), and the trial's condition and scene."""
-    ev = data.events[data.events["type"].isin(PICKS)].dropna(subset=["trial"]).sort_values(["participant", "seq"])
+    reciprocal rank, ``final`` (False when a later pick replaced it in place or it was undone; only final picks
+    count for MRR and the rank distribution), and the trial's condition and scene."""
+    ev = data.events.sort_values(["participant", "seq"])  # every event: undo, redo and page loads decide `final`
     rows = [{"participant": participant, "trial": int(p.trial), "seq": p.seq, "action": p.action,
              "model": p.model, "category": p.category, "source": p.source,
              "rank": float(p.rank) if p.rank else np.nan, "final": p.final}
-            for participant, own in ev.groupby("participant", sort=False) for p in picks(event_dicts(own))]
+            for participant, own in ev.groupby("participant", sort=False) for p in picks(event_dicts(own))
+            if p.trial is not None]
     table = pd.DataFrame(rows, columns=PICK_COLUMNS)
     table["reciprocal_rank"] = 1.0 / table["rank"]
     design = trials.loc[trials["complete"], ["participant", "trial", "condition", "scene"]]

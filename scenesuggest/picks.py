@@ -4,8 +4,8 @@ A pick is an ``insert`` or ``replace`` event: the model chosen, its category, th
 it came from (none for a model placed otherwise), the list's source (``fixed`` list, ``search``, ``context``
 suggestions) and the list's id. A pick is *final* unless a later ``replace`` of the same trial replaced its
 object in place: the editor places the top suggestion at once, and when the participant swaps it for another
-suggestion, the participant's choice is the last pick of that chain (a replace that was undone replaced nothing).
-MRR and the rank distribution count final picks only.
+suggestion, the participant's choice is the last pick of that chain. A pick that was undone is not final either
+(and a replace that was undone replaced nothing). MRR and the rank distribution count final picks only.
 """
 
 from __future__ import annotations
@@ -44,37 +44,42 @@ UNDOABLE = {"insert": "insert", "replace": "replace", "delete": "delete", "move_
 
 def picks(events: Iterable[Mapping]) -> list[Pick]:
     """The picks among one participant's ``events`` (mappings with ``seq``, ``t``, ``type``, ``trial`` and
-    ``payload``, in seq order). A replace makes the latest pick of the object it replaces not final; undoing
-    the replace (the editor's undo stack, which a page load empties, is followed) makes it final again."""
+    ``payload``; every event, in seq order: the undo, redo and page-load events count). A pick is not final when
+    a later replace replaced its object in place, or when it was undone; a replace that was undone replaced
+    nothing, and a redo brings both back (the editor's undo stack is followed; a page load empties it)."""
     chosen: list[Mapping] = []
     latest: dict[tuple, int] = {}  # (trial, object id) → index in chosen of the pick that placed it last
     replaced: set[int] = set()
-    undo: list[tuple[str, int | None]] = []  # (action, index of the pick a replace made not final)
-    redo: list[tuple[str, int | None]] = []
+    undone: set[int] = set()
+    undo: list[tuple[str, int | None, int | None]] = []  # (action, its pick, the pick a replace replaced)
+    redo: list[tuple[str, int | None, int | None]] = []
     for e in events:
         kind, p = e["type"], e["payload"]
         if kind in ("trial_start", "resume"):  # a page (re)loaded: its editor starts with empty stacks
             undo.clear()
             redo.clear()
         elif kind in UNDOABLE:
-            mark = None
+            own = gone = None
             if kind in PICKS:
                 if kind == "replace":
-                    mark = latest.get((e["trial"], p.get("replaces")))
-                    if mark is not None:
-                        replaced.add(mark)
-                latest[(e["trial"], p.get("object"))] = len(chosen)
+                    gone = latest.get((e["trial"], p.get("replaces")))
+                    if gone is not None:
+                        replaced.add(gone)
+                own = latest[(e["trial"], p.get("object"))] = len(chosen)
                 chosen.append(e)
-            undo.append((UNDOABLE[kind], mark))
+            undo.append((UNDOABLE[kind], own, gone))
             redo.clear()
         elif kind in ("undo", "redo"):
             source, target = (undo, redo) if kind == "undo" else (redo, undo)
             if source and source[-1][0] == p.get("action"):  # else the log and the stack disagree: leave it
                 step = source.pop()
                 target.append(step)
-                if step[1] is not None:
-                    (replaced.discard if kind == "undo" else replaced.add)(step[1])
-    return [_pick(e, i not in replaced) for i, e in enumerate(chosen)]
+                _, own, gone = step
+                if own is not None:
+                    (undone.add if kind == "undo" else undone.discard)(own)
+                if gone is not None:
+                    (replaced.discard if kind == "undo" else replaced.add)(gone)
+    return [_pick(e, i not in replaced and i not in undone) for i, e in enumerate(chosen)]
 
 
 def _pick(e: Mapping, final: bool) -> Pick:

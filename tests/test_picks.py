@@ -24,10 +24,10 @@ def test_a_suggestion_replaced_in_place_is_not_the_choice_but_the_last_of_the_ch
     assert finals(events) == [("a-1", False), ("a-2", False), ("a-3", True), ("b-4", True)]
 
 
-def test_an_undone_replace_replaced_nothing_and_a_redone_one_did():
+def test_an_undone_pick_is_not_the_choice_and_an_undone_replace_replaced_nothing():
     steps = [("trial_start", {}), pick("insert", "a-1", 1), pick("replace", "a-2", 3, "a-1"),
              ("undo", {"action": "replace"})]
-    assert finals(log(*steps)) == [("a-1", True), ("a-2", True)]
+    assert finals(log(*steps)) == [("a-1", True), ("a-2", False)]  # a-1 is back; a-2 was taken back
     assert finals(log(*steps, ("redo", {"action": "replace"}))) == [("a-1", False), ("a-2", True)]
     moved_first = log(("trial_start", {}), pick("insert", "a-1", 1), pick("replace", "a-2", 3, "a-1"),
                       ("move_end", {"object": "a-2"}), ("undo", {"action": "move"}))
@@ -45,3 +45,27 @@ def test_an_id_used_again_after_a_reload_is_another_object():
                  ("resume", {"reason": "reload"}), pick("insert", "chair-1", 2), pick("replace", "chair-2", 1,
                                                                                       "chair-1"))
     assert finals(events) == [("chair-1", True), ("chair-1", False), ("chair-2", True)]
+
+
+def test_an_undone_insert_is_no_choice_until_redone():
+    steps = [("trial_start", {}), pick("insert", "a-1", 4), ("undo", {"action": "insert"})]
+    assert finals(log(*steps)) == [("a-1", False)]
+    assert finals(log(*steps, ("redo", {"action": "insert"}))) == [("a-1", True)]
+
+
+def test_the_analysis_reads_final_as_the_export_does():
+    """The report's picks come from the same function over every event, so an undo counts there too."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from analysis.measures import picks_table
+
+    events = log(("trial_start", {}), pick("insert", "a-1", 1), pick("replace", "a-2", 3, "a-1"),
+                 ("undo", {"action": "replace"}), pick("insert", "b-3", 2))
+    frame = pd.DataFrame([{"participant": 1, "seq": e["seq"], "client_t_ms": e["t"], "type": e["type"],
+                           "trial": e["trial"], "payload": e["payload"]} for e in events])
+    trials = pd.DataFrame([{"participant": 1, "trial": 0, "complete": True, "condition": "full", "scene": "s"}])
+    table = picks_table(SimpleNamespace(events=frame), trials)
+    assert list(zip(table["seq"], table["final"], strict=True)) == [(p.seq, p.final) for p in picks(events)]
+    assert table["final"].tolist() == [True, False, True]
