@@ -35,7 +35,8 @@ def _state_schema() -> dict:
 def _field_schema(spec: Field) -> dict:
     if spec.kind == "states":
         return {**_state_schema(), "description": spec.description}
-    kinds = {"str": {"type": "string", "maxLength": MAX_TEXT}, "int": {"type": "integer"},
+    kinds = {"str": {"type": "string", "maxLength": MAX_TEXT},
+             "int": {"type": "integer", "minimum": -MAX_SEQ, "maximum": MAX_SEQ},
              "num": {"type": "number"}, "bool": {"type": "boolean"},
              "vec3": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
              "strs": {"type": "array", "items": {"type": "string", "maxLength": MAX_TEXT}, "maxItems": MAX_LIST},

@@ -250,8 +250,8 @@ def _check_field(spec: Field, value) -> None:
         if k == "enum" and value not in spec.choices:
             raise _Bad(f"must be one of {', '.join(spec.choices)}")
     elif k == "int":
-        if type(value) is not int:
-            raise _Bad("expected an integer")
+        if type(value) is not int or not -MAX_SEQ <= value <= MAX_SEQ:
+            raise _Bad(f"expected an integer of at most {MAX_SEQ} in size")
     elif k == "num":
         if not _number(value):
             raise _Bad("expected a finite number")

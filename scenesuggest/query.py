@@ -81,7 +81,7 @@ def prepare(query: ContextQuery, taxonomy: Taxonomy, infer: bool = False) -> Pre
 def _vector(value, name: str) -> np.ndarray:
     try:
         v = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # an integer too large for a float among them, too
         raise SceneSuggestError("expected three numbers", field=name) from None
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         raise SceneSuggestError("expected three finite numbers", field=name)

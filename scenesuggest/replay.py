@@ -54,7 +54,7 @@ def _put(scene: Scene, states: list[dict]) -> None:
 def apply(scene: Scene, event: Mapping) -> Scene:
     """The scene after ``event``: the same scene for an event that changes nothing, else a new one."""
     states = _states(event)
-    if states is None:
+    if not states:  # not a scene change, or one that changed no object
         return scene
     after = dict(scene)
     _put(after, states)

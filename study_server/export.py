@@ -64,7 +64,9 @@ DICTIONARY: dict[str, dict[str, str]] = {
         "review": "why the trial should be reviewed: its events do not show the study's minimum work, or its scene "
                   "came less close to the target than [limits] min_target_score (empty: neither)",
         "replay": "whether the trial's events rebuild the final scene it submitted: match, mismatch: what differs, "
-                  "or unavailable: why (events of vocabulary 1 carry no object states)",
+                  "pending: (events the page logged before 'done' not stored yet; made at the next 'done' or at "
+                  "completion, then with '(events after seq N never arrived)' if some never did), or "
+                  "unavailable: why (events of vocabulary 1 carry no object states, or the check failed)",
         "score": f"how close the final scene came to the target, 0..1: {FORMULA}",
         "matched": "target objects matched by an object of the final scene",
         "missing": "target objects nothing matched", "extra": "objects of the final scene that match nothing",

@@ -90,10 +90,12 @@ class Trial(db.Model):
     started_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
     done_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
     final_scene: Mapped[dict | None] = mapped_column(JSON, nullable=True)
-    #: Why the trial's events do not show the study's minimum work (None: they do, or not yet checked).
+    #: Why the trial should be reviewed: its events do not show the study's minimum work, or its scene came less
+    #: close to the target than the study's min_target_score (None: neither, or not yet checked).
     review: Mapped[str | None] = mapped_column(Text, nullable=True)
     #: Whether the trial's events rebuild the final scene it submitted (scenesuggest.replay): "match",
-    #: "mismatch: …" (what differs), or "unavailable: …" (events without object states); empty before "done".
+    #: "mismatch: …" (what differs), "pending: …" (waiting for events the page logged before "done"), or
+    #: "unavailable: …" (events without object states, or the check failed); empty before "done".
     replay: Mapped[str | None] = mapped_column(Text, nullable=True)
     #: How close the final scene came to the target (scenesuggest.scoring), 0..1; empty before "done".
     score: Mapped[float | None] = mapped_column(Float, nullable=True)

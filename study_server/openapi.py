@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from scenesuggest.event_schema import json_schema
-from scenesuggest.events import MAX_BATCH, VERSIONS
+from scenesuggest.events import MAX_BATCH, MAX_SEQ, VERSIONS
 
 ERROR = {"type": "object", "required": ["error"],
          "properties": {"error": {"type": "string"}, "field": {"type": ["string", "null"]}}}
@@ -86,9 +86,13 @@ def openapi_document() -> dict:
                 "responses": {**_ok({"type": "object"}), **_errors(400, 401, 404)}}},
             "/api/trial/done": {"post": {
                 "summary": "Finish the current trial with its final scene", "security": auth,
-                "requestBody": _body({"type": "object", "required": ["trial"],
-                                      "properties": {"trial": {"type": "integer"}, "scene": SCENE}}),
-                "responses": {**_ok({"type": "object"}), **_errors(400, 401, 409)}}},
+                "requestBody": _body({"type": "object", "required": ["trial"], "properties": {
+                    "trial": {"type": "integer", "minimum": -1}, "scene": SCENE,
+                    "last_seq": {"type": "integer", "minimum": -1, "maximum": MAX_SEQ,
+                                 "description": "the seq of the last event the page logged (its trial_done): the "
+                                                "server checks the trial's replay once it holds every event up "
+                                                "to it"}}}),
+                "responses": {**_ok({"type": "object"}), **_errors(400, 401, 409, 410, 422)}}},
             "/api/events/schema.json": {"get": {"summary": "JSON Schema of one event",
                                                 "responses": _ok({"type": "object"})}},
             "/api/openapi.json": {"get": {"summary": "This document", "responses": _ok({"type": "object"})}},

@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 
 from flask import current_app
+from sqlalchemy.exc import SQLAlchemyError
 
 from scenesuggest.replay import ReplayUnavailable, differences, final_scene
 from scenesuggest.scoring import Closeness, closeness
@@ -43,31 +44,48 @@ def target_closeness(rt: StudyRuntime, scene_id: str, objects: list[dict]) -> Cl
     return closeness(objects, rt.scene(scene_id, "target")["objects"], start, rt.taxonomy.parent, rt.period_of)
 
 
+def _guarded(what: str, t: Trial, check):
+    """``check()``, or None after logging when it fails: the experimenter's checks never hold a participant up.
+    Database errors are not the check's: they propagate (the request fails as a whole and is retried)."""
+    try:
+        return check()
+    except SQLAlchemyError:
+        raise
+    except Exception:  # noqa: BLE001 - logged with its traceback; the trial records that the check failed
+        current_app.logger.exception("%s of trial %s of participant %s", what, t.index, t.participant_id)
+        return None
+
+
+def _replay(rt: StudyRuntime, t: Trial) -> str:
+    found = _guarded("replay check", t, lambda: replay_check(rt, t, trial_events(t.participant_id, t.index)))
+    return found if found is not None else "unavailable: the check failed"
+
+
 def check_trial(rt: StudyRuntime, p: Participant, t: Trial, last_seq: int | None = None) -> None:
     """Record on ``p``'s trial just done whether its events rebuild its final scene, and its score; below the study's
     ``min_target_score`` the trial is flagged for review. While the server lacks events up to ``last_seq`` (the
     last the page logged) the check is ``pending`` and :func:`settle` makes it later. A check that fails is
-    recorded as unavailable and logged: the participant goes on. The caller commits."""
-    try:
-        if last_seq is not None and p.acked_seq < last_seq:
-            t.replay = f"{PENDING} {last_seq} not stored yet"
-        else:
-            t.replay = replay_check(rt, t, trial_events(t.participant_id, t.index))
-        if t.final_scene is None:
-            return
-        t.score = target_closeness(rt, t.scene_id, t.final_scene["objects"]).score
-    except Exception as e:  # noqa: BLE001 - a participant is never held up by the experimenter's check
-        current_app.logger.exception("checking trial %s of participant %s", t.index, t.participant_id)
-        t.replay = f"unavailable: the check failed ({type(e).__name__})"
+    recorded as unavailable (the score: left empty) and logged: the participant goes on. The caller commits."""
+    if last_seq is not None and p.acked_seq < last_seq:
+        t.replay = f"{PENDING} {last_seq} not stored yet"
+    else:
+        t.replay = _replay(rt, t)
+    if t.final_scene is None:
         return
+    t.score = _guarded("score", t, lambda: target_closeness(rt, t.scene_id, t.final_scene["objects"]).score)
     below = below_target(rt.study, t)
     if below:
         t.review = f"{t.review}; {below}" if t.review else below
 
 
-def settle(rt: StudyRuntime, p: Participant) -> None:
-    """Make the pending replay checks of ``p``'s trials whose events have all arrived since. The caller commits."""
+def settle(rt: StudyRuntime, p: Participant, final: bool = False) -> None:
+    """Make the pending replay checks of ``p``'s trials whose events have all arrived since; ``final`` (at
+    completion) makes every pending check on what is stored, noting the events that never arrived. The caller
+    commits."""
     for t in trials(p):
         waiting = re.fullmatch(rf"{PENDING} (\d+) not stored yet", t.replay or "")
-        if waiting and p.acked_seq >= int(waiting.group(1)):
-            t.replay = replay_check(rt, t, trial_events(t.participant_id, t.index))
+        if not waiting:
+            continue
+        arrived = p.acked_seq >= int(waiting.group(1))
+        if arrived or final:
+            t.replay = _replay(rt, t) + ("" if arrived else f" (events after seq {p.acked_seq} never arrived)")

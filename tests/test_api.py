@@ -233,13 +233,21 @@ def test_numbers_too_large_for_a_float_are_named_not_a_server_error(client, app)
             ({"page_id": "p", "vocabulary": 2, "events": [dict(move, payload={"object": "x", "distance": 0.1,
                                                                           "objects": []}, t=huge)]}, "events[0].t"),
             ({"page_id": "p", "vocabulary": 2, "events": [move]}, "events[0].payload.objects[0].transform"),
-            ({"page_id": "p", "vocabulary": 2.0, "events": []}, "vocabulary")):
+            ({"page_id": "p", "vocabulary": 2.0, "events": []}, "vocabulary"),
+            ({"page_id": "p", "vocabulary": 2, "events": [
+                {"seq": 0, "t": 1.0, "type": "insert", "trial": -1, "payload": {
+                    "object": state["id"], "model": state["model_id"], "category": state["category"], "rank": huge,
+                    "source": "context", "objects": [state]}}]}, "events[0].payload.rank")):
         r = client.post("/api/events", headers=auth(b), json=body)
         assert r.status_code == 422 and r.json["field"] == field, r.json
     scene = {"objects": [dict(o, transform=[huge] + o["transform"][1:]) if o is state else o
                          for o in target["objects"]]}
     r = client.post("/api/trial/done", headers=auth(b), json={"trial": -1, "scene": scene})
     assert r.status_code == 400 and r.json["field"] == "scene.transform", r.json
+    query = {"trial": -1, "parent": "room", "point": [huge, 0.0, 0.5], "normal": [0.0, 1.0, 0.0],
+             "scene": editor_scene(app, b["trial"]["scene"])}
+    r = client.post("/api/suggest", headers=auth(b), json=query)
+    assert r.status_code in (400, 422) and r.json["field"] == "point", r.json
     for trial, last_seq in ((huge, None), (2**64, None), (-1, huge), (-1, 1.5), (-1, True)):
         r = client.post("/api/trial/done", headers=auth(b), json={"trial": trial, "last_seq": last_seq} | (
             {} if last_seq is not None else {"last_seq": None}))

@@ -172,6 +172,8 @@ def test_a_check_waits_for_late_events_and_a_low_score_stays_flagged_after_compl
     assert client.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2,
                                                             "events": [late]}).status_code == 200
     finish_all_trials(client, boot(client.get("/study/demo/")), first_seq=2)  # the next 'done' makes the check
+    with app.app_context():
+        assert db.session.query(Trial).filter_by(index=t["index"]).one().replay == "match"
     page = client.get("/study/demo/")
     r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "25", "attempt": "0"})
     assert r.status_code == 302
@@ -195,7 +197,41 @@ def test_a_check_that_fails_never_holds_the_participant_up(client, app, monkeypa
     assert boot(client.get("/study/demo/"))["trial"]["index"] == 0  # on to the first trial
     with app.app_context():
         practice = db.session.query(Trial).filter_by(index=-1).one()
-        assert practice.replay == "unavailable: the check failed (RuntimeError)"
+        assert practice.replay == "match" and practice.score is None  # the replay check stands; no score
+
+
+def test_a_check_waiting_for_events_that_never_come_is_made_at_completion(client, app, monkeypatch):
+    """A page that says it logged more than it ever sends (or loses its last events for good) cannot keep its
+    trial's check pending: at completion the check is made on what is stored, and says so; a check that fails
+    there does not stop the participant completing."""
+    from study_server import trial_check
+
+    b = to_trials(client)
+    rt = app.extensions["studies"]["demo"]
+    start = rt.scene(b["trial"]["scene"], "start")["objects"]
+    r = client.post("/api/trial/done", headers=auth(b), json={"trial": -1, "scene": {"objects": start},
+                                                               "last_seq": 2**31 - 1})
+    assert r.status_code == 200
+    finish_all_trials(client, boot(client.get("/study/demo/")), first_seq=0)
+    with app.app_context():
+        assert db.session.query(Trial).filter_by(index=-1).one().replay.startswith("pending: ")
+    calls = []
+    real = trial_check.replay_check
+
+    def fails_once(*args):
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("a scene file gone")
+        return real(*args)
+
+    monkeypatch.setattr(trial_check, "replay_check", fails_once)
+    page = client.get("/study/demo/")
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "26", "attempt": "0"})
+    assert r.status_code == 302
+    with app.app_context():
+        assert db.session.query(Participant).one().status == "completed"
+        practice = db.session.query(Trial).filter_by(index=-1).one()
+        assert practice.replay == "unavailable: the check failed (events after seq 26 never arrived)"
 
 
 # --- how close to the target ----------------------------------------------------------------------------------

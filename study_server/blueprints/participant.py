@@ -297,7 +297,7 @@ def exit_survey(study_id: str):
             db.session.commit()
             return render_template("saving.html", study=study, p=p, answers=answers, attempt=attempt + 1,
                                    last_seq=last_seq), 202
-        trial_check.settle(runtime(study_id), p)  # every event is stored now: the pending replay checks
+        trial_check.settle(runtime(study_id), p, final=True)  # the pending replay checks, made now
         _unless_ended(flow.submit_exit, p, study, answers)
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))

@@ -100,6 +100,8 @@ function handOver() {
     channel.close();
     steppedAside = true;
     if (activeEditor) activeEditor.disabled = true;
+    $("confirm-done")?.close();
+    document.body.inert = true;  // no button, list or dialog of this page acts any more, by pointer or by key
     document.body.classList.add("inactive");
     await outbox.flush();
     outbox.stop();
@@ -206,6 +208,7 @@ async function main() {
 }
 
 async function finish(scene) {
+  if (steppedAside) return;  // the newer page finishes the trial
   log("trial_done", { objects: scene.objects.size - 1 });
   await outbox.flush();
   for (let attempt = 0; ; attempt += 1) {
