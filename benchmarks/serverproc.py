@@ -38,9 +38,10 @@ class StudyServer:
     ``migrate`` brings the schema up to date first (skip it when the caller already did)."""
 
     def __init__(self, instance: Path, database_url: str, workers: int = 2, migrate: bool = True,
-                 study: Path = DEMO_STUDY):
+                 study: Path = DEMO_STUDY, env: dict | None = None):
         self.env = {**os.environ, "SCENESUGGEST_INSTANCE": str(instance), "DATABASE_URL": database_url,
-                    "SCENESUGGEST_STUDIES": str(study), "SCENESUGGEST_SECRET_KEY": "loopback-only-" + "x" * 32}
+                    "SCENESUGGEST_STUDIES": str(study), "SCENESUGGEST_SECRET_KEY": "loopback-only-" + "x" * 32,
+                    **(env or {})}
         if migrate:
             subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "migrate"], env=self.env, check=True,
                            capture_output=True)
@@ -87,3 +88,91 @@ class StudyServer:
 
     def __exit__(self, *exc) -> None:
         self.kill(signal.SIGTERM)
+
+
+NGINX_CONF = """daemon off;
+user root;
+worker_processes 1;
+pid {prefix}/nginx.pid;
+error_log {prefix}/error.log warn;
+events {{ worker_connections 1024; }}
+http {{
+    include /etc/nginx/mime.types;
+    default_type application/octet-stream;
+    access_log {prefix}/access.log;
+    client_body_temp_path {prefix}/tmp/body;
+    proxy_temp_path {prefix}/tmp/proxy;
+    fastcgi_temp_path {prefix}/tmp/fastcgi;
+    uwsgi_temp_path {prefix}/tmp/uwsgi;
+    scgi_temp_path {prefix}/tmp/scgi;
+    include {prefix}/deploy/nginx/scenesuggest.conf;
+}}
+"""
+
+
+def nginx_missing() -> str | None:
+    import shutil
+
+    if not shutil.which("nginx", path=os.environ.get("PATH", "") + ":/usr/sbin"):
+        return "nginx is not installed (apt-get install nginx)"
+    if not shutil.which("openssl"):
+        return "openssl is not installed"
+    return None
+
+
+class NginxProxy:
+    """nginx from Debian as a child process, all in ``prefix``, with the site configuration
+    ``scenesuggest study deploy-files`` writes (the one shipped), a self-signed certificate for 127.0.0.1, and
+    the given app servers' ports as its upstream. ``https`` is its base URL, ``cert`` the certificate to trust."""
+
+    def __init__(self, prefix: Path, app_ports: list[int]):
+        from study_server.deployment import Deployment, write_deploy_files
+
+        self.prefix = prefix
+        (prefix / "tmp").mkdir(parents=True)
+        self.cert, key = prefix / "cert.pem", prefix / "key.pem"
+        subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out",
+                        str(self.cert), "-days", "1", "-subj", "/CN=127.0.0.1", "-addext",
+                        "subjectAltName=IP:127.0.0.1"], check=True, capture_output=True)
+        self.http_port, self.https_port = free_port(), free_port()
+        write_deploy_files(prefix / "deploy", Deployment(
+            "127.0.0.1", app_ports, self.http_port, self.https_port, address="127.0.0.1", cert=str(self.cert),
+            key=str(key), nginx_dir=str(prefix / "deploy" / "nginx"), cache=str(prefix / "cache"),
+            acme_root=str(prefix / "acme")))
+        (prefix / "nginx.conf").write_text(NGINX_CONF.format(prefix=prefix))
+        self.https = f"https://127.0.0.1:{self.https_port}"
+        self.http = f"http://127.0.0.1:{self.http_port}"
+        self.proc: subprocess.Popen | None = None
+
+    def start(self) -> NginxProxy:
+        import shutil
+
+        nginx = shutil.which("nginx", path=os.environ.get("PATH", "") + ":/usr/sbin")
+        self.proc = subprocess.Popen([nginx, "-c", str(self.prefix / "nginx.conf"), "-p", str(self.prefix)],
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", self.https_port), timeout=1).close()
+                return self
+            except OSError:
+                if self.proc.poll() is not None:
+                    raise RuntimeError("nginx did not start: " + self.proc.stderr.read().decode(errors="replace")
+                                       ) from None
+                time.sleep(0.05)
+        raise RuntimeError("nginx did not start listening")
+
+    def stop(self) -> None:
+        if self.proc and self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGQUIT)
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait()
+
+    def __enter__(self) -> NginxProxy:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

@@ -10,6 +10,9 @@ import numpy as np
 from .participant import Behaviours, Bot
 from .transport import FlaskTransport, FlowError, HttpTransport
 
+#: How long a bot keeps sending a request that finds no server (refused, reset, 502/503), as a browser's page does.
+RETRY_S = 60.0
+
 
 def simulate(participants: int, seed: int = 0, *, study: str, url: str | None = None, app=None,
              behaviours: Behaviours | None = None, progress: Callable[[str], None] = lambda label: None) -> dict:
@@ -24,7 +27,7 @@ def simulate(participants: int, seed: int = 0, *, study: str, url: str | None = 
         raise ValueError("give a server URL or an app")
     results, failures, retries, symmetry = [], [], 0, {}
     for i in range(participants):
-        transport = HttpTransport(url) if url else FlaskTransport(app.test_client())
+        transport = HttpTransport(url, retry_for=RETRY_S) if url else FlaskTransport(app.test_client())
         bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]), behaviours=behaviours,
                   symmetry=symmetry)
         try:

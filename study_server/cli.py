@@ -180,3 +180,26 @@ def study_restore_cmd(file: str, database_url: str | None, as_json: bool) -> Non
     emit(done, as_json, f"restored {done['participants']} participants and {done['events']} events (schema "
                         f"{done['revision']}; integrity {done['integrity']}); run 'scenesuggest study migrate' if "
                         "the server's code is newer than the backup")
+
+
+@study.command("deploy-files")
+@click.option("--out", required=True, type=click.Path(file_okay=False), help="Folder to write them into (new).")
+@click.option("--server-name", required=True, help="The study's public host name (TLS certificate's name).")
+@click.option("--app", "app_ports", multiple=True, type=int, default=(8001, 8002), show_default=True,
+              help="Port of an app server on 127.0.0.1 (repeat for each).")
+@click.option("--http-port", default=80, show_default=True)
+@click.option("--https-port", default=443, show_default=True)
+@click.option("--cert", default=None, help="TLS certificate chain (default: certbot's for the server name).")
+@click.option("--key", default=None, help="Its private key (default: certbot's).")
+@click.option("--user", default="scenesuggest", show_default=True, help="The system user the app servers run as.")
+@click.option("--workers", default=2, show_default=True, help="gunicorn workers per app server.")
+@click.option("--json", "as_json", is_flag=True)
+def study_deploy_files_cmd(out: str, server_name: str, app_ports: tuple[int, ...], http_port: int, https_port: int,
+                           cert: str | None, key: str | None, user: str, workers: int, as_json: bool) -> None:
+    """Write nginx's site and proxy settings, the app servers' systemd unit and their environment file, filled
+    in for this installation and the configured studies (see "Running a study for real" in the README)."""
+    from .deployment import Deployment, write_deploy_files
+
+    written = write_deploy_files(out, Deployment(server_name, list(app_ports), http_port, https_port, cert=cert,
+                                                 key=key, user=user, workers=workers))
+    emit({"files": [str(p) for p in written]}, as_json, "\n".join(f"wrote {p}" for p in written))

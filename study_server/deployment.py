@@ -1,0 +1,99 @@
+"""The files a server for real needs, filled in for this installation (``scenesuggest study deploy-files``):
+nginx in front (TLS, HTTP to HTTPS, static files, cached model assets, the app servers as one upstream), a
+systemd unit per app server, and the app servers' environment file. The templates are in ``deploy/``; the same
+function writes what the proxy test runs, so the configuration shipped is the one tested.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import secrets
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from scenesuggest.errors import SceneSuggestError
+
+from . import config
+from .importmap import three_folder
+
+TEMPLATES = config.PACKAGE / "deploy"
+
+
+class DeployError(SceneSuggestError):
+    pass
+
+
+@dataclass
+class Deployment:
+    """Where things are. Ports and addresses: nginx listens on ``http_port`` and ``https_port`` (of ``address``,
+    all addresses by default); the app servers on 127.0.0.1 at ``app_ports``."""
+
+    server_name: str
+    app_ports: list[int] = field(default_factory=lambda: [8001, 8002])
+    http_port: int = 80
+    https_port: int = 443
+    address: str = ""
+    cert: str | None = None
+    key: str | None = None
+    nginx_dir: str = "/etc/nginx"
+    cache: str = "/var/cache/nginx/scenesuggest"
+    acme_root: str = "/var/www/letsencrypt"
+    user: str = "scenesuggest"
+    env_file: str = "/etc/scenesuggest/scenesuggest.env"
+    workers: int = 2
+
+    def check(self) -> None:
+        if not re.fullmatch(r"[A-Za-z0-9.-]+", self.server_name):
+            raise DeployError("expected a host name (letters, digits, '.' and '-')", field="--server-name")
+        ports = [self.http_port, self.https_port, *self.app_ports]
+        if not self.app_ports or any(not 0 < p < 65536 for p in ports) or len(set(ports)) != len(ports):
+            raise DeployError("expected distinct ports from 1 to 65535, one or more for app servers", field="--app")
+
+    def values(self) -> dict[str, str]:
+        listen = f"{self.address}:" if self.address else ""
+        cert = self.cert or f"/etc/letsencrypt/live/{self.server_name}/fullchain.pem"
+        key = self.key or f"/etc/letsencrypt/live/{self.server_name}/privkey.pem"
+        return {
+            "UPSTREAMS": "\n".join(f"    server 127.0.0.1:{p} max_fails=1 fail_timeout=5s;" for p in self.app_ports),
+            "CACHE": self.cache, "HTTP_LISTEN": f"{listen}{self.http_port}",
+            "HTTPS_LISTEN": f"{listen}{self.https_port}", "SERVER_NAME": self.server_name,
+            "ACME_ROOT": self.acme_root, "HTTPS_PORT_SUFFIX": "" if self.https_port == 443 else f":{self.https_port}",
+            "CERT": cert, "KEY": key, "STATIC": str(config.PACKAGE / "static"), "THREE": str(three_folder()),
+            "NGINX_DIR": self.nginx_dir, "USER": self.user, "ENV_FILE": self.env_file, "PYTHON": sys.executable,
+            "WORKERS": str(self.workers), "HOME": str(config.data_home()),
+            "STUDIES": ":".join(str(p) for p in config.study_files()), "SECRET": secrets.token_hex(32)}
+
+
+#: Template → where it is written in the output folder (and whether it holds secrets).
+FILES = {"nginx-site.conf": ("nginx/scenesuggest.conf", False),
+         "proxy-params.conf": ("nginx/scenesuggest-proxy-params.conf", False),
+         "scenesuggest@.service": ("systemd/scenesuggest@.service", False),
+         "scenesuggest.env": ("scenesuggest.env", True)}
+
+
+def fill(template: str, values: dict[str, str]) -> str:
+    """``@@NAME@@`` replaced by its value (nginx's own ``$variables`` stay); every placeholder must be known."""
+    unknown = sorted(set(re.findall(r"@@([A-Z_]+)@@", template)) - set(values))
+    if unknown:
+        raise DeployError(f"template placeholders without a value: {', '.join(unknown)}")
+    return re.sub(r"@@([A-Z_]+)@@", lambda m: values[m.group(1)], template)
+
+
+def write_deploy_files(out: str | Path, deployment: Deployment) -> list[Path]:
+    """Write the filled files into ``out`` (absent or empty); returns them."""
+    deployment.check()
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise DeployError("already exists and is not an empty folder: nothing was written", file=str(out))
+    values = deployment.values()
+    written = []
+    for template, (name, secret) in FILES.items():
+        path = out / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600 if secret else 0o644)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(fill((TEMPLATES / template).read_text(encoding="utf-8"), values))
+        written.append(path)
+    return written
