@@ -14,27 +14,36 @@ Prints events/s stored, acknowledgement and suggestion latency percentiles, even
 processes' CPU time per 1,000 events stored (saturated: ingestion alone; paced: with the suggestions) and the
 median size of an event as sent. Budget on a 2-core machine: ≥ 5,000 events/s with p95 ≤ 100 ms, nothing lost or
 duplicated, ≤ 80 ms of server CPU per 1,000 events.
-Usage: .venv/bin/python benchmarks/bench_ingest.py [--participants 50] [--batches 40] [--batch-size 100]
+``--database postgresql`` runs the same load on a throwaway PostgreSQL server (``--via-proxy``: two app servers
+behind nginx over TLS, the deployment ``study deploy-files`` writes; nginx's CPU is reported apart), then on
+SQLite in the same run, whose main figures are printed beside.
+Usage: .venv/bin/python benchmarks/bench_ingest.py [--participants 50] [--batches 20] [--batch-size 100]
+       [--database postgresql [--via-proxy]]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import random
+import signal
 import sqlite3
 import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from serverproc import StudyServer, demo_missing  # noqa: E402
+from serverproc import StudyServer, demo_missing, nginx_missing  # noqa: E402
 
 from scenesuggest.events import SCENE_CHANGES  # noqa: E402
 from simulation.transport import HttpTransport  # noqa: E402
@@ -146,10 +155,11 @@ def suggester(base: str, token: str, every: float, rng: random.Random, stop: thr
 
 def run_phase(server, tokens: list[str], seqs: list[int], args, interval: float, mix: list[dict],
               suggest_every: float = 0.0) -> dict:
+    """One phase against ``server`` (a :class:`Stack`)."""
     base = server.base
     lat, errors, lock = [], [], threading.Lock()
     suggest_lat, suggest_errors, stop = [], [], threading.Event()
-    started, cpu = time.perf_counter(), server.cpu_seconds()
+    started, cpu, proxy_cpu = time.perf_counter(), server.cpu_seconds(), server.proxy_cpu_seconds()
     with ThreadPoolExecutor(max_workers=2 * len(tokens)) as pool:
         helpers = [pool.submit(suggester, base, tokens[k], suggest_every, random.Random(1000 + k), stop,
                                suggest_lat, suggest_errors, lock) for k in range(len(tokens)) if suggest_every]
@@ -160,7 +170,8 @@ def run_phase(server, tokens: list[str], seqs: list[int], args, interval: float,
         stop.set()
         for h in helpers:
             h.result()
-    return {"seconds": time.perf_counter() - started, "cpu_s": server.cpu_seconds() - cpu, "lat": lat,
+    return {"seconds": time.perf_counter() - started, "cpu_s": server.cpu_seconds() - cpu,
+            "proxy_cpu_s": server.proxy_cpu_seconds() - proxy_cpu, "lat": lat,
             "errors": errors, "ends": ends,
             "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True)), "suggest_lat": suggest_lat,
             "suggest_errors": suggest_errors}
@@ -171,56 +182,84 @@ def percentile(values, q):
     return values[min(len(values) - 1, int(round(q / 100 * (len(values) - 1))))]
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--participants", type=int, default=50)
-    parser.add_argument("--batches", type=int, default=20, help="batches per participant in each phase")
-    parser.add_argument("--batch-size", type=int, default=100)
-    parser.add_argument("--interval", type=float, default=1.0,
-                        help="seconds between a participant's batches in the paced phase (the client flushes "
-                             "its outbox about once a second)")
-    parser.add_argument("--resend", type=float, default=0.05, help="fraction of batches sent twice")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--vocabulary", type=int, choices=(1, 2), default=2,
-                        help="event vocabulary version to send (1: no object states, as pages of that version)")
-    parser.add_argument("--suggest-every", type=float, default=5.0,
-                        help="seconds between one participant's context queries during the paced phase "
-                             "(0: ingestion alone)")
-    args = parser.parse_args()
-    if demo_missing():
-        print(json.dumps({"benchmark": "ingest", "error": demo_missing()}))
-        return 1
-    mix = event_mix(args.vocabulary)
-    sizes = sorted(len(json.dumps({"seq": 12345, "t": 1.7e12, **e})) for e in mix)
-    with tempfile.TemporaryDirectory() as tmp:
-        database = Path(tmp) / "bench.sqlite3"
-        with StudyServer(Path(tmp) / "instance", f"sqlite:///{database}", args.workers) as server:
-            base = server.base
-            with ThreadPoolExecutor(max_workers=8) as pool:
-                tokens = list(pool.map(lambda i: enrol(base, f"bench-{i}"), range(args.participants)))
-            phases = {}
-            seqs = [0] * args.participants
-            for name, interval in (("paced", args.interval), ("saturated", 0.0)):
-                phases[name] = run_phase(server, tokens, seqs, args, interval, mix,
-                                         args.suggest_every if name == "paced" else 0.0)
-                seqs = phases[name]["ends"]
-        with sqlite3.connect(database) as conn:
-            stored = conn.execute("SELECT count(*) FROM events").fetchone()[0]
-            distinct = conn.execute("SELECT count(*) FROM (SELECT DISTINCT participant_id, seq FROM events)"
-                                    ).fetchone()[0]
+@dataclass
+class Stack:
+    """What the load goes to: the base URL, the app servers' CPU seconds so far, the proxy's (0 without one), and
+    (stored, distinct) event rows in the database."""
+
+    base: str
+    label: str
+    cpu_seconds: Callable[[], float]
+    count: Callable[[], tuple[int, int]]
+    proxy_cpu_seconds: Callable[[], float] = lambda: 0.0
+
+
+COUNT = "SELECT count(*), (SELECT count(*) FROM (SELECT DISTINCT participant_id, seq FROM events) d) FROM events"
+
+
+@contextmanager
+def sqlite_stack(tmp: Path, workers: int):
+    """`make serve`'s server: gunicorn on SQLite in WAL mode."""
+    database = tmp / "bench.sqlite3"
+    with StudyServer(tmp / "instance", f"sqlite:///{database}", workers) as server:
+        def count():
+            with sqlite3.connect(database) as conn:
+                return conn.execute(COUNT).fetchone()
+        yield Stack(server.base, "sqlite-wal", server.cpu_seconds, count)
+
+
+@contextmanager
+def postgres_stack(tmp: Path, workers: int, via_proxy: bool):
+    """One app server on a throwaway PostgreSQL, or two behind nginx over TLS (the deployment the README gives:
+    ``study deploy-files``), each with ``workers`` gunicorn workers."""
+    from serverproc import NginxProxy, ThrowawayPostgres
+    from sqlalchemy import create_engine, text
+
+    with ThrowawayPostgres() as pg:
+        url = pg.create("bench")
+        env = {"SCENESUGGEST_PROXY_HOPS": "1"} if via_proxy else {}
+        apps = [StudyServer(tmp / f"instance-{i}", url, workers, migrate=i == 0, env=env)
+                for i in range(2 if via_proxy else 1)]
+        proxy = NginxProxy(tmp / "nginx", [a.port for a in apps]) if via_proxy else None
+        engine = create_engine(url)
+        try:
+            for a in apps:
+                a.start().wait_ready()
+            if proxy:
+                proxy.start()
+                os.environ["SSL_CERT_FILE"] = os.environ["REQUESTS_CA_BUNDLE"] = str(proxy.cert)
+
+            def count():
+                with engine.connect() as con:
+                    return tuple(con.execute(text(COUNT)).one())
+            yield Stack(proxy.https if proxy else apps[0].base,
+                        "postgresql" + (f" behind nginx (TLS), {len(apps)} app servers" if proxy else ""),
+                        lambda: sum(a.cpu_seconds() for a in apps), count,
+                        proxy.cpu_seconds if proxy else (lambda: 0.0))
+        finally:
+            engine.dispose()
+            if proxy:
+                proxy.stop()
+            for a in apps:
+                a.kill(signal.SIGTERM)
+
+
+def measure(stack: Stack, args, mix: list[dict]) -> dict:
+    """Enrol the participants, run the paced then the saturated phase; the figures."""
+    with ThreadPoolExecutor(max_workers=8) as pool:
+        tokens = list(pool.map(lambda i: enrol(stack.base, f"bench-{i}"), range(args.participants)))
+    phases = {}
+    seqs = [0] * args.participants
+    for name, interval in (("paced", args.interval), ("saturated", 0.0)):
+        phases[name] = run_phase(stack, tokens, seqs, args, interval, mix,
+                                 args.suggest_every if name == "paced" else 0.0)
+        seqs = phases[name]["ends"]
+    stored, distinct = stack.count()
     sent_total = sum(p["events"] for p in phases.values())
     paced, saturated = phases["paced"], phases["saturated"]
     errors = paced["errors"] + saturated["errors"]
-    print(json.dumps({
-        "benchmark": "ingest",
-        "participants": args.participants,
-        "batch_size": args.batch_size,
-        "batch_interval_s": args.interval,
-        "gunicorn_workers": args.workers,
-        "database": "sqlite-wal",
-        "vocabulary": args.vocabulary,
-        "median_event_bytes": sizes[len(sizes) // 2],
-        "mean_event_bytes": round(sum(sizes) / len(sizes), 1),
+    figures = {
+        "database": stack.label,
         "events_per_s": round(paced["events"] / paced["seconds"], 1),
         "p50_ms": round(percentile(paced["lat"], 50), 1),
         "p95_ms": round(percentile(paced["lat"], 95), 1),
@@ -240,8 +279,63 @@ def main() -> int:
         "lost": sent_total - distinct,
         "duplicates": stored - distinct,
         "errors": len(errors),
-    }, indent=1))
-    return 0 if not errors and not paced["suggest_errors"] and stored == sent_total else 1
+    }
+    if saturated["proxy_cpu_s"]:
+        figures["proxy_cpu_ms_per_1000_events"] = round(1e6 * saturated["proxy_cpu_s"] / saturated["events"], 1)
+    figures["ok"] = not errors and not paced["suggest_errors"] and stored == sent_total == distinct
+    return figures
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--participants", type=int, default=50)
+    parser.add_argument("--batches", type=int, default=20, help="batches per participant in each phase")
+    parser.add_argument("--batch-size", type=int, default=100)
+    parser.add_argument("--interval", type=float, default=1.0,
+                        help="seconds between a participant's batches in the paced phase (the client flushes "
+                             "its outbox about once a second)")
+    parser.add_argument("--resend", type=float, default=0.05, help="fraction of batches sent twice")
+    parser.add_argument("--workers", type=int, default=2, help="gunicorn workers per app server")
+    parser.add_argument("--vocabulary", type=int, choices=(1, 2), default=2,
+                        help="event vocabulary version to send (1: no object states, as pages of that version)")
+    parser.add_argument("--suggest-every", type=float, default=5.0,
+                        help="seconds between one participant's context queries during the paced phase "
+                             "(0: ingestion alone)")
+    parser.add_argument("--database", choices=("sqlite", "postgresql"), default="sqlite",
+                        help="postgresql: a throwaway server; SQLite is then measured too, in the same run")
+    parser.add_argument("--via-proxy", action="store_true",
+                        help="with --database postgresql: two app servers behind nginx over TLS")
+    args = parser.parse_args()
+    if demo_missing():
+        print(json.dumps({"benchmark": "ingest", "error": demo_missing()}))
+        return 1
+    if args.via_proxy and (args.database != "postgresql" or nginx_missing()):
+        print(json.dumps({"benchmark": "ingest", "error": nginx_missing() or "--via-proxy needs --database "
+                                                                             "postgresql"}))
+        return 1
+    mix = event_mix(args.vocabulary)
+    sizes = sorted(len(json.dumps({"seq": 12345, "t": 1.7e12, **e})) for e in mix)
+    out = {"benchmark": "ingest", "participants": args.participants, "batch_size": args.batch_size,
+           "batch_interval_s": args.interval, "gunicorn_workers": args.workers, "vocabulary": args.vocabulary,
+           "median_event_bytes": sizes[len(sizes) // 2], "mean_event_bytes": round(sum(sizes) / len(sizes), 1)}
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.database == "postgresql":
+            with postgres_stack(Path(tmp) / "pg", args.workers, args.via_proxy) as stack:
+                out |= measure(stack, args, mix)
+            with sqlite_stack(Path(tmp) / "sqlite", args.workers) as stack:  # the same load, the same run
+                out["sqlite"] = {k: v for k, v in measure(stack, args, mix).items()
+                                 if k in SQLITE_BESIDE}
+        else:
+            with sqlite_stack(Path(tmp), args.workers) as stack:
+                out |= measure(stack, args, mix)
+    ok = out.pop("ok") and out.get("sqlite", {}).get("ok", True)
+    print(json.dumps(out, indent=1))
+    return 0 if ok else 1
+
+
+#: The SQLite figures printed beside PostgreSQL's.
+SQLITE_BESIDE = ("events_per_s", "p95_ms", "saturated_events_per_s", "saturated_p95_ms",
+                 "server_cpu_ms_per_1000_events", "lost", "errors", "ok")
 
 
 if __name__ == "__main__":

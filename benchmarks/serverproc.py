@@ -25,6 +25,19 @@ def demo_missing() -> str | None:
     return "; ".join(found.values()) + " (run `make demo`)" if found else None
 
 
+def group_cpu_seconds(group: int) -> float:
+    """CPU time (user + system, seconds) used so far by the live processes of process group ``group``."""
+    total, tick = 0.0, os.sysconf("SC_CLK_TCK")
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # the process ended meanwhile
+            continue
+        if int(fields[2]) == group:  # fields from the state on: state, ppid, pgrp, …, utime, stime
+            total += (int(fields[11]) + int(fields[12])) / tick
+    return total
+
+
 def free_port() -> int:
     s = socket.socket()
     s.bind(("127.0.0.1", 0))
@@ -68,15 +81,7 @@ class StudyServer:
     def cpu_seconds(self) -> float:
         """CPU time (user + system, seconds) used so far by the server's processes (gunicorn and its workers, one
         process group)."""
-        total, tick = 0.0, os.sysconf("SC_CLK_TCK")
-        for stat in Path("/proc").glob("[0-9]*/stat"):
-            try:
-                fields = stat.read_text().rsplit(")", 1)[1].split()
-            except OSError:  # the process ended meanwhile
-                continue
-            if int(fields[2]) == self.proc.pid:  # fields from the state on: state, ppid, pgrp, …, utime, stime
-                total += (int(fields[11]) + int(fields[12])) / tick
-        return total
+        return group_cpu_seconds(self.proc.pid)
 
     def kill(self, sig: int = signal.SIGKILL) -> None:
         os.killpg(self.proc.pid, sig)
@@ -162,6 +167,10 @@ class NginxProxy:
                 time.sleep(0.05)
         raise RuntimeError("nginx did not start listening")
 
+    def cpu_seconds(self) -> float:
+        """CPU time used so far by nginx's master and worker."""
+        return group_cpu_seconds(self.proc.pid)
+
     def stop(self) -> None:
         if self.proc and self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGQUIT)
@@ -172,6 +181,58 @@ class NginxProxy:
                 self.proc.wait()
 
     def __enter__(self) -> NginxProxy:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+class ThrowawayPostgres:
+    """A PostgreSQL server of Debian's on a free loopback port, its data in a temporary folder, run as the
+    ``postgres`` user (TESTING.md); ``url`` is its ``postgres`` database, :meth:`create` makes another."""
+
+    def __init__(self):
+        import glob
+        import shutil
+        import tempfile
+
+        bins = sorted(glob.glob("/usr/lib/postgresql/*/bin"))
+        if not bins or not shutil.which("runuser"):
+            raise RuntimeError("PostgreSQL is not installed (apt-get install postgresql)")
+        self.bindir, self.run = bins[-1], ["runuser", "-u", "postgres", "--"]
+        self.data = Path(tempfile.mkdtemp(prefix="scenesuggest-pg-"))  # pytest's tmp dirs are closed to others
+        shutil.chown(self.data, "postgres")
+        self.port = free_port()
+        self.url = f"postgresql+psycopg://postgres@127.0.0.1:{self.port}/postgres"
+
+    def start(self) -> ThrowawayPostgres:
+        subprocess.run([*self.run, f"{self.bindir}/initdb", "-D", str(self.data / "db"), "-A", "trust", "-U",
+                        "postgres"], check=True, capture_output=True)
+        subprocess.run([*self.run, f"{self.bindir}/pg_ctl", "-D", str(self.data / "db"), "-l",
+                        str(self.data / "log"), "-w", "-o", f"-c listen_addresses=127.0.0.1 -p {self.port} "
+                        f"-k {self.data} -c fsync=off -c max_connections=200", "start"], check=True,
+                       capture_output=True)
+        for _ in range(50):
+            if subprocess.run([*self.run, f"{self.bindir}/pg_isready", "-h", "127.0.0.1", "-p", str(self.port)],
+                              capture_output=True).returncode == 0:
+                break
+            time.sleep(0.1)
+        return self
+
+    def create(self, name: str) -> str:
+        """A new empty database; returns its URL."""
+        subprocess.run([*self.run, f"{self.bindir}/createdb", "-h", "127.0.0.1", "-p", str(self.port), "-U",
+                        "postgres", name], check=True, capture_output=True)
+        return self.url.rsplit("/", 1)[0] + "/" + name
+
+    def stop(self) -> None:
+        import shutil
+
+        subprocess.run([*self.run, f"{self.bindir}/pg_ctl", "-D", str(self.data / "db"), "-m", "fast", "stop"],
+                       capture_output=True)
+        shutil.rmtree(self.data, ignore_errors=True)
+
+    def __enter__(self) -> ThrowawayPostgres:
         return self.start()
 
     def __exit__(self, *exc) -> None:

@@ -25,7 +25,7 @@ def pytest_collection_modifyitems(config, items) -> None:
             item.add_marker(pytest.mark.browser)
         names = set(getattr(item, "fixturenames", ()))
         params = getattr(getattr(item, "callspec", None), "params", {})
-        if {"postgres_url", "postgres_db"} & names or "postgresql" in params.values():
+        if {"postgres_server", "postgres_db"} & names or "postgresql" in params.values():
             item.add_marker(pytest.mark.postgresql)
 
 
@@ -142,58 +142,26 @@ def client(app):
 
 
 @pytest.fixture(scope="session")
-def postgres_url():
+def postgres_server():
     """A throwaway PostgreSQL server on loopback (TESTING.md); skipped when PostgreSQL is not installed."""
-    import glob
-    import shutil
-    import socket
-    import subprocess
-    import time
+    from serverproc import ThrowawayPostgres
 
-    bins = sorted(glob.glob("/usr/lib/postgresql/*/bin"))
-    if not bins or not shutil.which("runuser"):
-        if IN_CI:
-            pytest.fail("PostgreSQL is required under CI=true (apt-get install postgresql)")
-        pytest.skip("PostgreSQL is not installed (apt-get install postgresql)")
-    bindir = bins[-1]
-    import tempfile
-    from pathlib import Path as _Path
-
-    data = _Path(tempfile.mkdtemp(prefix="scenesuggest-pg-"))  # pytest's tmp dirs are closed to other users
-    shutil.chown(data, "postgres")
-    sock = socket.socket()
-    sock.bind(("127.0.0.1", 0))
-    port = sock.getsockname()[1]
-    sock.close()
-    run = ["runuser", "-u", "postgres", "--"]
-    subprocess.run([*run, f"{bindir}/initdb", "-D", str(data / "db"), "-A", "trust", "-U", "postgres"], check=True,
-                   capture_output=True)
-    subprocess.run([*run, f"{bindir}/pg_ctl", "-D", str(data / "db"), "-l", str(data / "log"), "-w", "-o",
-                    f"-c listen_addresses=127.0.0.1 -p {port} -k {data} -c fsync=off -c max_connections=200",
-                    "start"], check=True, capture_output=True)
     try:
-        for _ in range(50):
-            if subprocess.run([*run, f"{bindir}/pg_isready", "-h", "127.0.0.1", "-p", str(port)],
-                              capture_output=True).returncode == 0:
-                break
-            time.sleep(0.1)
-        yield f"postgresql+psycopg://postgres@127.0.0.1:{port}/postgres", port, bindir, run
-    finally:
-        subprocess.run([*run, f"{bindir}/pg_ctl", "-D", str(data / "db"), "-m", "fast", "stop"], capture_output=True)
-        shutil.rmtree(data, ignore_errors=True)
+        server = ThrowawayPostgres()
+    except RuntimeError as e:
+        if IN_CI:
+            pytest.fail(f"{e}: required under CI=true")
+        pytest.skip(str(e))
+    with server:
+        yield server
 
 
 @pytest.fixture
-def postgres_db(postgres_url):
+def postgres_db(postgres_server):
     """A fresh database on the throwaway server for one test."""
     import secrets
-    import subprocess
 
-    url, port, bindir, run = postgres_url
-    name = "t" + secrets.token_hex(6)
-    subprocess.run([*run, f"{bindir}/createdb", "-h", "127.0.0.1", "-p", str(port), "-U", "postgres", name],
-                   check=True, capture_output=True)
-    return url.rsplit("/", 1)[0] + "/" + name
+    return postgres_server.create("t" + secrets.token_hex(6))
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])

@@ -20,10 +20,7 @@ def fresh_database(request, backend_url, tmp_path):
     """A second empty database beside ``backend_url``, on the same kind of server."""
     if backend_url.startswith("sqlite"):
         return f"sqlite:///{tmp_path / 'restored.sqlite3'}"
-    url, port, bindir, run = request.getfixturevalue("postgres_url")
-    subprocess.run([*run, f"{bindir}/createdb", "-h", "127.0.0.1", "-p", str(port), "-U", "postgres", "restored"],
-                   check=True, capture_output=True)
-    return url.rsplit("/", 1)[0] + "/restored"
+    return request.getfixturevalue("postgres_server").create("restored")
 
 
 def stored_events(url):
