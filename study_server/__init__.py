@@ -15,7 +15,7 @@ from werkzeug.exceptions import HTTPException
 from . import config as settings
 from .extensions import db, migrate
 
-MIGRATIONS = settings.PACKAGE / "migrations"
+MIGRATIONS = settings.MIGRATIONS
 
 
 def _sqlite_pragmas(dbapi_connection, _record) -> None:

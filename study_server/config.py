@@ -28,6 +28,7 @@ from pathlib import Path
 from scenesuggest.errors import SceneSuggestError
 
 PACKAGE = Path(__file__).resolve().parent
+MIGRATIONS = PACKAGE / "migrations"
 DEFAULT_STUDY = PACKAGE / "demo" / "study.toml"
 ADMIN_FILE = "admin.json"
 PASSWORD_FILE = "admin-password.txt"

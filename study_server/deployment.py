@@ -70,7 +70,7 @@ class Deployment:
 FILES = {"nginx-site.conf": ("nginx/scenesuggest.conf", False),
          "proxy-params.conf": ("nginx/scenesuggest-proxy-params.conf", False),
          "scenesuggest@.service": ("systemd/scenesuggest@.service", False),
-         "scenesuggest.env": ("scenesuggest.env", True)}
+         "scenesuggest.env.in": ("scenesuggest.env", True)}
 
 
 def fill(template: str, values: dict[str, str]) -> str:

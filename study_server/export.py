@@ -189,7 +189,8 @@ def _rows(rt: StudyRuntime) -> dict[str, list[dict]]:
     return out
 
 
-def _csv(rows: list[dict], columns: list[str]) -> str:
+def csv_text(rows: list[dict], columns: list[str]) -> str:
+    """CSV text of ``rows`` with spreadsheet-safe cells (see the data dictionary's "Text cells")."""
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
     w.writeheader()
@@ -223,7 +224,7 @@ def export_files(rt: StudyRuntime) -> dict[str, str]:
 
     study = rt.study
     rows = _rows(rt)
-    files = {f"{name}.csv": _csv(rows[name], list(columns)) for name, columns in DICTIONARY.items()}
+    files = {f"{name}.csv": csv_text(rows[name], list(columns)) for name, columns in DICTIONARY.items()}
     try:
         schema_version = db.session.execute(text("SELECT version_num FROM alembic_version")).scalar()
     except Exception:

@@ -2,8 +2,9 @@
 
 Steps: ``device`` → ``consent`` → ``demographics`` → ``instructions`` → ``trial`` (the practice trial first,
 when the study has one) → ``exit`` → ``done``. Ending early: declining consent (status ``no_consent``),
-failing the device check (``screened_out``). Every function takes the participant, changes it in the
-current transaction and leaves committing to the caller.
+failing the device check (``screened_out``), leaving (``returned``). Each way out gives its own code (the study
+file's ``[platform.codes]``), which the platform's completion URL takes. Every function takes the participant,
+changes it in the current transaction and leaves committing to the caller.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import math
 import re
 from datetime import timedelta
+from urllib.parse import quote
 
 from sqlalchemy import case, func, select, update
 
@@ -47,7 +49,7 @@ def is_open(p: Participant) -> bool:
 def _finish(p: Participant, study: Study, status: str, code_key: str) -> None:
     """End the session, only if it is still in progress as stored now: an exclusion (or an earlier end) that
     committed meanwhile is final (:class:`SessionEnded`)."""
-    values = {"status": status, "step": "done", "code": study.codes[code_key], "finished_at": utcnow()}
+    values = {"status": status, "step": "done", "code": study.codes.get(code_key), "finished_at": utcnow()}
     ended = db.session.execute(update(Participant).where(Participant.id == p.id, Participant.status == OPEN)
                                .values(**values))
     if ended.rowcount != 1:
@@ -253,8 +255,15 @@ def below_target(study: Study, t: Trial) -> str | None:
     return f"scene {t.score:.2f} close to the target < {least:g}"
 
 
+def leave(p: Participant, study: Study) -> None:
+    """The participant leaves the study before its end: status ``returned``, with the study's code for it. The
+    events and answers given so far stay (the export has them; the analysis counts completed trials only)."""
+    _finish(p, study, "returned", "returned")
+
+
 def completion_url(study: Study, p: Participant) -> str | None:
-    """Where the completion page sends the participant (MTurk posts a form to turkSubmitTo instead)."""
+    """Where the end page sends the participant with their code, whichever way they ended (MTurk's HIT is
+    submitted by a form to turkSubmitTo instead, when complete)."""
     if study.completion_url and p.code:
-        return study.completion_url.replace("{code}", p.code)
+        return study.completion_url.replace("{code}", quote(p.code, safe=""))
     return None

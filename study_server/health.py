@@ -17,7 +17,7 @@ def head_revision(app: Flask) -> str:
     if "head_revision" not in app.extensions:
         from alembic.script import ScriptDirectory
 
-        from . import MIGRATIONS
+        from .config import MIGRATIONS
 
         app.extensions["head_revision"] = ScriptDirectory(str(MIGRATIONS)).get_current_head()
     return app.extensions["head_revision"]

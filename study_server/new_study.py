@@ -52,6 +52,7 @@ def study_file_text(study_id: str, title: str, corpus: str) -> str:
         id=study_id, title=json.dumps(title, ensure_ascii=False), corpus=corpus, target=TARGET[0],
         target_title=TARGET[1], code_complete=completion_code(rng, "DONE"),
         code_no_consent=completion_code(rng, "NOCONSENT"), code_screened_out=completion_code(rng, "SCREENED"),
+        code_returned=completion_code(rng, "RETURNED"),
         code_technical=completion_code(rng, "TECHNICAL"))
 
 

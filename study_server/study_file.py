@@ -22,7 +22,11 @@ CONDITIONS = ("none", "basic", "full")
 DESIGNS = ("williams", "random", "fixed")
 BLOCKINGS = ("condition", "scene")
 PLATFORMS = ("prolific", "mturk", "link")
-CODES = ("complete", "no_consent", "screened_out", "technical")
+CODES = ("complete", "no_consent", "screened_out", "returned", "technical")
+#: Codes a study file may leave out (older study files have none for participants who leave).
+OPTIONAL_CODES = ("returned",)
+#: Where Prolific takes a completion code (its one completion URL, the code as ``cc``).
+PROLIFIC_COMPLETION = "https://app.prolific.com/submissions/complete?cc={code}"
 QUESTION_KINDS = ("likert", "choice", "number", "text")
 ENGINE_OPTIONS = ("lambda1", "lambda2", "backoff", "orientation", "collision_aware", "collision_penalty",
                   "anchor_refinement", "refine_radius_m", "infer_scene_type")
@@ -215,8 +219,12 @@ def _platform(r: Reader, doc: dict) -> dict:
     completion_url = platform.get("completion_url")
     if completion_url is not None and (not isinstance(completion_url, str) or "{code}" not in completion_url):
         raise r.fail("platform.completion_url", "expected a URL containing {code}")
-    return {"platform": r.choice(platform, "kind", "platform.kind", PLATFORMS),
-            "codes": {k: r.string(codes_doc, k, f"platform.codes.{k}") for k in CODES},
+    kind = r.choice(platform, "kind", "platform.kind", PLATFORMS)
+    if completion_url is None and kind == "prolific":
+        completion_url = PROLIFIC_COMPLETION
+    return {"platform": kind,
+            "codes": {k: r.string(codes_doc, k, f"platform.codes.{k}") for k in CODES
+                      if k in codes_doc or k not in OPTIONAL_CODES},
             "completion_url": completion_url,
             "platform_study_id": r.string(platform, "study_id", "platform.study_id") if "study_id" in platform
             else None}

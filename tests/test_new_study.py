@@ -36,7 +36,7 @@ def test_a_new_study_has_the_demos_keys_its_own_codes_and_runs_as_written(tmp_pa
     assert keys(new) == keys(demo)  # every key of the demo's, none of its own
     codes, demo_codes = new["platform"]["codes"], demo["platform"]["codes"]
     assert set(codes) == set(demo_codes) and not set(codes.values()) & set(demo_codes.values())
-    assert len(set(codes.values())) == 4 and all(len(c.split("-")[0]) == 12 for c in codes.values())
+    assert len(set(codes.values())) == 5 and all(len(c.split("-")[0]) == 12 for c in codes.values())
     other = tomllib.loads(init_study(tmp_path / "other")[-1].read_text())
     assert not set(other["platform"]["codes"].values()) & set(codes.values())  # made at random each time
     assert "study validate" in (folder / "README.md").read_text()

@@ -28,9 +28,10 @@ from ..authoring import checked_png, checked_scene, image_path
 from ..boot import trial_boot
 from ..config import part_of_the_package
 from ..errors import RequestError
-from ..export import export_zip
+from ..export import csv_text, export_zip
 from ..extensions import db
 from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
+from ..outcomes import APPROVAL_COLUMNS, approval_rows, issued_codes
 from ..replays import replay_document
 from ..security import (
     DEVICE_COOKIE,
@@ -111,7 +112,8 @@ def progress(study) -> dict:
 @admin_required
 def dashboard():
     studies = [(rt.study, progress(rt.study)) for rt in current_app.extensions["studies"].values()]
-    return render_template("admin/dashboard.html", studies=studies)
+    codes = {rt.study.id: issued_codes(rt.study.id) for rt in current_app.extensions["studies"].values()}
+    return render_template("admin/dashboard.html", studies=studies, codes=codes)
 
 
 @bp.get("/<study_id>/participants")
@@ -298,3 +300,14 @@ def export(study_id: str):
     stamp = utcnow().strftime("%Y%m%dT%H%M%SZ")
     return Response(data, mimetype="application/zip",
                     headers={"Content-Disposition": f"attachment; filename={study_id}-{stamp}.zip"})
+
+
+@bp.get("/<study_id>/approvals.csv")
+@admin_required
+def approvals(study_id: str):
+    """Every participant with their platform id, session, status, code and the decision to take on the platform
+    (:mod:`study_server.outcomes`)."""
+    runtime(study_id)
+    stamp = utcnow().strftime("%Y%m%dT%H%M%SZ")
+    return Response(csv_text(approval_rows(study_id), list(APPROVAL_COLUMNS)), mimetype="text/csv",
+                    headers={"Content-Disposition": f"attachment; filename={study_id}-approvals-{stamp}.csv"})

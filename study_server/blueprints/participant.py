@@ -237,6 +237,27 @@ def device(study_id: str):
     return redirect(url_for(".current", study_id=study_id))
 
 
+@bp.get("/leave")
+def leave_page(study_id: str):
+    """Asks whether to leave the study (a link on every page of a session in progress)."""
+    study = runtime(study_id).study
+    p = _participant(study_id)
+    if p is None or not flow.is_open(p):
+        return redirect(url_for(".current", study_id=study_id))
+    return render_template("leave.html", study=study, p=p)
+
+
+@bp.post("/leave")
+def leave(study_id: str):
+    """Leave the study: the end page then gives the code for it and the way back to the platform."""
+    study = runtime(study_id).study
+    p = _post_participant(study_id)
+    if p is not None:
+        _unless_ended(flow.leave, p, study)
+    db.session.commit()
+    return redirect(url_for(".current", study_id=study_id))
+
+
 @bp.post("/consent")
 def consent(study_id: str):
     study = runtime(study_id).study

@@ -1,0 +1,49 @@
+"""How each participant's session ended, for the platform: the codes issued per way out (the admin's dashboard)
+and the approval list an experimenter takes to Prolific or MTurk (``approvals.csv``).
+
+A decision per participant: ``approve`` (completed, nothing flagged), ``review`` (completed but flagged, or
+excluded: look before approving or rejecting), ``return`` (declined consent, screened out or left: the
+platform should see the submission returned), ``pending`` (still in progress).
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import func, select
+
+from .extensions import db
+from .models import Participant
+
+#: The columns of approvals.csv.
+APPROVAL_COLUMNS = ("participant", "platform", "platform_id", "session", "status", "code", "decision", "flags",
+                    "finished_at")
+#: The platform's own session id, as the entry link carried it.
+SESSION_KEY = {"prolific": "SESSION_ID", "mturk": "assignmentId"}
+RETURNED = ("no_consent", "screened_out", "returned")
+
+
+def decision(p: Participant) -> str:
+    if p.status == "completed":
+        return "review" if p.flags else "approve"
+    if p.status == "excluded":
+        return "review"
+    if p.status in RETURNED:
+        return "return"
+    return "pending"
+
+
+def issued_codes(study_id: str) -> list[dict]:
+    """Per way out (status) and code: how many participants got it."""
+    rows = db.session.execute(select(Participant.status, Participant.code, func.count()).where(
+        Participant.study_id == study_id, Participant.code.is_not(None)).group_by(Participant.status,
+                                                                                   Participant.code)
+        .order_by(Participant.status))
+    return [{"status": s, "code": c, "participants": n} for s, c, n in rows]
+
+
+def approval_rows(study_id: str) -> list[dict]:
+    """One row per participant who arrived, in arrival order."""
+    people = db.session.scalars(select(Participant).where(Participant.study_id == study_id).order_by(Participant.id))
+    return [{"participant": p.id, "platform": p.platform, "platform_id": p.platform_id,
+             "session": (p.platform_meta or {}).get(SESSION_KEY.get(p.platform, ""), ""), "status": p.status,
+             "code": p.code or "", "decision": decision(p), "flags": len(p.flags or []),
+             "finished_at": p.finished_at.isoformat() if p.finished_at else ""} for p in people]
