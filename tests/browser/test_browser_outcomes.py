@@ -1,0 +1,62 @@
+"""The ways out of a Prolific study in Chromium: declining consent, and leaving from the editor, each end on a
+page whose button takes the participant back to Prolific with that way's code."""
+
+import pytest
+from conftest import make_app
+from serverproc import StudyServer
+
+from .conftest import ARGS, CHROMIUM, _require_browser, new_context
+from .pagehelp import ready, screenshot
+
+pytestmark = pytest.mark.slow
+PROLIFIC = "https://app.prolific.com/submissions/complete?cc="
+
+
+@pytest.fixture
+def prolific_server(tmp_path, demo_resources):
+    _require_browser()
+    text = demo_resources.read_text().replace('kind = "link"', 'kind = "prolific"')
+    text = text.replace('target = "scenes/', f'target = "{demo_resources.parent}/scenes/')
+    study = tmp_path / "prolific.toml"
+    study.write_text(text)
+    database = f"sqlite:///{tmp_path / 'study.sqlite3'}"
+    make_app(tmp_path, database, studies=[study])
+    with StudyServer(tmp_path / "instance", database, workers=1, migrate=False, study=study) as server:
+        yield server.base
+
+
+def arrive(page, base: str, n: int):
+    page.goto(f"{base}/study/demo/start?PROLIFIC_PID={n:024x}&SESSION_ID={n + 1000:024x}")
+
+
+def test_declining_and_leaving_return_to_prolific_with_their_codes(prolific_server):
+    from playwright.sync_api import sync_playwright
+
+    base = prolific_server
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        declines = new_context(browser).new_page()
+        arrive(declines, base, 1)
+        declines.click("text=I do not agree")
+        declines.wait_for_selector("#platform-link")
+        assert declines.get_attribute("#platform-link", "href") == PROLIFIC + "DEMO-NOCONSENT"
+
+        leaves = new_context(browser).new_page()
+        arrive(leaves, base, 2)
+        leaves.click("text=I agree to take part")
+        leaves.fill("input[name=age]", "29")
+        leaves.check("input[name=experience_3d][value='Never']")
+        leaves.check("input[name=pointing_device][value=Mouse]")
+        leaves.click("button:has-text('Continue')")
+        while leaves.locator("button[name=go][value=next]").count():
+            leaves.click("button[name=go][value=next]")
+        ready(leaves)
+        screenshot(leaves, "trial-with-leave-link")
+        leaves.click("a.leave-link")
+        leaves.wait_for_selector("body[data-step=leave]")
+        leaves.click("button[name=leave]")
+        leaves.wait_for_selector("#platform-link")
+        screenshot(leaves, "left-the-study")
+        assert leaves.inner_text("#completion-code") == "DEMO-RETURNED"
+        assert leaves.get_attribute("#platform-link", "href") == PROLIFIC + "DEMO-RETURNED"
+        browser.close()
