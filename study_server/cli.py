@@ -68,13 +68,23 @@ def study_init_cmd(folder: str, corpus: str, title: str | None, study_id: str | 
 @click.option("--resources/--no-resources", default=True, help="Also check the priors file and model library.")
 @click.option("--json", "as_json", is_flag=True)
 def study_validate_cmd(file: str, resources: bool, as_json: bool) -> None:
-    """Check a study file (keys, scenes, and optionally its priors and library); errors name the key."""
-    rt = next(iter(load_studies([Path(file)], check=resources).values()))
+    """Check a study file (keys, scenes, and optionally its priors and library); errors name the key. The
+    server's own priors and library, when not built yet, are reported as what 'study prepare' will build."""
+    from .prepare import problems
+
+    rt = next(iter(load_studies([Path(file)], check=False).values()))
     s = rt.study
+    to_build = sorted(problems(s)) if resources and s.server_resources else []
+    if resources and not s.server_resources:
+        rt.check_resources()  # what a study file names must be there
     info = {"id": s.id, "hash": s.hash, "conditions": [c.id for c in s.conditions], "rows": s.n_rows,
-            "trials_per_participant": len([t for t in s.plan(0) if t.kind == "trial"]), "scenes": list(s.scenes)}
+            "trials_per_participant": len([t for t in s.plan(0) if t.kind == "trial"]), "scenes": list(s.scenes),
+            "to_prepare": to_build}
     emit(info, as_json, f"{file}: study {s.id!r} is valid — {len(s.conditions)} conditions, {s.n_rows} schedule "
-                        f"rows, {info['trials_per_participant']} trials per participant")
+                        f"rows, {info['trials_per_participant']} trials per participant" + (
+                            f"; the server's {' and '.join(to_build)} for {s.corpus} are not built yet: "
+                            f"'scenesuggest study prepare {file}' builds them (and 'study serve' does first)"
+                            if to_build else ""))
 
 
 @study.command("migrate")

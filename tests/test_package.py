@@ -68,8 +68,8 @@ def test_the_wheel_installed_elsewhere_starts_a_study_prepares_migrates_and_serv
 
     started = run(installed, "study", "init", "kitchen-study", "--title", "Kitchens", env=env, cwd=elsewhere)
     assert started.returncode == 0 and "wrote" in started.stdout, started.stderr
-    valid = run(installed, "study", "validate", "--no-resources", "kitchen-study/study.toml", env=env, cwd=elsewhere)
-    assert "study 'kitchen-study' is valid" in valid.stdout, valid.stderr
+    valid = run(installed, "study", "validate", "kitchen-study/study.toml", env=env, cwd=elsewhere)
+    assert "study 'kitchen-study' is valid" in valid.stdout and "are not built yet" in valid.stdout, valid.stderr
     demo = Path(where[0]).parent / "demo" / "study.toml"
     env["SCENESUGGEST_STUDIES"] = f"{demo}:{elsewhere / 'kitchen-study' / 'study.toml'}"
 

@@ -93,10 +93,16 @@ def test_validate_command(study_dir, demo_resources):
                          text=True)
     assert bad.returncode == 2 and "field 'design.kind'" in bad.stderr
     empty_home = {**os.environ, "SCENESUGGEST_HOME": str(study_dir / "empty")}
-    missing = subprocess.run([*cli, str(edit(study_dir, 'kind = "latin"', 'kind = "williams"'))],
-                             capture_output=True, text=True, env=empty_home)
+    unbuilt = subprocess.run([*cli, str(edit(study_dir, 'kind = "latin"', 'kind = "williams"')), "--json"],
+                             capture_output=True, text=True, env=empty_home)  # the server's own: not built yet
+    assert unbuilt.returncode == 0 and json.loads(unbuilt.stdout)["to_prepare"] == ["library", "priors"]
+    said = subprocess.run([*cli, str(study_dir / "study.toml")], capture_output=True, text=True, env=empty_home)
+    assert "'scenesuggest study prepare" in said.stdout
+    named = edit(study_dir, 'corpus = "ai2thor"\n', 'corpus = "ai2thor"\npriors = "none.npz"\nlibrary = "none"\n')
+    missing = subprocess.run([*cli, str(named)], capture_output=True, text=True)  # what a study names must exist
     assert missing.returncode == 2 and "field 'resources.priors'" in missing.stderr
-    assert "scenesuggest study prepare" in missing.stderr
+    assert "scenesuggest priors train" in missing.stderr
+    edit(study_dir, 'priors = "none.npz"\nlibrary = "none"\n', "")
     bad_scene = study_dir / "scenes" / "bedside.json"
     bad_scene.write_text(bad_scene.read_text().replace('"scene_type"', '"scene_kind"', 1))
     broken = subprocess.run([*cli, str(study_dir / "study.toml"), "--no-resources"], capture_output=True, text=True)
