@@ -47,6 +47,16 @@ def _private_sqlite_file(url: str) -> None:
         path.chmod(0o600)
 
 
+def _check_driver(url: str) -> None:
+    """PostgreSQL needs its driver, an optional dependency: say how to install it instead of a traceback."""
+    import importlib.util
+
+    if url.startswith("postgresql") and importlib.util.find_spec("psycopg") is None:
+        raise settings.ConfigError("names PostgreSQL, whose driver is not installed: pip install "
+                                   "'scenesuggest-studio[postgres]' (or the wheel file with [postgres] after it)",
+                                   field="DATABASE_URL")
+
+
 def create_app(config: dict | None = None) -> Flask:
     """Build the app. ``config`` overrides the environment (tests pass a database URL and study files)."""
     instance = Path((config or {}).get("INSTANCE_PATH") or settings.instance_path())
@@ -54,6 +64,7 @@ def create_app(config: dict | None = None) -> Flask:
     app.config.update(settings.from_environment(instance))
     app.config.update(config or {})
     app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})
+    _check_driver(app.config["SQLALCHEMY_DATABASE_URI"])
     if app.config["SQLALCHEMY_DATABASE_URI"].startswith("sqlite"):
         app.config["SQLALCHEMY_ENGINE_OPTIONS"].setdefault("connect_args", {"timeout": 10})
         _private_sqlite_file(app.config["SQLALCHEMY_DATABASE_URI"])

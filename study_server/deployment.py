@@ -63,7 +63,8 @@ class Deployment:
             "CERT": cert, "KEY": key, "STATIC": str(config.PACKAGE / "static"), "THREE": str(three_folder()),
             "NGINX_DIR": self.nginx_dir, "USER": self.user, "ENV_FILE": self.env_file, "PYTHON": sys.executable,
             "WORKERS": str(self.workers), "HOME": str(config.data_home()),
-            "STUDIES": ":".join(str(p) for p in config.study_files()), "SECRET": secrets.token_hex(32)}
+            "STUDIES": ":".join(str(p) for p in config.study_files()), "SECRET": secrets.token_hex(32),
+            "STUDY_DIRS": " ".join(sorted({str(p.resolve().parent) for p in config.study_files()}))}
 
 
 #: Template → where it is written in the output folder (and whether it holds secrets).

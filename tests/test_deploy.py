@@ -109,3 +109,53 @@ def test_healthz_says_when_the_database_cannot_be_reached(tmp_path, demo_resourc
     r = app.test_client().get("/healthz")
     assert r.status_code == 503 and r.json["database"] == "unreachable" and r.json["schema"] == "unknown"
     assert "secret" not in r.get_data(as_text=True) and str(port) not in r.get_data(as_text=True)
+
+
+def test_deploy_files_are_filled_in_private_where_secret_and_never_overwritten(tmp_path, monkeypatch):
+    import stat
+
+    from study_server.deployment import DeployError, Deployment, write_deploy_files
+
+    monkeypatch.setenv("SCENESUGGEST_STUDIES", str(tmp_path / "my-study" / "study.toml"))
+    monkeypatch.setenv("SCENESUGGEST_HOME", str(tmp_path / "home"))
+    written = write_deploy_files(tmp_path / "out", Deployment("study.example.org", [8001, 8002, 8003]))
+    texts = {p.relative_to(tmp_path / "out").as_posix(): p.read_text() for p in written}
+    assert set(texts) == {"nginx/scenesuggest.conf", "nginx/scenesuggest-proxy-params.conf",
+                          "systemd/scenesuggest@.service", "scenesuggest.env"}
+    assert not any("@@" in t for t in texts.values())
+    site = texts["nginx/scenesuggest.conf"]
+    assert site.count("server 127.0.0.1:80") == 3 and "return 301 https://$host$request_uri;" in site
+    assert "/etc/letsencrypt/live/study.example.org/fullchain.pem" in site
+    unit = texts["systemd/scenesuggest@.service"]
+    assert "Restart=on-failure" in unit and f"ReadWritePaths={tmp_path / 'home'} {tmp_path / 'my-study'}" in unit
+    env = texts["scenesuggest.env"]
+    assert f"SCENESUGGEST_STUDIES={tmp_path / 'my-study' / 'study.toml'}" in env and "PROXY_HOPS=1" in env
+    secret = next(line.split("=", 1)[1] for line in env.splitlines() if line.startswith("SCENESUGGEST_SECRET_KEY="))
+    assert len(secret) == 64
+    assert stat.S_IMODE((tmp_path / "out" / "scenesuggest.env").stat().st_mode) == 0o600
+    again = write_deploy_files(tmp_path / "again", Deployment("study.example.org"))
+    assert next(p for p in again if p.name == "scenesuggest.env").read_text() != env  # a fresh key each time
+    with pytest.raises(DeployError, match="not an empty folder"):
+        write_deploy_files(tmp_path / "out", Deployment("study.example.org"))
+    for bad, field in ((Deployment("study example"), "--server-name"), (Deployment("x.org", [80]), "--app"),
+                       (Deployment("x.org", []), "--app")):
+        with pytest.raises(DeployError) as info:
+            write_deploy_files(tmp_path / "never", bad)
+        assert info.value.field == field
+    assert not (tmp_path / "never").exists()
+
+
+def test_postgresql_without_its_driver_says_how_to_install_it(tmp_path, monkeypatch):
+    import importlib.util
+
+    from conftest import DEMO_STUDY
+
+    from study_server import create_app
+    from study_server.config import ConfigError
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "psycopg" else real(name, *a))
+    with pytest.raises(ConfigError) as info:
+        create_app({"INSTANCE_PATH": str(tmp_path), "STUDY_FILES": [DEMO_STUDY], "SECRET_KEY": "x",
+                    "SQLALCHEMY_DATABASE_URI": "postgresql+psycopg://u@127.0.0.1/x"})
+    assert info.value.field == "DATABASE_URL" and "scenesuggest-studio[postgres]" in info.value.message
