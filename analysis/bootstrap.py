@@ -67,9 +67,11 @@ def bootstrap_mean(values: np.ndarray, clusters: np.ndarray | None, rng: np.rand
 
 
 def bootstrap_by(frame: pd.DataFrame, value: str, by: str, levels: list | None = None, unit: str = "trial",
-                 resamples: int = 1000, seed: int = 0) -> dict[str, Interval]:
+                 resamples: int = 1000, seed: int = 0, empty_ok: bool = False) -> dict[str, Interval]:
     """Per level of ``by`` (in ``levels`` order; levels without data get an empty interval), the mean of
-    ``value`` with its 95% interval. One seeded generator serves the levels in order, so results repeat."""
+    ``value`` with its 95% interval. One seeded generator serves the levels in order, so results repeat.
+    A ``value`` without any number is an error, unless ``empty_ok`` (a report's measure that a pilot has no
+    data for yet): then every level's interval is empty."""
     for column in (value, by):
         if column not in frame.columns:
             raise AnalysisError(f"no column {column!r} (columns: {', '.join(map(str, frame.columns))})",
@@ -78,7 +80,7 @@ def bootstrap_by(frame: pd.DataFrame, value: str, by: str, levels: list | None =
         raise AnalysisError("must be at least 10", "--resamples")
     ids = unit_columns(frame, unit)
     numeric = pd.to_numeric(frame[value], errors="coerce")
-    if numeric.notna().sum() == 0:
+    if numeric.notna().sum() == 0 and not empty_ok:
         raise AnalysisError("has no numeric values", f"--value {value}")
     rng = np.random.default_rng(seed)
     levels = levels if levels is not None else sorted(frame[by].dropna().unique().tolist(), key=str)

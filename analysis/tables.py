@@ -85,8 +85,8 @@ def _frame(trials: pd.DataFrame, picks: pd.DataFrame, table: str) -> pd.DataFram
 def table1(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str], resamples: int = 1000,
            seed: int = 0, unit: str = "trial") -> Table:
     """Means with 95% bootstrap intervals per condition (seeded; one generator per measure)."""
-    stats = {m: bootstrap_by(_frame(trials, picks, t), m, "condition", conditions, unit, resamples, seed)
-             for m, _, _, _, t in MEASURES}
+    stats = {m: bootstrap_by(_frame(trials, picks, t), m, "condition", conditions, unit, resamples, seed,
+                             empty_ok=True) for m, _, _, _, t in MEASURES}
     rows, data = [], []
     for c in conditions:
         n = int(((trials["condition"] == c) & trials["complete"]).sum())

@@ -246,3 +246,17 @@ def test_power_resamples_pilot_participants(synthetic):
     one = trials[trials["participant"] == trials["participant"].iloc[0]]
     with pytest.raises(AnalysisError, match="1 participant"):
         power(one, picks, conditions, [6], studies=1)
+
+
+def test_a_pilot_without_picks_yet_gets_table_1_with_no_data_for_mrr(synthetic):
+    """A measure nobody has data for yet (a first pilot placed nothing from a list) is 'no data' in the table;
+    asked for directly, the same column is an error naming it."""
+    from analysis.measures import picks_table
+
+    trials = trials_table(read_export(synthetic))
+    picks = picks_table(read_export(synthetic), trials).iloc[0:0]
+    t1 = table1(trials, picks, ["none", "basic", "full"], resamples=50)
+    assert all(row[-1] == "no data" for row in t1.rows) and all(r["reciprocal_rank_n"] == 0 for r in t1.data)
+    assert all(row[2] != "no data" for row in t1.rows)  # the times are there
+    with pytest.raises(AnalysisError, match="has no numeric values"):
+        bootstrap_by(picks, "reciprocal_rank", "condition")
