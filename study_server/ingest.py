@@ -19,7 +19,7 @@ from sqlalchemy import BigInteger, Integer, bindparam, case, func, select, updat
 
 from scenesuggest.events import MAX_SEQ, EventError, check_version, validate_batch
 
-from .extensions import db, insert_ignore
+from .extensions import db, dialect_insert
 from .models import Event, Participant, log, utcnow
 
 PAGE_ID_MAX = 64
@@ -55,29 +55,41 @@ class OverQuota(Exception):
 
 
 def insert_events(rows: list[dict]) -> int:
-    """Insert the rows that are new; returns how many were. One executemany of a Core insert into the table (the
-    ORM's bulk path, and RETURNING, cost more than the database here; nothing needs the rows as objects). On
-    SQLite the statement is compiled once and its parameters made by the columns' own bind processors, straight
-    to the driver: the same rows, without the per-row work of a general execute (a third of the insert's CPU)."""
-    bind = db.session.get_bind()
-    if bind.dialect.name != "sqlite":  # PostgreSQL: the dialect's own batching of many rows
-        return db.session.execute(insert_ignore(Event.__table__, ["participant_id", "seq"]), rows).rowcount
-    sql, columns = _sqlite_insert(bind.dialect)
-    params = [tuple(r[c] if p is None else p(r[c]) for c, p in columns) for r in rows]
-    return db.session.connection().exec_driver_sql(sql, params).rowcount
+    """Insert the rows that are new; returns how many were. The insert is compiled once per database and its
+    parameters made by the columns' own bind processors (what SQLAlchemy would send), straight to the driver: a
+    general execute's per-row work was a third of the insert's CPU, and SQLAlchemy's multi-row statement for
+    PostgreSQL is too long for psycopg to cache its conversion. SQLite: one executemany, whose row count is the
+    rows inserted. PostgreSQL: psycopg's pipelined executemany of ``… RETURNING seq`` (its row count says nothing),
+    one result set per row, holding the row when it was new."""
+    connection = db.session.connection()
+    dialect = connection.dialect
+    sql, columns = _compiled_insert(dialect)
+    if dialect.paramstyle == "qmark":  # SQLite
+        params = [tuple(r[c] if p is None else p(r[c]) for c, p in columns) for r in rows]
+        return connection.exec_driver_sql(sql, params).rowcount
+    params = [{c: r[c] if p is None else p(r[c]) for c, p in columns} for r in rows]
+    inserted = 0
+    with connection.connection.dbapi_connection.cursor() as cursor:  # in the session's transaction
+        cursor.executemany(sql, params, returning=True)
+        while True:
+            inserted += cursor.fetchone() is not None
+            if not cursor.nextset():
+                return inserted
 
 
 @functools.lru_cache(maxsize=8)
-def _sqlite_insert(dialect) -> tuple[str, tuple]:
-    """The events insert compiled for SQLite: its SQL and, in parameter order, (column, bind processor)."""
-    from sqlalchemy.dialects.sqlite import insert
-
+def _compiled_insert(dialect) -> tuple[str, tuple]:
+    """The events insert-or-ignore compiled for ``dialect``: its SQL and, in parameter order, (column, bind
+    processor). PostgreSQL's returns the seq of a row it inserted."""
     table = Event.__table__
     names = ("participant_id", "seq", "page_id", "type", "trial", "client_t", "server_t", "payload", "vocabulary")
-    compiled = insert(table).values({n: bindparam(n) for n in names}).on_conflict_do_nothing(
-        index_elements=["participant_id", "seq"]).compile(dialect=dialect)
-    return compiled.string, tuple((n, table.c[n].type.dialect_impl(dialect).bind_processor(dialect))
-                                  for n in compiled.positiontup)
+    statement = dialect_insert(dialect.name)(table).values({n: bindparam(n) for n in names}).on_conflict_do_nothing(
+        index_elements=["participant_id", "seq"])
+    if dialect.name == "postgresql":
+        statement = statement.returning(table.c.seq)
+    compiled = statement.compile(dialect=dialect)
+    order = compiled.positiontup or names
+    return compiled.string, tuple((n, table.c[n].type.dialect_impl(dialect).bind_processor(dialect)) for n in order)
 
 
 def _same(stored: Event, e: dict) -> bool:

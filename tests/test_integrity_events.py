@@ -15,7 +15,7 @@ from integrityhelp import PASSWORD, event, post_events, study_copy
 
 from scenesuggest.cells import safe_cell, unescape_cell
 from study_server.extensions import db
-from study_server.models import Event, SessionLog, Trial
+from study_server.models import Event, Participant, SessionLog, Trial
 
 
 def test_a_seq_held_by_other_content_is_a_conflict_never_a_silent_drop(app_on):
@@ -93,10 +93,10 @@ def test_export_cells_cannot_run_as_formulas_and_load_back_unchanged(client, app
     assert searched == hostile
 
 
-def test_arrivals_events_and_bytes_have_quotas(tmp_path, demo_resources):
+def test_arrivals_events_and_bytes_have_quotas(tmp_path, backend_url):
     path = study_copy(tmp_path, arrivals_per_address_per_hour=3, max_events_per_participant=100,
                       max_mb_per_participant=0.2)
-    app = make_app(tmp_path, studies=[path])
+    app = make_app(tmp_path, backend_url, studies=[path])
     for i in range(3):
         assert app.test_client().get(f"/study/demo/start?pid=a{i}").status_code == 302
     r = app.test_client().get("/study/demo/start?pid=a3")
@@ -104,11 +104,16 @@ def test_arrivals_events_and_bytes_have_quotas(tmp_path, demo_resources):
     far = app.test_client()
     far.environ_base["REMOTE_ADDR"] = "10.1.2.3"  # another address is not held back
     b = to_trials(far, query="pid=elsewhere")
-    assert post_events(far, b, [event(i) for i in range(100)]).status_code == 200
+    assert post_events(far, b, [event(i) for i in range(60)]).status_code == 200
+    assert post_events(far, b, [event(i) for i in range(60)]).status_code == 200  # a resend adds nothing
+    assert post_events(far, b, [event(i) for i in range(50, 100)]).status_code == 200  # ten of them again
+    with app.app_context():
+        p = db.session.query(Participant).filter_by(platform_id="elsewhere").one()
+        assert (p.events_stored, p.acked_seq) == (100, 99) and 0 < p.bytes_stored < 100 * 200
     r = post_events(far, b, [event(100)])
     assert r.status_code == 429 and r.headers["Retry-After"] and r.json["field"] == "events"
-    big = make_app(tmp_path / "big", studies=[path])
-    c = big.test_client()
+    c = app.test_client()
+    c.environ_base["REMOTE_ADDR"] = "10.1.2.4"
     b = to_trials(c, query="pid=bytes")
     payload = "x" * 1900
     codes = [post_events(c, b, [event(j * 50 + i, text=payload) for i in range(50)]).status_code for j in range(3)]
