@@ -42,17 +42,21 @@ def _kind(url: str) -> str:
     return name
 
 
+def _counts(con) -> dict:
+    """The schema revision and row counts of a database of this app (on an open connection)."""
+    missing = [t for t in OURS if not inspect(con).has_table(t)]
+    if missing:
+        raise BackupError(f"not a database of this app (no {', '.join(missing)} table)")
+    return {"revision": con.execute(text("SELECT version_num FROM alembic_version")).scalar(),
+            "participants": con.execute(text("SELECT COUNT(*) FROM participants")).scalar(),
+            "events": con.execute(text("SELECT COUNT(*) FROM events")).scalar()}
+
+
 def _summary(url: str) -> dict:
-    """The schema revision and row counts of a database of this app."""
     engine = create_engine(url)
     try:
         with engine.connect() as con:
-            missing = [t for t in OURS if not inspect(con).has_table(t)]
-            if missing:
-                raise BackupError(f"not a database of this app (no {', '.join(missing)} table)")
-            return {"revision": con.execute(text("SELECT version_num FROM alembic_version")).scalar(),
-                    "participants": con.execute(text("SELECT COUNT(*) FROM participants")).scalar(),
-                    "events": con.execute(text("SELECT COUNT(*) FROM events")).scalar()}
+            return _counts(con)
     finally:
         engine.dispose()
 
@@ -77,8 +81,9 @@ def _sqlite_path(url: str) -> Path:
 
 
 def _pg_tool(name: str) -> str:
-    found = shutil.which(name) or next(iter(sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}"), reverse=True)),
-                                       None)
+    versions = sorted(glob.glob(f"/usr/lib/postgresql/*/bin/{name}"), key=lambda p: int(p.split("/")[4].split(".")[0])
+                      if p.split("/")[4].split(".")[0].isdigit() else 0)
+    found = shutil.which(name) or (versions[-1] if versions else None)
     if not found:
         raise BackupError(f"{name} is not installed (apt-get install postgresql-client)")
     return found
@@ -109,11 +114,33 @@ def _claim(out: Path) -> Path:
     """A new, private temporary file beside ``out`` to write the backup into, after checking ``out`` is free."""
     if out.exists():
         raise BackupError("exists: a backup never replaces a file (choose another name)", file=str(out))
-    out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.{os.getpid()}.partial")
-    tmp.unlink(missing_ok=True)
-    _private_file(tmp)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp.unlink(missing_ok=True)
+        _private_file(tmp)
+    except OSError as e:
+        raise BackupError(f"cannot write there: {e.strerror}", file=str(out)) from None
     return tmp
+
+
+def _pg_dump(url: str, tmp: Path) -> dict:
+    """``pg_dump`` of the snapshot a repeatable-read transaction exports, counted in that same snapshot, so the
+    summary describes exactly what the dump holds."""
+    engine = create_engine(url, isolation_level="REPEATABLE READ")
+    try:
+        with engine.connect() as con:
+            snapshot = con.execute(text("SELECT pg_export_snapshot()")).scalar()
+            summary = _counts(con)
+            uri, env = _libpq(url)
+            _run([_pg_tool("pg_dump"), "--format=custom", "--no-owner", "--no-password", f"--snapshot={snapshot}",
+                  f"--file={tmp}", f"--dbname={uri}"], env, "pg_dump")
+            return summary
+    except SQLAlchemyError as e:
+        raise BackupError(f"cannot read the database ({type(e).__name__}: {str(e).splitlines()[0]})",
+                          field="--db") from None
+    finally:
+        engine.dispose()
 
 
 def backup(url: str, out: str | Path) -> dict:
@@ -121,11 +148,13 @@ def backup(url: str, out: str | Path) -> dict:
     participants, events, bytes)."""
     out = Path(out)
     kind = _kind(url)
-    summary = _summary(url) if kind == "postgresql" else None
+    if kind == "sqlite" and not _sqlite_path(url).is_file():
+        raise BackupError("no such database file", field="--db")
     tmp = _claim(out)
+    summary = None
     try:
         if kind == "sqlite":
-            source = sqlite3.connect(f"file:{_sqlite_path(url)}?mode=ro", uri=True, timeout=30)
+            source = sqlite3.connect(f"{_sqlite_path(url).resolve().as_uri()}?mode=ro", uri=True, timeout=30)
             target = sqlite3.connect(tmp)
             try:
                 source.backup(target)  # one read transaction: a snapshot of committed data
@@ -135,9 +164,7 @@ def backup(url: str, out: str | Path) -> dict:
                 source.close()
             summary = _summary(f"sqlite:///{tmp}")
         else:
-            uri, env = _libpq(url)
-            _run([_pg_tool("pg_dump"), "--format=custom", "--no-owner", f"--file={tmp}", f"--dbname={uri}"], env,
-                 "pg_dump")
+            summary = _pg_dump(url, tmp)
         os.link(tmp, out)  # fails rather than replace a file made meanwhile
     except FileExistsError:
         raise BackupError("exists: a backup never replaces a file (choose another name)", file=str(out)) from None
@@ -171,7 +198,7 @@ def restore(source: str | Path, url: str) -> dict:
         if not path.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
             _private_file(path)
-        backup_db = sqlite3.connect(f"file:{source}?mode=ro", uri=True)
+        backup_db = sqlite3.connect(f"{source.resolve().as_uri()}?mode=ro", uri=True)
         target = sqlite3.connect(path)
         try:
             backup_db.backup(target)
@@ -179,12 +206,17 @@ def restore(source: str | Path, url: str) -> dict:
         finally:
             target.close()
             backup_db.close()
+        if check != "ok":
+            path.unlink()
+            raise BackupError(f"the restored database fails SQLite's integrity check ({check}); nothing was kept",
+                              file=str(source))
     else:
         if _tables(url):
             raise BackupError("the database is not empty: restore into a new one (a restore never mixes data)",
                               field="--db")
         uri, env = _libpq(url)
-        _run([_pg_tool("pg_restore"), "--no-owner", "--no-privileges", "--exit-on-error", "--single-transaction",
+        _run([_pg_tool("pg_restore"), "--no-owner", "--no-privileges", "--no-password", "--exit-on-error",
+              "--single-transaction",
               f"--dbname={uri}", str(source)], env, "pg_restore")
         check = "ok"  # pg_restore checked every statement in one transaction
     return {"kind": kind, **_summary(url), "integrity": check}

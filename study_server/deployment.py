@@ -56,14 +56,16 @@ class Deployment:
         cert = self.cert or f"/etc/letsencrypt/live/{self.server_name}/fullchain.pem"
         key = self.key or f"/etc/letsencrypt/live/{self.server_name}/privkey.pem"
         return {
-            "UPSTREAMS": "\n".join(f"    server 127.0.0.1:{p} max_fails=1 fail_timeout=5s;" for p in self.app_ports),
+            "UPSTREAMS": "\n".join(f"    server 127.0.0.1:{p} max_fails=3 fail_timeout=10s;" for p in self.app_ports),
             "CACHE": self.cache, "HTTP_LISTEN": f"{listen}{self.http_port}",
             "HTTPS_LISTEN": f"{listen}{self.https_port}", "SERVER_NAME": self.server_name,
+            "HTTP_LISTEN6": "" if self.address else f"    listen [::]:{self.http_port};\n",
+            "HTTPS_LISTEN6": "" if self.address else f"    listen [::]:{self.https_port} ssl http2;\n",
             "ACME_ROOT": self.acme_root, "HTTPS_PORT_SUFFIX": "" if self.https_port == 443 else f":{self.https_port}",
             "CERT": cert, "KEY": key, "STATIC": str(config.PACKAGE / "static"), "THREE": str(three_folder()),
             "NGINX_DIR": self.nginx_dir, "USER": self.user, "ENV_FILE": self.env_file, "PYTHON": sys.executable,
             "WORKERS": str(self.workers), "HOME": str(config.data_home()),
-            "STUDIES": ":".join(str(p) for p in config.study_files()), "SECRET": secrets.token_hex(32),
+            "STUDIES": ":".join(str(p.resolve()) for p in config.study_files()), "SECRET": secrets.token_hex(32),
             "STUDY_DIRS": " ".join(sorted({str(p.resolve().parent) for p in config.study_files()}))}
 
 
@@ -76,10 +78,10 @@ FILES = {"nginx-site.conf": ("nginx/scenesuggest.conf", False),
 
 def fill(template: str, values: dict[str, str]) -> str:
     """``@@NAME@@`` replaced by its value (nginx's own ``$variables`` stay); every placeholder must be known."""
-    unknown = sorted(set(re.findall(r"@@([A-Z_]+)@@", template)) - set(values))
+    unknown = sorted(set(re.findall(r"@@([A-Z0-9_]+)@@", template)) - set(values))
     if unknown:
         raise DeployError(f"template placeholders without a value: {', '.join(unknown)}")
-    return re.sub(r"@@([A-Z_]+)@@", lambda m: values[m.group(1)], template)
+    return re.sub(r"@@([A-Z0-9_]+)@@", lambda m: values[m.group(1)], template)
 
 
 def write_deploy_files(out: str | Path, deployment: Deployment) -> list[Path]:

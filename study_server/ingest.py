@@ -16,10 +16,11 @@ import json
 import re
 
 from sqlalchemy import BigInteger, Integer, bindparam, case, func, select, update
+from sqlalchemy.exc import DBAPIError
 
 from scenesuggest.events import MAX_SEQ, EventError, check_version, validate_batch
 
-from .extensions import db, dialect_insert
+from .extensions import db, dialect_insert, insert_ignore
 from .models import Event, Participant, log, utcnow
 
 PAGE_ID_MAX = 64
@@ -67,14 +68,21 @@ def insert_events(rows: list[dict]) -> int:
     if dialect.paramstyle == "qmark":  # SQLite
         params = [tuple(r[c] if p is None else p(r[c]) for c, p in columns) for r in rows]
         return connection.exec_driver_sql(sql, params).rowcount
+    if dialect.driver != "psycopg":  # another driver: SQLAlchemy's own multi-row insert, which says what was new
+        statement = insert_ignore(Event.__table__, ["participant_id", "seq"]).returning(Event.__table__.c.seq)
+        return len(db.session.execute(statement, rows).all())
     params = [{c: r[c] if p is None else p(r[c]) for c, p in columns} for r in rows]
     inserted = 0
-    with connection.connection.dbapi_connection.cursor() as cursor:  # in the session's transaction
-        cursor.executemany(sql, params, returning=True)
-        while True:
-            inserted += cursor.fetchone() is not None
-            if not cursor.nextset():
-                return inserted
+    try:
+        with connection.connection.dbapi_connection.cursor() as cursor:  # in the session's transaction
+            cursor.executemany(sql, params, returning=True)
+            while True:
+                inserted += cursor.fetchone() is not None
+                if not cursor.nextset():
+                    return inserted
+    except dialect.loaded_dbapi.Error as e:  # as SQLAlchemy would raise it: a lost database answers 503
+        raise DBAPIError.instance(sql, None, e, dialect.loaded_dbapi.Error,
+                                  connection_invalidated=dialect.is_disconnect(e, None, None)) from e
 
 
 @functools.lru_cache(maxsize=8)

@@ -125,9 +125,10 @@ def test_deploy_files_are_filled_in_private_where_secret_and_never_overwritten(t
     assert not any("@@" in t for t in texts.values())
     site = texts["nginx/scenesuggest.conf"]
     assert site.count("server 127.0.0.1:80") == 3 and "return 301 https://$host$request_uri;" in site
+    assert "listen [::]:443 ssl http2;" in site and "http_503" not in texts["nginx/scenesuggest-proxy-params.conf"]
     assert "/etc/letsencrypt/live/study.example.org/fullchain.pem" in site
     unit = texts["systemd/scenesuggest@.service"]
-    assert "Restart=on-failure" in unit and f"ReadWritePaths={tmp_path / 'home'} {tmp_path / 'my-study'}" in unit
+    assert "Restart=on-failure" in unit and f"ReadWritePaths=-{tmp_path / 'home'} {tmp_path / 'my-study'}" in unit
     env = texts["scenesuggest.env"]
     assert f"SCENESUGGEST_STUDIES={tmp_path / 'my-study' / 'study.toml'}" in env and "PROXY_HOPS=1" in env
     secret = next(line.split("=", 1)[1] for line in env.splitlines() if line.startswith("SCENESUGGEST_SECRET_KEY="))
