@@ -217,8 +217,9 @@ def _platform(r: Reader, doc: dict) -> dict:
     codes_doc = r.table(platform, "codes", "platform.codes")
     r.unknown(codes_doc, CODES, "platform.codes")
     completion_url = platform.get("completion_url")
-    if completion_url is not None and (not isinstance(completion_url, str) or "{code}" not in completion_url):
-        raise r.fail("platform.completion_url", "expected a URL containing {code}")
+    if completion_url is not None and (not isinstance(completion_url, str) or "{code}" not in completion_url
+                                       or not completion_url.startswith(("https://", "http://"))):
+        raise r.fail("platform.completion_url", "expected an http(s) URL containing {code}")
     kind = r.choice(platform, "kind", "platform.kind", PLATFORMS)
     if completion_url is None and kind == "prolific":
         completion_url = PROLIFIC_COMPLETION

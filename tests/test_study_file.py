@@ -55,6 +55,8 @@ def test_the_demo_study_is_valid():
      "one of learned, paper"),
     ('no_consent = "DEMO-NOCONSENT"\n', '', "platform.codes.no_consent", "missing"),
     ('kind = "link"', 'kind = "link"\ncompletion_url = "https://x.org/done"', "platform.completion_url", "{code}"),
+    ('kind = "link"', 'kind = "link"\ncompletion_url = "javascript:alert({code})"', "platform.completion_url",
+     "http(s) URL"),
     ('options = ["Never", "A few times", "Regularly"]', 'options = ["Only"]', "demographics[1].options", "two"),
     ('kind = "likert"', 'kind = "slider"', "exit_survey[0].kind", "not one of"),
     ('condition = "full"', 'condition = "sideways"', "practice.condition", "not one of"),
