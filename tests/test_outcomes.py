@@ -100,6 +100,10 @@ def test_the_admin_shows_the_codes_issued_and_gives_the_approval_list(prolific):
     issued = dashboard.split('id="codes-issued"')[1].split("</table>")[0]
     assert "<td>completed</td><td><code>DEMO-DONE-7F3A</code></td><td>1</td>" in issued
     assert "<td>returned</td><td><code>DEMO-RETURNED</code></td><td>2</td>" in issued
+    by_condition = dashboard.split('id="trials-by-condition"')[1].split("</table>")[0]
+    cells = [row.split("</td><td>") for row in by_condition.split("<tr><td>")[1:]]
+    done, open_, unfinished = (sum(int(c[i].split("<")[0]) for c in cells) for i in (1, 2, 3))
+    assert (done, open_, unfinished) == (9, 9, 18)  # one finished, one in progress, two who left
     r = admin.get("/admin/demo/approvals.csv")
     assert r.status_code == 200 and r.mimetype == "text/csv"
     rows = list(csv.DictReader(io.StringIO(r.get_data(as_text=True))))

@@ -99,12 +99,12 @@ def progress(study) -> dict:
             rows[row][state] += 1
         totals[state] += 1
     trials = db.session.execute(
-        select(Trial.condition, Trial.done_at.is_not(None), func.count()).join(Participant)
-        .where(Participant.study_id == study.id, Trial.kind == "trial").group_by(Trial.condition,
-                                                                                 Trial.done_at.is_not(None))).all()
+        select(Trial.condition, Trial.done_at.is_not(None), Participant.status == "in_progress", func.count())
+        .join(Participant).where(Participant.study_id == study.id, Trial.kind == "trial")
+        .group_by(Trial.condition, Trial.done_at.is_not(None), Participant.status == "in_progress")).all()
     conditions = {c.id: Counter() for c in study.conditions}
-    for condition, done, n in trials:
-        conditions.setdefault(condition, Counter())["done" if done else "open"] += n
+    for condition, done, going, n in trials:  # not done: open while the session goes on, else never finished
+        conditions.setdefault(condition, Counter())["done" if done else "open" if going else "unfinished"] += n
     return {"rows": rows, "totals": totals, "conditions": conditions}
 
 
