@@ -30,15 +30,16 @@ def platform_link(page) -> str | None:
 
 
 @pytest.fixture
-def prolific(tmp_path, demo_resources):
-    """The demo study as a Prolific study (the completion URL left to its default)."""
+def prolific(tmp_path, backend_url, demo_resources):
+    """The demo study as a Prolific study (the completion URL left to its default), on SQLite and PostgreSQL."""
     from conftest import make_app
 
     text = demo_resources.read_text().replace('kind = "link"', 'kind = "prolific"')
     text = text.replace('target = "scenes/', f'target = "{demo_resources.parent}/scenes/')
     path = tmp_path / "prolific.toml"
     path.write_text(text)
-    return make_app(tmp_path / "app", studies=[path], ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
+    return make_app(tmp_path / "app", backend_url, studies=[path],
+                    ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
 
 
 def test_each_way_out_sends_the_participant_to_prolific_with_its_own_code(prolific):

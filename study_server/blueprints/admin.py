@@ -99,12 +99,13 @@ def progress(study) -> dict:
             rows[row][state] += 1
         totals[state] += 1
     trials = db.session.execute(
-        select(Trial.condition, Trial.done_at.is_not(None), Participant.status == "in_progress", func.count())
+        select(Trial.condition, Trial.done_at.is_not(None), Participant.status, func.count())
         .join(Participant).where(Participant.study_id == study.id, Trial.kind == "trial")
-        .group_by(Trial.condition, Trial.done_at.is_not(None), Participant.status == "in_progress")).all()
+        .group_by(Trial.condition, Trial.done_at.is_not(None), Participant.status)).all()
     conditions = {c.id: Counter() for c in study.conditions}
-    for condition, done, going, n in trials:  # not done: open while the session goes on, else never finished
-        conditions.setdefault(condition, Counter())["done" if done else "open" if going else "unfinished"] += n
+    for condition, done, status, n in trials:  # not done: open while the session goes on, else never finished
+        state = "done" if done else "open" if status == "in_progress" else "unfinished"
+        conditions.setdefault(condition, Counter())[state] += n
     return {"rows": rows, "totals": totals, "conditions": conditions}
 
 
