@@ -87,6 +87,7 @@ def test_an_experimenter_authors_a_target_scene(page, authoring_server):
     assert hook(page, "targetObjects()") == 6  # the inset shows the saved target, not the edits
     page.click("#save-button")
     until(page, "window.sceneSuggestTest.saved")
+    until(page, "document.getElementById('banner').textContent.startsWith('Saved')")  # said after the hook hears it
     assert "Saved bedside.json (7 objects)" in page.inner_text("#banner")
     assert hook(page, "targetObjects()") == 7 and page.locator("#target canvas").count() == 1  # the inset shows it
     saved = json.loads((folder / "scenes" / "bedside.json").read_text())
