@@ -38,8 +38,10 @@ def ready(page):
     page.evaluate("() => window.sceneSuggestTest.loaded()")
 
 
-def start(page, base: str, pid: str, study: str = "demo"):
-    page.goto(f"{base}/study/{study}/start?pid={pid}")
+def start(page, base: str, pid: str, study: str = "demo", query: str | None = None):
+    """From the entry link (``?pid=…``, or ``query`` as a platform sends it) through consent, demographics and
+    instructions to the first trial, ready."""
+    page.goto(f"{base}/study/{study}/start?{query or f'pid={pid}'}")
     page.click("text=I agree to take part")
     page.fill("input[name=age]", "29")
     page.check("input[name=experience_3d][value='A few times']")

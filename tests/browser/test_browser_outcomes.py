@@ -6,7 +6,7 @@ from conftest import make_app
 from serverproc import StudyServer
 
 from .conftest import ARGS, CHROMIUM, _require_browser, new_context
-from .pagehelp import ready, screenshot
+from .pagehelp import screenshot, start
 
 pytestmark = pytest.mark.slow
 PROLIFIC = "https://app.prolific.com/submissions/complete?cc="
@@ -25,8 +25,13 @@ def prolific_server(tmp_path, demo_resources):
         yield server.base
 
 
+def entry(n: int) -> str:
+    """Prolific's entry parameters for participant ``n``."""
+    return f"PROLIFIC_PID={n:024x}&SESSION_ID={n + 1000:024x}"
+
+
 def arrive(page, base: str, n: int):
-    page.goto(f"{base}/study/demo/start?PROLIFIC_PID={n:024x}&SESSION_ID={n + 1000:024x}")
+    page.goto(f"{base}/study/demo/start?{entry(n)}")
 
 
 def test_declining_and_leaving_return_to_prolific_with_their_codes(prolific_server):
@@ -42,15 +47,7 @@ def test_declining_and_leaving_return_to_prolific_with_their_codes(prolific_serv
         assert declines.get_attribute("#platform-link", "href") == PROLIFIC + "DEMO-NOCONSENT"
 
         leaves = new_context(browser).new_page()
-        arrive(leaves, base, 2)
-        leaves.click("text=I agree to take part")
-        leaves.fill("input[name=age]", "29")
-        leaves.check("input[name=experience_3d][value='Never']")
-        leaves.check("input[name=pointing_device][value=Mouse]")
-        leaves.click("button:has-text('Continue')")
-        while leaves.locator("button[name=go][value=next]").count():
-            leaves.click("button[name=go][value=next]")
-        ready(leaves)
+        start(leaves, base, "", query=entry(2))
         screenshot(leaves, "trial-with-leave-link")
         leaves.click("a.leave-link")
         leaves.wait_for_selector("body[data-step=leave]")
