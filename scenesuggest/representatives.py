@@ -57,3 +57,19 @@ def top_representatives(corpus: Corpus, n: int = 100) -> list[tuple[str, str]]:
         if len(out) == n:
             break
     return out
+
+
+def study_representatives(corpus: Corpus, mesh_dir: Path | None,
+                          path: str | Path | None = None) -> tuple[list[tuple[str, str]], str]:
+    """The (category, model id) rows a study's library is built from, and where they came from: ``path`` if
+    given, else the representatives file beside the mesh folder, else :func:`top_representatives` (100). Every
+    model named in a file must have a mesh."""
+    file = Path(path) if path else mesh_dir.parent / FILE_NAME if mesh_dir else None
+    if file is None or not (path or file.is_file()):
+        return top_representatives(corpus, 100), "chosen from the corpus (top 100 categories)"
+    rows = read_representatives(file)
+    missing = [m for _, m in rows if m not in corpus.models or corpus.models[m].mesh is None]
+    if missing:
+        raise SceneSuggestError(f"{len(missing)} representative model(s) have no mesh, e.g. {missing[0]}",
+                                file=str(file))
+    return rows, str(file)

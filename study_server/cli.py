@@ -44,16 +44,20 @@ def study() -> None:
 @study.command("init")
 @click.argument("folder", type=click.Path(file_okay=False))
 @click.option("--corpus", default="ai2thor", show_default=True, help="The scene corpus the study's priors and "
-              "models come from.")
+              "models come from: the built-in 'ai2thor', or 'stanford:DIR' (a copy of the Stanford Scene Database: "
+              "the study gets its own library and priors, built here in about a minute).")
+@click.option("--meshes", default=None, type=click.Path(file_okay=False), help="The Stanford corpus's OBJ mesh folder "
+              "(default: $SCENESUGGEST_STANFORD_MESHES, DIR/models or DIR/../stanford_models/models).")
 @click.option("--title", default=None, help="The title participants see (default: from the folder's name).")
 @click.option("--id", "study_id", default=None, help="The study id in URLs and exports (default: the folder's name).")
 @click.option("--json", "as_json", is_flag=True)
-def study_init_cmd(folder: str, corpus: str, title: str | None, study_id: str | None, as_json: bool) -> None:
+def study_init_cmd(folder: str, corpus: str, meshes: str | None, title: str | None, study_id: str | None,
+                   as_json: bool) -> None:
     """Start a new study in FOLDER (absent or empty): a study file with every key, commented, a practice and a
     target scene, and a README of the next steps. Never overwrites anything."""
     from .new_study import init_study
 
-    written = init_study(folder, corpus, title, study_id)
+    written = init_study(folder, corpus, title, study_id, meshes, say=lambda m: click.echo(m, err=True))
     study_file = Path(folder) / "study.toml"
     load_studies([study_file], check=False)  # what was written validates
     emit({"folder": str(Path(folder).resolve()), "files": [str(p) for p in written]}, as_json,

@@ -1,6 +1,13 @@
 """A new study in one command (``scenesuggest study init DIR``): a study file with every key, commented, that
 validates and runs as it is; a practice scene and one target scene; a README of the next steps.
 
+On the built-in ``ai2thor`` corpus the scenes are the demo's and the server builds its own priors and model
+library for the corpus. On a copy of the Stanford Scene Database (``stanford:DIR``) the study gets its own, as
+the paper built them: a library of one representative model per top-100 category (``library/stanford``),
+priors trained on every scene of the corpus (``priors/stanford.npz``; the starter scenes are composed here, not
+taken from the corpus, so nothing of them is in training), and a practice and a target scene composed from the
+library's models.
+
 The study file comes from ``starter/study.toml`` (the demo's keys and comments, with this study's id, title,
 corpus, scenes and completion codes filled in; a test keeps its keys the demo's). Nothing is ever overwritten:
 the folder is built beside its place and renamed into it, which must be free (absent or an empty folder).
@@ -16,8 +23,11 @@ import shutil
 from pathlib import Path
 from string import Template
 
+from scenesuggest import scene_json
 from scenesuggest.atomic import temporary_folder_beside
+from scenesuggest.authoring import SceneAuthor
 from scenesuggest.errors import SceneSuggestError
+from scenesuggest.scene_types import infer_scene_type
 
 from .config import PACKAGE
 
@@ -26,7 +36,21 @@ DEMO_SCENES = PACKAGE / "demo" / "scenes"
 #: The scenes a new study starts with: (study scene id, title, the demo scene file it copies).
 PRACTICE = ("practice", "Practice: a dining table", "practice.json")
 TARGET = ("desk-corner", "A desk corner", "desk-corner.json")
-CORPORA = ("ai2thor",)
+CORPORA = ("ai2thor", "stanford:DIR")
+#: The [resources] table of a study on the built-in corpus: the server's own priors and library.
+SERVER_RESOURCES = """corpus = "ai2thor"
+# priors = "priors/ai2thor.npz"   # a priors file ('scenesuggest priors train CORPUS -o FILE') and
+# library = "library/ai2thor"     # a model library ('scenesuggest assets build CORPUS --out DIR'); without them the
+#                                 # server's own for the corpus, which 'scenesuggest study prepare' builds"""
+#: The [resources] table of a study on a Stanford Scene Database copy: its own priors and library, built here.
+STANFORD_RESOURCES = """corpus = $corpus
+priors = "priors/stanford.npz"    # trained on every scene of the corpus by 'scenesuggest study init' (retrain:
+#                                 # 'scenesuggest priors train CORPUS -o FILE')
+library = "library/stanford"      # one representative model per top-100 category of the corpus (rebuild:
+#                                 # 'scenesuggest assets build CORPUS --out DIR')"""
+STANFORD_PRACTICE_TITLE = "Practice: a side table"
+ROOM = (5.0, 2.7, 4.0)  # metres: width X, height Y, depth Z; the back wall is at z = -2
+BACK = -ROOM[2] / 2
 
 
 class InitError(SceneSuggestError):
@@ -45,11 +69,12 @@ def completion_code(rng: secrets.SystemRandom, outcome: str) -> str:
     return "".join(rng.choice(alphabet) for _ in range(12)) + "-" + outcome
 
 
-def study_file_text(study_id: str, title: str, corpus: str) -> str:
+def study_file_text(study_id: str, title: str, resources: str, practice_title: str) -> str:
     """The new study file: the starter template with this study's values (codes made at random)."""
     rng = secrets.SystemRandom()
     return Template((STARTER / "study.toml").read_text(encoding="utf-8")).substitute(
-        id=study_id, title=json.dumps(title, ensure_ascii=False), corpus=corpus, target=TARGET[0],
+        id=study_id, title=json.dumps(title, ensure_ascii=False), resources=resources,
+        practice_title=practice_title, target=TARGET[0],
         target_title=TARGET[1], code_complete=completion_code(rng, "DONE"),
         code_no_consent=completion_code(rng, "NOCONSENT"), code_screened_out=completion_code(rng, "SCREENED"),
         code_returned=completion_code(rng, "RETURNED"),
@@ -61,14 +86,28 @@ def readme_text(folder: Path, study_id: str, title: str) -> str:
         id=study_id, title=title, file=str(folder.resolve() / "study.toml"))
 
 
-def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = None,
-               study_id: str | None = None) -> list[Path]:
-    """Write a new study into ``folder`` (absent or empty); returns the files written. Raises
-    :class:`InitError` naming what is wrong (a folder in use, an unknown corpus, a bad id)."""
-    folder = Path(folder)
-    if corpus not in CORPORA:
+def stanford_folder(corpus: str) -> Path | None:
+    """The folder of a ``stanford:DIR`` corpus (checked), or None for the built-in corpus."""
+    if corpus == "ai2thor":
+        return None
+    kind, _, arg = corpus.partition(":")
+    if kind != "stanford" or not arg:
         raise InitError(f"{corpus!r} is not a corpus a new study can start from (one of: {', '.join(CORPORA)})",
                         field="--corpus")
+    path = Path(arg).expanduser()
+    if not (path / "scenes").is_dir():
+        raise InitError(f"{path} has no scenes/ folder: not a copy of the Stanford Scene Database", field="--corpus")
+    return path.resolve()
+
+
+def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = None,
+               study_id: str | None = None, meshes: str | Path | None = None, say=lambda message: None) -> list[Path]:
+    """Write a new study into ``folder`` (absent or empty); returns the files written (a library as its
+    folder). ``meshes``: the Stanford mesh folder (default: as for every Stanford command); ``say`` hears
+    progress. Raises :class:`InitError` naming what is wrong (a folder in use, an unknown corpus, a bad id, a
+    corpus the starter scenes need more of)."""
+    folder = Path(folder)
+    stanford = stanford_folder(corpus)
     study_id = study_id or study_id_for(folder)
     if not re.fullmatch(r"[A-Za-z0-9_-]+", study_id):
         raise InitError(f"{study_id!r}: use letters, digits, '-' and '_' only", field="--id")
@@ -81,12 +120,77 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
     tmp = temporary_folder_beside(folder)
     try:
         (tmp / "scenes").mkdir()
-        (tmp / "study.toml").write_text(study_file_text(study_id, title, corpus), encoding="utf-8")
+        if stanford is None:
+            resources, practice_title = SERVER_RESOURCES, PRACTICE[1]
+            for _, _, name in (PRACTICE, TARGET):
+                shutil.copyfile(DEMO_SCENES / name, tmp / "scenes" / name)
+        else:
+            write_stanford_resources(tmp, stanford, meshes, say)
+            resources = Template(STANFORD_RESOURCES).substitute(corpus=json.dumps(f"stanford:{stanford}"))
+            practice_title = STANFORD_PRACTICE_TITLE
+        (tmp / "study.toml").write_text(study_file_text(study_id, title, resources, practice_title),
+                                        encoding="utf-8")
         (tmp / "README.md").write_text(readme_text(folder, study_id, title), encoding="utf-8")
-        for _, _, name in (PRACTICE, TARGET):
-            shutil.copyfile(DEMO_SCENES / name, tmp / "scenes" / name)
         os.rename(tmp, folder)  # over an empty folder at most: anything written there meanwhile stops it
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return sorted(p for p in folder.rglob("*") if p.is_file())
+    library = folder / "library"
+    return sorted([p for p in folder.rglob("*") if p.is_file() and library not in p.parents]
+                  + ([library / "stanford"] if library.is_dir() else []))
+
+
+def write_stanford_resources(out: Path, root: Path, meshes: str | Path | None, say) -> None:
+    """Build into ``out`` a study's library (``library/stanford``), priors (``priors/stanford.npz``) and starter
+    scenes (``scenes/``) from the Stanford Scene Database copy at ``root``."""
+    from scenesuggest.assets.build import build_library
+    from scenesuggest.corpora import load_corpus
+    from scenesuggest.corpora.stanford import MESHES_ENV, find_mesh_dir
+    from scenesuggest.library import load_index
+    from scenesuggest.priors import Priors
+    from scenesuggest.representatives import study_representatives
+
+    mesh_dir = find_mesh_dir(root, meshes)
+    if mesh_dir is None:
+        raise InitError(f"no meshes for the corpus at {root}: pass --meshes DIR or set {MESHES_ENV} (a folder of "
+                        "OBJ meshes; default DIR/models or DIR/../stanford_models/models)", field="--meshes")
+    corpus = load_corpus(f"stanford:{root}", meshes=mesh_dir)
+    reps, origin = study_representatives(corpus, mesh_dir)
+    library = out / "library" / "stanford"
+    library.parent.mkdir()
+    say(f"building the model library: {len(reps)} models, one per category ({origin}), about a minute …")
+    build_library(corpus, library, sorted({model_id for _, model_id in reps}))
+    say(f"training priors on the corpus's {len(corpus.scenes)} scenes …")
+    (out / "priors").mkdir()
+    Priors.fit(corpus.scenes, corpus.taxonomy).save(out / "priors" / "stanford.npz")
+    index = load_index(library)
+    models = {category: index[model_id] for category, model_id in reps}
+    for scene_id, compose in ((PRACTICE[0], side_table), (TARGET[0], desk_corner)):
+        author = SceneAuthor(scene_id, "Room", models, ROOM)
+        try:
+            compose(author)
+        except SceneSuggestError as e:
+            raise InitError(f"the starter scene {scene_id!r} needs a model the library lacks: {e}",
+                            field="--corpus") from None
+        author.scene.scene_type = infer_scene_type((o.category for o in author.scene), corpus.taxonomy)
+        scene_json.save(author.scene, out / "scenes" / f"{scene_id}.json")
+
+
+def side_table(a: SceneAuthor) -> None:
+    """The practice scene: a side table against the back wall with a mug and a clock on it."""
+    table = a.put("EndTable", "room", 0.0, BACK + 0.6)
+    a.put("Mug", table, -0.15, BACK + 0.55, yaw_deg=30)
+    a.put("Clock", table, 0.15, BACK + 0.6)
+
+
+def desk_corner(a: SceneAuthor) -> None:
+    """The target scene: a desk against the back wall with a monitor, keyboard, lamp and mug, a chair turned
+    to face it, and a poster above it."""
+    depth = a.size("Desk")[2]
+    desk = a.put("Desk", "room", 0.0, BACK + depth / 2)
+    a.put("Monitor", desk, 0.0, BACK + 0.2)
+    a.put("Keyboard", desk, 0.0, BACK + 0.55)
+    a.put("DeskLamp", desk, -0.6, BACK + 0.3)
+    a.put("Mug", desk, 0.5, BACK + 0.5)
+    a.put("OfficeChair", "room", 0.0, BACK + depth + 0.45, yaw_deg=180)  # facing the desk
+    a.hang("Poster", "back", 0.0, 1.8)

@@ -79,3 +79,61 @@ def test_the_command_writes_a_study_and_refuses_a_folder_in_use(tmp_path):
         "README.md", "desk-corner.json", "practice.json", "study.toml"]
     again = cli("pilot")
     assert again.returncode == 2 and "already exists and is not an empty folder" in again.stderr
+
+
+def test_a_study_on_the_stanford_corpus_gets_its_own_library_priors_and_scenes(tmp_path, stanford_dir,
+                                                                               stanford_meshes, stanford):
+    """`--corpus stanford:DIR`: a library of one model per top-100 category, priors trained on every scene of
+    the corpus, starter scenes composed from the library's models; the study validates and runs as written."""
+    import numpy as np
+
+    from scenesuggest import scene_json
+    from scenesuggest.library import load_index
+    from scenesuggest.priors import Priors
+    from scenesuggest.representatives import read_representatives
+
+    folder = tmp_path / "desks"
+    said = []
+    written = init_study(folder, corpus=f"stanford:{stanford_dir}", meshes=stanford_meshes, say=said.append)
+    assert [p.relative_to(folder).as_posix() for p in written] == [
+        "README.md", "library/stanford", "priors/stanford.npz", "scenes/desk-corner.json", "scenes/practice.json",
+        "study.toml"]
+    assert "100 models" in said[0]
+    study = load_study(folder / "study.toml")
+    assert study.corpus == f"stanford:{stanford_dir.resolve()}"
+    assert study.priors == folder / "priors" / "stanford.npz" and study.library == folder / "library" / "stanford"
+    new, demo = tomllib.loads((folder / "study.toml").read_text()), tomllib.loads(DEMO_STUDY.read_text())
+    assert keys(new) == keys(demo) | {"resources.priors", "resources.library"}
+
+    reps = read_representatives(stanford_meshes.parent / "representatives.tsv")
+    index = load_index(study.library)
+    built = {m for m, info in index.items() if info.asset}
+    assert built == {m for _, m in reps} and all((study.library / index[m].asset).is_file() for m in built)
+    saved, fitted = Priors.load(study.priors), Priors.fit(stanford.scenes, stanford.taxonomy)
+    assert all(np.array_equal(getattr(saved, a), getattr(fitted, a)) for a in Priors.ARRAY_NAMES)
+
+    practice = scene_json.load(folder / "scenes" / "practice.json")
+    target = scene_json.load(folder / "scenes" / "desk-corner.json")
+    model_of = dict(reps)  # representatives category → model id
+    assert sorted(o.model_id for o in practice if o.parent) == sorted(model_of[c] for c in ("Clock", "EndTable", "Mug"))
+    assert target.scene_type == "Study" and all(o.model_id in built for o in target if o.parent)
+    chair = next(o for o in target if o.model_id == model_of["OfficeChair"])
+    desk = next(o for o in target if o.model_id == model_of["Desk"])
+    front = chair.transform[:3, 2]  # where the chair's canonical front (+Z) points in the world
+    to_desk = desk.transform[:3, 3] - chair.transform[:3, 3]
+    assert front @ to_desk / np.linalg.norm(front) / np.linalg.norm(to_desk) > 0.95  # turned to face the desk
+
+    app = make_app(tmp_path / "server", studies=[folder / "study.toml"])
+    summary = simulate(2, seed=3, study="desks", app=app)
+    assert summary["completed"] == 2 and summary["trials"] == 6 and not summary["failures"]
+
+
+def test_a_stanford_study_without_meshes_is_refused_before_anything_is_built(tmp_path, stanford_dir, monkeypatch):
+    monkeypatch.delenv("SCENESUGGEST_STANFORD_MESHES", raising=False)
+    copy = tmp_path / "db"
+    copy.mkdir()
+    (copy / "scenes").symlink_to(stanford_dir / "scenes")
+    with pytest.raises(InitError) as info:
+        init_study(tmp_path / "s", corpus=f"stanford:{copy}")
+    assert info.value.field == "--meshes" and "SCENESUGGEST_STANFORD_MESHES" in info.value.message
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["db"]

@@ -42,7 +42,7 @@ from scenesuggest.errors import SceneSuggestError  # noqa: E402
 from scenesuggest.library import INDEX_FILE, load_index  # noqa: E402
 from scenesuggest.priors import VERSION as PRIORS_VERSION  # noqa: E402
 from scenesuggest.priors import Priors, code_digest  # noqa: E402
-from scenesuggest.representatives import FILE_NAME, read_representatives, top_representatives  # noqa: E402
+from scenesuggest.representatives import FILE_NAME, study_representatives  # noqa: E402
 
 ENV = "SCENESUGGEST_STANFORD_DIR"
 
@@ -57,18 +57,6 @@ def stanford_dir(option: str | None) -> Path:
         raise SceneSuggestError(f"{path} has no scenes/ folder: not a Stanford Scene Database copy",
                                 field="stanford_dir")
     return path
-
-
-def representatives(corpus, option: str | None, meshes: Path | None) -> tuple[list[tuple[str, str]], str]:
-    path = Path(option) if option else meshes.parent / FILE_NAME if meshes else None
-    if path is None or not (option or path.is_file()):
-        return top_representatives(corpus, 100), "chosen from the corpus (top 100 categories)"
-    rows = read_representatives(path)
-    missing = [m for _, m in rows if m not in corpus.models or corpus.models[m].mesh is None]
-    if missing:
-        raise SceneSuggestError(f"{len(missing)} representative model(s) have no mesh, e.g. {missing[0]}",
-                                file=str(path))
-    return rows, str(path)
 
 
 def library_models(corpus, reps: list[tuple[str, str]], extra: list[str]) -> list[str]:
@@ -91,7 +79,7 @@ def prepare(stanford: Path, out: Path = OUT, representatives_file: str | None = 
     started = time.perf_counter()
     corpus = load_corpus(f"stanford:{stanford}", meshes=meshes)
     mesh_dir = find_mesh_dir(stanford, meshes)
-    reps, reps_from = representatives(corpus, representatives_file, mesh_dir)
+    reps, reps_from = study_representatives(corpus, mesh_dir, representatives_file)
     model_ids = library_models(corpus, reps, list(extra_models))
     out.mkdir(parents=True, exist_ok=True)
     manifest_path = out / "manifest.json"

@@ -89,6 +89,9 @@ def test_an_experimenter_authors_a_target_scene(page, authoring_server):
     until(page, "window.sceneSuggestTest.saved")
     until(page, "document.getElementById('banner').textContent.startsWith('Saved')")  # said after the hook hears it
     assert "Saved bedside.json (7 objects)" in page.inner_text("#banner")
+    page.evaluate("document.getElementById('banner').dataset.state = ''; window.dispatchEvent(new Event('online'))")
+    until(page, "document.getElementById('banner').dataset.state === 'saved'")  # the outbox reached the server
+    assert "Saved bedside.json (7 objects)" in page.inner_text("#banner")  # and the save's line stays
     assert hook(page, "targetObjects()") == 7 and page.locator("#target canvas").count() == 1  # the inset shows it
     saved = json.loads((folder / "scenes" / "bedside.json").read_text())
     assert {o["id"] for o in saved["objects"]} == set(before) | {added[0]["id"]}

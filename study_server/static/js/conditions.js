@@ -86,9 +86,9 @@ async function suggestAt({ editor, scene, trial, api, log, strings, say, onEnded
   let r;
   try {
     r = await api("/suggest", { method: "POST", body: JSON.stringify({ trial, ...where, scene: scene.objectsJSON() }) });
-  } catch (err) { say(strings.suggestOffline); return null; }
+  } catch (err) { say(strings.suggestOffline, { transient: true }); return null; }
   if (r.status === 410) { onEnded(); return null; }
-  if (!r.ok) { say(strings.suggestOffline); return null; }
+  if (!r.ok) { say(strings.suggestOffline, { transient: true }); return null; }
   const response = await r.json();
   onSuggestions(response, hit);
   log("context_query", { ...where, list_id: response.list_id });

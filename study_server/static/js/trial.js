@@ -14,7 +14,18 @@ const $ = (id) => document.getElementById(id);
 const banner = $("banner");
 let testHook = null;  // only on a page a test opened with `window.sceneSuggestTestHook` set
 
-function say(text, { action = null, onAction = null } = {}) {
+let lasting = { text: "" };  // what the banner says once a transient line goes
+
+/** Show ``text`` in the banner (or hide it when empty), with an ``action`` button if given. A ``transient`` line
+ * (about the connection) shows over the lasting one and goes when the outbox next reaches the server; a lasting
+ * line stays until the page says something else. */
+function say(text, { action = null, onAction = null, transient = false } = {}) {
+  if (!transient) lasting = { text, action, onAction };
+  show(text, action, onAction);
+  banner.dataset.kind = !text ? "" : transient ? "transient" : "lasting";
+}
+
+function show(text, action, onAction) {
   banner.replaceChildren(document.createTextNode(text));
   if (action) {
     const b = document.createElement("button");
@@ -30,9 +41,9 @@ const sayEnded = () => say(strings.ended, { action: strings.continue, onAction: 
 const outbox = new Outbox({ api: boot.api, token: boot.token, pageId: boot.page_id, study: boot.study,
   vocabulary: boot.vocabulary,
   onStatus: (s) => {
-    if (s === "offline") say(strings.offline);
+    if (s === "offline") say(strings.offline, { transient: true });
     else if (s === "ended") sayEnded();
-    else if (banner.dataset.kind !== "model") say("");
+    else if (banner.dataset.kind === "transient") say(lasting.text, lasting);
     banner.dataset.state = s;
   } });
 const api = (path, options = {}) => fetch(`${boot.api}${path}`, { ...options,
@@ -50,7 +61,7 @@ async function json(path) {
       const r = await api(path);
       if (r.ok) return await r.json();
     } catch (e) { /* offline: retry */ }
-    say(strings.offline);
+    say(strings.offline, { transient: true });
     await new Promise((res) => setTimeout(res, Math.min(10000, 500 * 2 ** attempt)));
   }
 }
@@ -130,9 +141,7 @@ async function load() {
 
 /** A model that failed to load: the banner offers a retry, which shows the scene's models again. */
 function modelFailed(library, scene, editor) {
-  banner.dataset.kind = "model";
   say(strings.modelFailed, { action: strings.retry, onAction: () => {
-    banner.dataset.kind = "";
     say("");
     library.retry();
     for (const o of scene.objects.values()) if (o.parent !== null) editor.showObject(o);
@@ -220,7 +229,7 @@ async function finish(scene) {
         return;
       }
     } catch (e) { /* offline: keep trying */ }
-    say(strings.offline);
+    say(strings.offline, { transient: true });
     await new Promise((res) => setTimeout(res, Math.min(30000, 1000 * 2 ** attempt)));
   }
 }
