@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import secrets
 import sys
 from pathlib import Path
 
@@ -15,6 +16,24 @@ SHARED_DATA = Path(os.environ.get("SCENESUGGEST_SHARED_DATA", ROOT.parent / "sha
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 sys.path.insert(0, str(ROOT / "benchmarks"))  # serverproc: the server as a subprocess, shared with the benchmarks
 BROWSER_TESTS = Path(__file__).resolve().parent / "browser"
+# The lme4 oracle's random studies (tests/test_lme4_oracle.py): drawn afresh each run unless set. Set here, before
+# any worker process starts, so that every worker draws the same studies.
+LME4_SEED = int(os.environ.setdefault("SCENESUGGEST_LME4_SEED", str(secrets.randbelow(10**6))))
+
+
+def pytest_report_header(config) -> list[str]:
+    """The lme4 oracle's seed, and the R and lme4 it runs against."""
+    import shutil
+    import subprocess
+
+    lines = [f"lme4 oracle: seed {LME4_SEED} (SCENESUGGEST_LME4_SEED={LME4_SEED} repeats this run's studies)"]
+    if shutil.which("Rscript"):
+        probe = subprocess.run(["Rscript", "-e", 'cat(R.version.string, "| lme4", format(packageVersion("lme4")), '
+                                '"| jsonlite", format(packageVersion("jsonlite")))'], capture_output=True, text=True)
+        lines.append(f"lme4 oracle: {probe.stdout.strip() or probe.stderr.strip().splitlines()[-1]}")
+    else:
+        lines.append("lme4 oracle: no Rscript on PATH")
+    return lines
 
 
 def pytest_collection_modifyitems(config, items) -> None:

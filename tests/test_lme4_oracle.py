@@ -1,0 +1,191 @@
+"""lme4 as the oracle of the mixed models, on studies nobody has seen: each run draws random studies (the seed is
+in the test header; ``SCENESUGGEST_LME4_SEED=N`` repeats a run), fits every model the report fits in Python and
+with R's lme4 (``tests/lme4_oracle.R``), and compares them at the tolerances of the lme4 reference data's README.
+
+A study: 6–60 participants, three conditions, 2–8 scenes (each participant does up to three of them under every
+condition), random effect sizes, some of them zero (condition effects and either variance component), drop-outs
+and missing trials (unbalanced), log-normal times and Poisson counts with small means.
+
+Tolerances (``../shared/data/lme4_reference/README.md``): fixed effects and Gaussian SEs rtol 1e-4 (or 1e-4 of a
+standard error, for an estimate near zero); log-likelihoods atol 1e-4; LR χ² rtol 1e-4 or atol 1e-3; variance
+components rtol 1e-3, or 1e-6 of the residual variance (Gaussian; 1e-4 on the log scale for Poisson) for a
+component at zero. Poisson fits are compared with glmer's converged fit (inner PIRLS to tolPwrss = 1e-13; see
+analysis/glmm.py for why its defaults differ) at the same tolerances, SEs for fits not on the boundary (a zero
+variance leaves no curvature to compare); glmer's default fit is checked to lie within 2% of an SE of it.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import IN_CI, LME4_SEED, ROOT
+
+from analysis.design import build_design
+from analysis.mixed import fit, lr_test
+
+RSCRIPT = shutil.which("Rscript")
+STUDIES = 3  # random studies per run
+LEVELS = ["none", "basic", "full"]
+
+
+def require_lme4() -> None:
+    message = None
+    if RSCRIPT is None:
+        message = "R is not installed (apt-get install r-base-core r-cran-lme4 r-cran-jsonlite)"
+    else:
+        probe = subprocess.run([RSCRIPT, "-e", "library(lme4); library(jsonlite)"], capture_output=True, text=True)
+        if probe.returncode != 0:
+            message = "R has no lme4 or jsonlite (apt-get install r-cran-lme4 r-cran-jsonlite)"
+    if message:
+        pytest.fail(message + " — required under CI=true") if IN_CI else pytest.skip(message)
+
+
+def random_study(rng: np.random.Generator) -> tuple[pd.DataFrame, dict]:
+    """A random study's trial table and the truth it was drawn from."""
+    n_people, n_scenes = int(rng.integers(6, 61)), int(rng.integers(2, 9))
+    maybe_zero = lambda low, high: 0.0 if rng.random() < 0.25 else float(rng.uniform(low, high))  # noqa: E731
+    truth = {"participants": n_people, "scenes": n_scenes,
+             "effects": [0.0] + [maybe_zero(-0.4, 0.4) for _ in range(2)],
+             "sd_participant": maybe_zero(0.05, 0.5), "sd_scene": maybe_zero(0.05, 0.4),
+             "sd_residual": float(rng.uniform(0.1, 0.5)), "mean_queries": float(rng.uniform(0.3, 4.0)),
+             "p_missing": float(rng.uniform(0, 0.15)), "p_drop_out": float(rng.uniform(0, 0.3))}
+    scenes = [f"S{i + 1}" for i in range(n_scenes)]
+    b_scene = dict(zip(scenes, rng.normal(0, truth["sd_scene"], n_scenes), strict=True))
+    c_scene = dict(zip(scenes, rng.normal(0, truth["sd_scene"], n_scenes), strict=True))
+    rows = []
+    for p in range(n_people):
+        own = rng.choice(scenes, size=min(3, n_scenes), replace=False)
+        plan = [(c, s) for c in rng.permutation(3) for s in own]
+        if rng.random() < truth["p_drop_out"]:
+            plan = plan[:int(rng.integers(1, len(plan)))]
+        b_p, c_p = rng.normal(0, truth["sd_participant"], 2)
+        for c, s in plan:
+            if rng.random() < truth["p_missing"]:
+                continue
+            effect = truth["effects"][c]
+            log_t = np.log(300) + effect + b_p + b_scene[s] + rng.normal(0, truth["sd_residual"])
+            rate = truth["mean_queries"] * np.exp(effect + c_p + c_scene[s])
+            rows.append({"participant": f"P{p + 1:02d}", "scene": s, "condition": LEVELS[c],
+                         "total_time": round(float(np.exp(log_t)), 3), "n_queries": int(rng.poisson(rate))})
+    return pd.DataFrame(rows), truth
+
+
+def python_fits(d: pd.DataFrame) -> dict:
+    d = d.assign(condition=pd.Categorical(d["condition"], LEVELS), log_time=np.log(d["total_time"]))
+    crossed, one = ["participant", "scene"], ["participant"]
+
+    def design(response, fixed, random):
+        return build_design(d, response, fixed, random)
+
+    time_full = design("total_time", ["condition"], crossed)
+    log_full = design("log_time", ["condition"], crossed)
+    queries = design("n_queries", ["condition"], crossed)
+    by_participant = design("n_queries", ["condition"], one)
+    return {
+        "time_ml": fit(time_full), "time_ml_null": fit(time_full.without("condition")),
+        "time_reml": fit(time_full, reml=True),
+        "log_time_ml": fit(log_full), "log_time_ml_null": fit(log_full.without("condition")),
+        "queries": fit(queries, "poisson"), "queries_null": fit(queries.without("condition"), "poisson"),
+        "queries_laplace_participant": fit(by_participant, "poisson"),
+        "queries_agq_participant": fit(by_participant, "poisson", n_agq=10),
+    }
+
+
+def saturated_loglik(y: np.ndarray) -> float:
+    """Σ log Pois(y | y): lme4 reports the log-likelihood of an nAGQ > 1 fit less this."""
+    from scipy.special import gammaln
+
+    return float((y * np.log(np.where(y > 0, y, 1)) - y - gammaln(y + 1)).sum())
+
+
+def compare(name: str, ours, theirs: dict, *, saturated: float = 0.0) -> list[str]:
+    """What differs between our fit and lme4's, beyond the tolerances (empty when they agree)."""
+    problems = []
+    gaussian = ours.family == "gaussian"
+    loglik = -theirs["REMLcrit"] / 2 if ours.reml else theirs["logLik"] + saturated
+    if abs(ours.loglik - loglik) > 1e-4:
+        problems.append(f"{name}: logLik {ours.loglik!r} vs lme4 {loglik!r}")
+    if list(ours.fixed) != list(theirs["fixef"]):
+        return problems + [f"{name}: fixed effects {list(ours.fixed)} vs lme4 {list(theirs['fixef'])}"]
+    singular = ours.singular or theirs["singular"]
+    for term, value in ours.fixed.items():
+        se = theirs["se"][term]
+        if abs(value - theirs["fixef"][term]) > 1e-4 * max(abs(theirs["fixef"][term]), se):
+            problems.append(f"{name}: {term} {value!r} vs lme4 {theirs['fixef'][term]!r} (SE {se:.3g})")
+        if (gaussian or not singular) and abs(ours.se[term] - se) > 1e-4 * se:
+            problems.append(f"{name}: SE of {term} {ours.se[term]!r} vs lme4 {se!r}")
+    residual = theirs["varcomp"].get("residual", 0.0)
+    for group, value in theirs["varcomp"].items():
+        mine = ours.variance[group]
+        floor = 1e-6 * residual if gaussian else 1e-4
+        if abs(mine - value) > max(1e-3 * abs(value), floor):
+            problems.append(f"{name}: variance of {group} {mine!r} vs lme4 {value!r}")
+    return problems
+
+
+def default_glmer_problems(name: str, theirs: dict) -> list[str]:
+    """glmer with its default settings against the converged fit: estimates within 2% of an SE, SEs within 2%
+    (the error its default inner tolerance leaves; measured below 1% on the reference data)."""
+    default, problems = theirs["default"], []
+    for term, value in theirs["fixef"].items():
+        se = theirs["se"][term]
+        if abs(default["fixef"][term] - value) > 0.02 * se or (
+                not theirs["singular"] and abs(default["se"][term] - se) > 0.02 * se):
+            problems.append(f"{name}: glmer's default fit of {term} {default['fixef'][term]!r} ± "
+                            f"{default['se'][term]!r} vs converged {value!r} ± {se!r}")
+    return problems
+
+
+def lr_problems(name: str, ours, theirs_full: dict, theirs_null: dict, df: int) -> list[str]:
+    chi2 = max(0.0, 2 * (theirs_full["logLik"] - theirs_null["logLik"]))
+    if ours.df != df or abs(ours.chi2 - chi2) > max(1e-4 * chi2, 1e-3):
+        return [f"{name}: LR χ²({ours.df}) {ours.chi2!r} vs lme4 χ²({df}) {chi2!r}"]
+    return []
+
+
+@pytest.mark.parametrize("study", range(STUDIES))
+def test_every_model_of_the_report_matches_lme4_on_a_random_study(study, tmp_path):
+    require_lme4()
+    seed = [LME4_SEED, study]
+    data, truth = random_study(np.random.default_rng(seed))
+    csv = tmp_path / f"lme4-oracle-{LME4_SEED}-{study}.csv"
+    data.to_csv(csv, index=False)
+    where = (f"seed {LME4_SEED}, study {study} (SCENESUGGEST_LME4_SEED={LME4_SEED} repeats it); data: {csv}; "
+             f"drawn from {json.dumps(truth)}")
+    ran = subprocess.run([RSCRIPT, str(ROOT / "tests" / "lme4_oracle.R"), str(csv), str(tmp_path / "lme4.json")],
+                         capture_output=True, text=True, timeout=600)
+    assert ran.returncode == 0, f"lme4 failed on {where}:\n{ran.stderr[-2000:]}"
+    lme4 = json.loads((tmp_path / "lme4.json").read_text())
+    ours = python_fits(data)
+    agq_offset = saturated_loglik(data["n_queries"].to_numpy(float))
+    problems = []
+    for name, fitted in ours.items():
+        problems += compare(name, fitted, lme4[name], saturated=agq_offset if name.endswith("agq_participant") else 0)
+        if fitted.family == "poisson":
+            problems += default_glmer_problems(name, lme4[name])
+    for full, null in (("time_ml", "time_ml_null"), ("log_time_ml", "log_time_ml_null"), ("queries", "queries_null")):
+        problems += lr_problems(full, lr_test(ours[null], ours[full]), lme4[full], lme4[null], 2)
+    assert not problems, f"{len(problems)} difference(s) from lme4 on {where}:\n" + "\n".join(problems)
+
+
+def test_the_oracle_studies_cover_what_they_claim():
+    """Across 200 draws the generator makes every kind of study the oracle is meant to see."""
+    truths, sizes = [], []
+    for i in range(200):
+        data, truth = random_study(np.random.default_rng([0, i]))
+        truths.append(truth)
+        per_person = data.groupby("participant").size()
+        sizes.append((data["participant"].nunique(), data["scene"].nunique(), per_person.nunique() > 1,
+                      data["n_queries"].mean()))
+    people = [t["participants"] for t in truths]
+    assert min(people) == 6 and max(people) >= 55 and {t["scenes"] for t in truths} == set(range(2, 9))
+    assert any(t["sd_participant"] == 0 for t in truths) and any(t["sd_scene"] == 0 for t in truths)
+    assert any(0.0 in t["effects"][1:] for t in truths) and any(all(t["effects"][1:]) for t in truths)
+    assert sum(unbalanced for _, _, unbalanced, _ in sizes) > 100  # drop-outs and missing trials
+    assert min(mean for *_, mean in sizes) < 0.6  # counts with small means
+
