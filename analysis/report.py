@@ -20,6 +20,8 @@ from .closeness import SCORE_TEST, closeness_table, score_over_time
 from .jsonout import dumps
 from .load import StudyData
 from .measures import TRIAL_MEASURES, participants_table, picks_table, trials_table
+from .reproduce import FILE_NAME as REPRODUCE_R
+from .reproduce import write_reproduce_r
 from .tables import MEASURES, Table, condition_tests, contrasts_table, survey_table, table1, table2, tests_table
 
 
@@ -104,7 +106,9 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
         tables.append(close)
     else:
         notes.append("how close to the target: the data has no scores (an export made before trials were scored)")
-    results = condition_tests(trials, picks, conditions, progress, MEASURES + ([SCORE_TEST] if scored else []))
+    modelled = MEASURES + ([SCORE_TEST] if scored else [])
+    results = condition_tests(trials, picks, conditions, progress, modelled)
+    write_reproduce_r(out, modelled, conditions)
     tables += [tests_table(results), contrasts_table(results), survey_table(people)]
     for r in results:
         if r.error:
@@ -174,5 +178,9 @@ def _readme(data, summary, tables, figure_files, out, conditions) -> str:
     lines += ["## Figures", ""]
     lines += [f"![{f.stem}]({f.relative_to(out).as_posix()})" for f in figure_files if f.suffix == ".png"]
     lines += ["", "Each figure is also an SVG beside its PNG. Per-trial, per-pick and per-participant measures are "
-                  "in `measures/`; every number above is in `results.json`.", ""]
+                  "in `measures/`; every number above is in `results.json`.", "",
+              "## In R", "",
+              f"`Rscript {REPRODUCE_R}` (R with lme4) fits the likelihood-ratio tests' models again with lme4 from "
+              "`measures/` and prints each test and every fixed effect with its standard error, in the order above.",
+              ""]
     return "\n".join(lines)

@@ -21,6 +21,22 @@ BROWSER_TESTS = Path(__file__).resolve().parent / "browser"
 LME4_SEED = int(os.environ.setdefault("SCENESUGGEST_LME4_SEED", str(secrets.randbelow(10**6))))
 
 
+def require_lme4() -> str:
+    """The Rscript to run, with lme4 and jsonlite; skips (fails under CI=true) naming what to install."""
+    import shutil
+    import subprocess
+
+    rscript = shutil.which("Rscript")
+    message = None
+    if rscript is None:
+        message = "R is not installed (apt-get install r-base-core r-cran-lme4 r-cran-jsonlite)"
+    elif subprocess.run([rscript, "-e", "library(lme4); library(jsonlite)"], capture_output=True).returncode:
+        message = "R has no lme4 or jsonlite (apt-get install r-cran-lme4 r-cran-jsonlite)"
+    if message:
+        pytest.fail(message + " — required under CI=true") if IN_CI else pytest.skip(message)
+    return rscript
+
+
 def pytest_report_header(config) -> list[str]:
     """The lme4 oracle's seed, and the R and lme4 it runs against."""
     import shutil

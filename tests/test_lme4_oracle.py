@@ -11,38 +11,25 @@ standard error, for an estimate near zero); log-likelihoods atol 1e-4; LR χ² r
 components rtol 1e-3, or 1e-6 of the residual variance (Gaussian; 1e-4 on the log scale for Poisson) for a
 component at zero. Poisson fits are compared with glmer's converged fit (inner PIRLS to tolPwrss = 1e-13; see
 analysis/glmm.py for why its defaults differ) at the same tolerances, SEs for fits not on the boundary (a zero
-variance leaves no curvature to compare); glmer's default fit is checked to lie within 2% of an SE of it.
+variance leaves no curvature to compare); glmer's default fit is checked to lie near it (estimates within 1%
+of an SE, SEs within 5%).
 """
 
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import IN_CI, LME4_SEED, ROOT
+from conftest import LME4_SEED, ROOT, require_lme4
 
 from analysis.design import build_design
 from analysis.mixed import fit, lr_test
 
-RSCRIPT = shutil.which("Rscript")
 STUDIES = 3  # random studies per run
 LEVELS = ["none", "basic", "full"]
-
-
-def require_lme4() -> None:
-    message = None
-    if RSCRIPT is None:
-        message = "R is not installed (apt-get install r-base-core r-cran-lme4 r-cran-jsonlite)"
-    else:
-        probe = subprocess.run([RSCRIPT, "-e", "library(lme4); library(jsonlite)"], capture_output=True, text=True)
-        if probe.returncode != 0:
-            message = "R has no lme4 or jsonlite (apt-get install r-cran-lme4 r-cran-jsonlite)"
-    if message:
-        pytest.fail(message + " — required under CI=true") if IN_CI else pytest.skip(message)
 
 
 def random_study(rng: np.random.Generator) -> tuple[pd.DataFrame, dict]:
@@ -129,13 +116,13 @@ def compare(name: str, ours, theirs: dict, *, saturated: float = 0.0) -> list[st
 
 
 def default_glmer_problems(name: str, theirs: dict) -> list[str]:
-    """glmer with its default settings against the converged fit: estimates within 2% of an SE, SEs within 2%
-    (the error its default inner tolerance leaves; measured below 1% on the reference data)."""
+    """glmer with its default settings against the converged fit: estimates within 1% of an SE, SEs within 5%
+    (the error its default inner tolerance leaves; on 30 random studies at most 0.3% and 1.4%)."""
     default, problems = theirs["default"], []
     for term, value in theirs["fixef"].items():
         se = theirs["se"][term]
-        if abs(default["fixef"][term] - value) > 0.02 * se or (
-                not theirs["singular"] and abs(default["se"][term] - se) > 0.02 * se):
+        if abs(default["fixef"][term] - value) > 0.01 * se or (
+                not theirs["singular"] and abs(default["se"][term] - se) > 0.05 * se):
             problems.append(f"{name}: glmer's default fit of {term} {default['fixef'][term]!r} ± "
                             f"{default['se'][term]!r} vs converged {value!r} ± {se!r}")
     return problems
@@ -150,14 +137,14 @@ def lr_problems(name: str, ours, theirs_full: dict, theirs_null: dict, df: int) 
 
 @pytest.mark.parametrize("study", range(STUDIES))
 def test_every_model_of_the_report_matches_lme4_on_a_random_study(study, tmp_path):
-    require_lme4()
+    rscript = require_lme4()
     seed = [LME4_SEED, study]
     data, truth = random_study(np.random.default_rng(seed))
     csv = tmp_path / f"lme4-oracle-{LME4_SEED}-{study}.csv"
     data.to_csv(csv, index=False)
     where = (f"seed {LME4_SEED}, study {study} (SCENESUGGEST_LME4_SEED={LME4_SEED} repeats it); data: {csv}; "
              f"drawn from {json.dumps(truth)}")
-    ran = subprocess.run([RSCRIPT, str(ROOT / "tests" / "lme4_oracle.R"), str(csv), str(tmp_path / "lme4.json")],
+    ran = subprocess.run([rscript, str(ROOT / "tests" / "lme4_oracle.R"), str(csv), str(tmp_path / "lme4.json")],
                          capture_output=True, text=True, timeout=600)
     assert ran.returncode == 0, f"lme4 failed on {where}:\n{ran.stderr[-2000:]}"
     lme4 = json.loads((tmp_path / "lme4.json").read_text())

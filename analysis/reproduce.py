@@ -1,0 +1,117 @@
+"""``report/reproduce.R``: the report's mixed models again, in R with lme4, for analysts who check in R.
+
+The script is self-contained: it reads the report's own measure files (``measures/trials.csv``: completed trials
+for the trial measures; ``measures/picks.csv``: final picks for MRR), keeps the rows the report kept (the report's
+conditions, the measure present), and fits each measure with and without condition — ``lmer(REML = FALSE)``, or
+``glmer(family = poisson)`` for counts with its inner solve converged (``tolPwrss = 1e-13``: with its default
+glmer stops it early; see :mod:`analysis.glmm`) — with crossed random intercepts for participant and scene (a
+factor with a single level left out, as the report does). It prints the likelihood-ratio tests in the order of
+the report's table and every fixed effect of the full models with its standard error, to full precision.
+
+    Rscript report/reproduce.R          # from anywhere; needs R with lme4 (Debian: r-cran-lme4)
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+FILE_NAME = "reproduce.R"
+
+TEMPLATE = r"""# Reproduces the likelihood-ratio tests and fixed effects of this report with R's lme4.
+# Written by `scenesuggest analyze report`; reads the report's measures/ folder beside this file.
+#
+#   Rscript reproduce.R                 (needs R with lme4; Debian: apt-get install r-cran-lme4)
+#
+# Models (as the report fits them): each measure with and without condition, maximum likelihood, crossed random
+# intercepts for participant and scene (a factor with a single level is left out); counts as a Poisson GLMM
+# (log link, Laplace) with glmer's inner solve converged (tolPwrss = 1e-13; with its default 1e-7 standard errors
+# can be off by a percent or so). Fixed effects are treatment-coded against the first
+# condition.
+suppressMessages(library(lme4))
+
+here <- local({
+  file <- sub("^--file=", "", grep("^--file=", commandArgs(FALSE), value = TRUE))
+  if (length(file) == 1) dirname(normalizePath(file)) else getwd()
+})
+conditions <- @CONDITIONS@
+measures <- data.frame(
+  measure = @MEASURE_NAMES@,
+  label = @MEASURE_LABELS@,
+  family = @MEASURE_FAMILIES@,
+  rows = @MEASURE_TABLES@,
+  stringsAsFactors = FALSE)
+
+trials <- read.csv(file.path(here, "measures", "trials.csv"), stringsAsFactors = FALSE)
+trials <- trials[as.logical(as.character(trials$complete)), ]
+picks <- read.csv(file.path(here, "measures", "picks.csv"), stringsAsFactors = FALSE)
+converged <- glmerControl(optimizer = "bobyqa", tolPwrss = 1e-13, optCtrl = list(rhoend = 1e-10, maxfun = 1e5))
+
+fit_measure <- function(m) {
+  d <- if (m$rows == "picks") picks else trials
+  d <- d[d$condition %in% conditions & !is.na(d[[m$measure]]), ]
+  d$y <- d[[m$measure]]
+  if (length(unique(d$y)) < 2) stop("is constant; there is no variance to model")
+  d$condition <- droplevels(factor(d$condition, levels = conditions))
+  groups <- Filter(function(g) length(unique(d[[g]])) > 1, c("participant", "scene"))
+  if (length(groups) == 0) stop("no grouping factor with more than one level")
+  random <- paste(sprintf("(1 | %s)", groups), collapse = " + ")
+  full <- as.formula(paste("y ~ condition +", random))
+  null <- as.formula(paste("y ~ 1 +", random))
+  fit <- function(formula) suppressMessages(if (m$family == "poisson") {
+    glmer(formula, d, family = poisson, control = converged)
+  } else {
+    lmer(formula, d, REML = FALSE)
+  })
+  f1 <- fit(full)
+  f0 <- fit(null)
+  test <- anova(f0, f1)
+  list(chisq = test$Chisq[2], df = test$Df[2], n = nobs(f1), p = test[["Pr(>Chisq)"]][2],
+       fixef = fixef(f1), se = sqrt(diag(as.matrix(vcov(f1)))),
+       note = if (isSingular(f1)) "singular fit (a variance at zero)" else "")
+}
+
+cat(sprintf("Likelihood-ratio tests of condition (%s, lme4 %s)\n", R.version.string, packageVersion("lme4")))
+cat(sprintf("%-22s %-8s %14s %3s %6s %14s  %s\n", "measure", "model", "chisq", "df", "N", "p", "note"))
+fits <- list()
+for (i in seq_len(nrow(measures))) {
+  m <- measures[i, ]
+  fitted <- tryCatch(fit_measure(m), error = function(e) conditionMessage(e))
+  fits[[m$measure]] <- fitted
+  model <- if (m$family == "poisson") "GLMM" else "LMM"
+  if (is.character(fitted)) {
+    cat(sprintf("%-22s %-8s not modelled: %s\n", m$measure, model, fitted))
+  } else {
+    cat(sprintf("%-22s %-8s %14.8g %3d %6d %14.8g  %s\n", m$measure, model, fitted$chisq, fitted$df, fitted$n,
+                fitted$p, fitted$note))
+  }
+}
+cat("\nFixed effects of the full models (estimate, standard error)\n")
+cat(sprintf("%-22s %-28s %16s %16s\n", "measure", "term", "estimate", "se"))
+for (name in names(fits)) {
+  fitted <- fits[[name]]
+  if (is.character(fitted)) next
+  for (term in names(fitted$fixef)) {
+    cat(sprintf("%-22s %-28s %16.10g %16.10g\n", name, term, fitted$fixef[[term]], fitted$se[[term]]))
+  }
+}
+"""
+
+
+def _r_vector(values) -> str:
+    """An R character vector literal (JSON string escapes are valid R string escapes)."""
+    return "c(" + ", ".join(json.dumps(str(v), ensure_ascii=False) for v in values) + ")"
+
+
+def write_reproduce_r(out: str | Path, measures, conditions: list[str]) -> Path:
+    """Write ``reproduce.R`` into the report folder ``out`` for ``measures`` (rows of (column, label, digits,
+    family, table), in the report's order) and the report's ``conditions`` (the first is the reference)."""
+    measures = list(measures)
+    text = TEMPLATE
+    for key, values in (("CONDITIONS", conditions), ("MEASURE_NAMES", [m[0] for m in measures]),
+                        ("MEASURE_LABELS", [m[1] for m in measures]), ("MEASURE_FAMILIES", [m[3] for m in measures]),
+                        ("MEASURE_TABLES", [m[4] for m in measures])):
+        text = text.replace(f"@{key}@", _r_vector(values))
+    path = Path(out) / FILE_NAME
+    path.write_text(text, encoding="utf-8")
+    return path
