@@ -10,17 +10,16 @@ With a single grouping factor ``n_agq > 1`` replaces it by adaptive Gauss–Herm
 are optimised together (bounded L-BFGS-B from two starts, keeping the better), as lme4's second stage does;
 standard errors come from the finite-difference Hessian of −2 ℓ over (θ, β), lme4's default.
 
-Why glmer's default numbers differ slightly (SEs by 0.3–0.6% on the reference data; on 30 random studies SEs by
-up to 1.4%, estimates by up to 0.3% of an SE, logLik by up to 9e-4): glmer's deviance function stops its inner
-PIRLS when the penalised deviance changes by less than ``tolPwrss`` = 1e-7 (relative), from a start fixed at
-the first stage's solution, and evaluates the log-determinant at the weights of the iteration before. Its error
-is small but smooth in (θ, β) and of second order in the step, so the finite-difference Hessian (step 1e-4)
-takes it in at full size, and the optimum and logLik carry it too. Tightening the optimizer alone moves glmer's SEs by ~1e-6;
+Why glmer's default numbers differ slightly (SEs by 0.3–0.6% on the reference data; on 30 random studies SEs by up
+to 1.4%, estimates by up to 0.3% of an SE, logLik by up to 9e-4): glmer's deviance function stops its inner PIRLS
+when the penalised deviance changes by less than ``tolPwrss`` = 1e-7 (relative), from a start fixed at the first
+stage's solution, and evaluates the log-determinant at the weights of the iteration before. Its error is small but
+smooth in (θ, β) and of second order in the step, so the finite-difference Hessian (step 1e-4) takes it in at full
+size, and the optimum and logLik carry it too. Tightening the optimizer alone moves glmer's SEs by ~1e-6;
 tightening ``tolPwrss`` to 1e-13 converges the inner solve, and then glmer's deviance equals this module's to
-~1e-12 and its SEs, estimates and logLik equal these well within rtol 1e-4 (on the reference data the SEs
-agree to ~5e-6). We match the converged values; the lme4 oracle test (tests/test_lme4_oracle.py) re-checks
-that on random studies in every CI run, and that glmer's defaults stay near them (estimates within 1% of an
-SE, SEs within 5%).
+~1e-12 and its SEs, estimates and logLik equal these well within rtol 1e-4 (on the reference data the SEs agree to
+~5e-6). We match the converged values; the lme4 oracle test (tests/test_lme4_oracle.py) re-checks that on random
+studies in every CI run, and that glmer's defaults stay near them (estimates within 1% of an SE, SEs within 5%).
 """
 
 from __future__ import annotations
