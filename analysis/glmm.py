@@ -28,11 +28,11 @@ from dataclasses import replace
 
 import numpy as np
 from scipy import optimize
-from scipy.linalg import cho_factor, cho_solve
 from scipy.special import gammaln
 from statsmodels.genmod.families import Poisson
 from statsmodels.genmod.generalized_linear_model import GLM
 
+from .crossed import CrossedIntercepts, Curvature
 from .design import Design, formula_of
 from .errors import AnalysisError
 from .results import MixedFit
@@ -42,80 +42,29 @@ WILD = 1e300  # deviance reported where the likelihood overflows, so line search
 START_THETA = (1.0, 0.2)  # multi-start: lme4's θ = 1 and a small-variance start
 
 
-class _Curvature:
-    """The symmetric positive-definite matrix [[diag(d), c], [c', e]]: the first grouping factor's block is
-    diagonal (its levels never share a row), so solves and the log-determinant go through the small Schur
-    complement e − c' diag(d)⁻¹ c — O(q₁ q₂²) instead of O(q³) for q₁ participants and q₂ scenes."""
-
-    def __init__(self, d: np.ndarray, c: np.ndarray, e: np.ndarray):
-        self.d, self.c = d, c
-        self.schur = cho_factor(e - c.T @ (c / d[:, None])) if e.size else None
-
-    def solve(self, g: np.ndarray) -> np.ndarray:
-        n = len(self.d)
-        if self.schur is None:
-            return g / self.d
-        x1 = cho_solve(self.schur, g[n:] - self.c.T @ (g[:n] / self.d))
-        return np.concatenate([(g[:n] - self.c @ x1) / self.d, x1])
-
-    def logdet(self) -> float:
-        total = float(np.log(self.d).sum())
-        if self.schur is not None:
-            total += 2 * float(np.log(np.diag(self.schur[0])).sum())
-        return total
-
-
 class _Laplace:
     """−2 log-likelihood of a Poisson GLMM as a function of (θ, β), warm-starting the conditional modes."""
 
     def __init__(self, design: Design, n_agq: int):
         self.y, self.X = design.y, design.X
-        self.sizes = [len(t.levels) for t in design.random]
-        self.offsets = np.concatenate([[0], np.cumsum(self.sizes)[:-1]]).astype(int)
-        self.cols = [t.codes + off for t, off in zip(design.random, self.offsets, strict=True)]
-        self.k, self.p, self.q = len(self.sizes), design.X.shape[1], int(sum(self.sizes))
+        self.z = CrossedIntercepts(design.random)
+        self.k, self.p, self.q = self.z.k, design.X.shape[1], self.z.q
         self.n_agq = n_agq
         self.codes = design.random[0].codes
         self.nodes, self.weights = np.polynomial.hermite.hermgauss(n_agq)
         self.const = gammaln(self.y + 1).sum()
         self.u = np.zeros(self.q)
 
-    def _zl_u(self, theta, u):
-        """ZΛu: each row's sum of θ_k u over the levels it belongs to."""
-        return sum(th * u[c] for th, c in zip(theta, self.cols, strict=True))
-
-    def _zl_t(self, theta, r):
-        """Λ'Z'r: per level, θ_k times the sum of r over its rows."""
-        return np.concatenate([th * np.bincount(c - off, r, minlength=size) for th, c, off, size
-                               in zip(theta, self.cols, self.offsets, self.sizes, strict=True)])
-
-    def _h(self, theta, mu) -> _Curvature:
-        """Λ'Z'WZΛ + I from weighted cross-tabulations of the grouping factors (Z is an indicator matrix)."""
-        tabs = {}
-        for a in range(self.k):
-            for b in range(max(a, 1), self.k):
-                ca, cb = self.cols[a] - self.offsets[a], self.cols[b] - self.offsets[b]
-                block = np.bincount(ca * self.sizes[b] + cb, mu, minlength=self.sizes[a] * self.sizes[b])
-                tabs[a, b] = theta[a] * theta[b] * block.reshape(self.sizes[a], self.sizes[b])
-        d = theta[0] ** 2 * np.bincount(self.cols[0], mu, minlength=self.sizes[0]) + 1
-        rest = self.q - self.sizes[0]
-        c = np.hstack([tabs[0, b] for b in range(1, self.k)]) if self.k > 1 else np.zeros((self.sizes[0], 0))
-        e = np.eye(rest)
-        for a in range(1, self.k):
-            for b in range(a, self.k):
-                sa = slice(self.offsets[a] - self.sizes[0], self.offsets[a] - self.sizes[0] + self.sizes[a])
-                sb = slice(self.offsets[b] - self.sizes[0], self.offsets[b] - self.sizes[0] + self.sizes[b])
-                e[sa, sb] += tabs[a, b]
-                if a != b:
-                    e[sb, sa] += tabs[a, b].T
-        return _Curvature(d, c, e)
+    def _h(self, theta, mu) -> Curvature:
+        """Λ'Z'WZΛ + I with W = diag(μ)."""
+        return self.z.curvature(theta, self.z.crosstabs(mu))
 
     def _mode(self, theta, beta, u):
         """PIRLS for û given (θ, β): Newton steps on Σ(yη − μ) − ‖u‖²/2 with step halving."""
         eta0 = self.X @ beta
 
         def objective(u):
-            eta = eta0 + self._zl_u(theta, u)
+            eta = eta0 + self.z.zl_u(theta, u)
             return float(self.y @ eta - np.exp(eta).sum() - u @ u / 2)
 
         current = objective(u)
@@ -123,8 +72,8 @@ class _Laplace:
             u = np.zeros(self.q)
             current = objective(u)
         for _ in range(100):
-            mu = np.exp(eta0 + self._zl_u(theta, u))
-            g = self._zl_t(theta, self.y - mu) - u
+            mu = np.exp(eta0 + self.z.zl_u(theta, u))
+            g = self.z.zl_t(theta, self.y - mu) - u
             delta = self._h(theta, mu).solve(g)
             step, trial = 1.0, -np.inf
             while step > 1e-10:
@@ -137,7 +86,7 @@ class _Laplace:
             u, gain, current = u + step * delta, trial - current, trial
             if np.abs(step * delta).max() < 1e-10 or abs(gain) < 1e-13:
                 break
-        eta = eta0 + self._zl_u(theta, u)
+        eta = eta0 + self.z.zl_u(theta, u)
         return u, eta, self._h(theta, np.exp(eta))
 
     def deviance(self, params: np.ndarray) -> float:

@@ -4,7 +4,8 @@ lme4's profiled deviance (Bates, Mächler, Bolker & Walker 2015, §3): random ef
 for given θ the fixed effects and σ² have closed forms, so the optimiser only searches θ (one relative standard
 deviation per random intercept; the three entries of a lower-triangular 2×2 factor per intercept–slope term).
 Everything is computed from the cross-products Z'Z, Z'X, Z'y, X'X, X'y, y'y, so an evaluation costs one
-Cholesky factorisation of a q×q matrix (q = random-effect levels) whatever the number of rows.
+Cholesky factorisation of a q×q matrix (q = random-effect levels) whatever the number of rows — and with random
+intercepts only (every model of the report), one of the small Schur complement of :mod:`analysis.crossed`.
 
 statsmodels' MixedLM gives the same estimates (crossed factors as variance components of one group) but takes
 ~20 s per fit on 1800 rows with 200 participants, because it works on the dense n×q design of that one group;
@@ -20,6 +21,7 @@ import numpy as np
 from scipy import optimize
 from scipy.linalg import block_diag, cho_factor, cho_solve, solve_triangular
 
+from .crossed import CrossedIntercepts
 from .design import Design, formula_of
 from .errors import AnalysisError
 from .results import MixedFit
@@ -32,13 +34,23 @@ class _Profiled:
 
     def __init__(self, design: Design, reml: bool):
         self.design, self.reml = design, reml
-        X, y, Z = design.X, design.y, design.z()
+        X, y = design.X, design.y
         self.n, self.p = X.shape
-        self.ztz = (Z.T @ Z).toarray()
-        self.ztx = np.asarray(Z.T @ X)
-        self.zty = np.asarray(Z.T @ y)
         self.xtx, self.xty, self.yty = X.T @ X, X.T @ y, float(y @ y)
-        self.q = self.ztz.shape[0]
+        if all(t.slope is None for t in design.random):
+            # Crossed intercepts: cross-tabulations and per-level sums, factors largest first (analysis.crossed).
+            self.order = sorted(range(len(design.random)), key=lambda i: -len(design.random[i].levels))
+            self.crossed = CrossedIntercepts([design.random[i] for i in self.order])
+            self.tabs = self.crossed.crosstabs(np.ones(self.n))
+            self.zt_yx = self.crossed.zt(np.column_stack([y, X]))
+            self.q = self.crossed.q
+        else:
+            self.crossed = None
+            Z = design.z()
+            self.ztz = (Z.T @ Z).toarray()
+            self.ztx = np.asarray(Z.T @ X)
+            self.zty = np.asarray(Z.T @ y)
+            self.q = self.ztz.shape[0]
         #: per term: (number of θ, size of the block)
         self.shapes = [(1, 1) if t.slope is None else (3, 2) for t in design.random]
         self.bounds = [bound for n, _ in self.shapes for bound in
@@ -60,17 +72,26 @@ class _Profiled:
                                                                     strict=True)]
         return block_diag(*parts)
 
-    def solve(self, theta: np.ndarray) -> dict:
+    def _products(self, theta: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
+        """With A = Λ'Z'ZΛ + I = LL': ‖L⁻¹Λ'Z'y‖², (L⁻¹Λ'Z'X)'(L⁻¹Λ'Z'y), (L⁻¹Λ'Z'X)'(L⁻¹Λ'Z'X) and log det A."""
+        if self.crossed is not None:
+            th = np.asarray(theta, dtype=float)[self.order]
+            a = self.crossed.curvature(th, self.tabs)
+            b = self.zt_yx * self.crossed.scale(th)[:, None]  # Λ'Z'[y X]
+            s = a.solve(b)
+            return float(b[:, 0] @ s[:, 0]), b[:, 1:].T @ s[:, 0], b[:, 1:].T @ s[:, 1:], a.logdet()
         lam = self.lam(theta)
-        a = lam.T @ self.ztz @ lam + np.eye(self.q)
-        chol = np.linalg.cholesky(a)
+        chol = np.linalg.cholesky(lam.T @ self.ztz @ lam + np.eye(self.q))
         cu = solve_triangular(chol, lam.T @ self.zty, lower=True)
         rzx = solve_triangular(chol, lam.T @ self.ztx, lower=True)
-        xvx = self.xtx - rzx.T @ rzx
+        return float(cu @ cu), rzx.T @ cu, rzx.T @ rzx, 2 * float(np.log(np.diag(chol)).sum())
+
+    def solve(self, theta: np.ndarray) -> dict:
+        cu_cu, rzx_cu, rzx_rzx, logdet_l = self._products(theta)
+        xvx = self.xtx - rzx_rzx
         rx = np.linalg.cholesky(xvx)
-        cb = solve_triangular(rx, self.xty - rzx.T @ cu, lower=True)
-        r2 = max(self.yty - cu @ cu - cb @ cb, 1e-300)
-        logdet_l = 2 * np.log(np.diag(chol)).sum()
+        cb = solve_triangular(rx, self.xty - rzx_cu, lower=True)
+        r2 = max(self.yty - cu_cu - cb @ cb, 1e-300)
         if self.reml:
             dof = self.n - self.p
             dev = logdet_l + 2 * np.log(np.diag(rx)).sum() + dof * (1 + np.log(2 * np.pi * r2 / dof))

@@ -28,100 +28,157 @@ TRIAL_MEASURES = {
 }
 
 
-def total_time(events: pd.DataFrame) -> float:
-    """Seconds from the first ``trial_start`` to the last ``trial_done`` (NaN if either is missing)."""
-    starts = events.loc[events["type"] == "trial_start", "client_t_ms"]
-    dones = events.loc[events["type"] == "trial_done", "client_t_ms"]
-    if starts.empty or dones.empty:
-        return float("nan")
-    return float(dones.max() - starts.min()) / 1000.0
+def _payload_field(payloads, name: str, default=None) -> list:
+    """``payload[name]`` of each event (payloads are dicts; anything else reads as empty)."""
+    return [p.get(name, default) if isinstance(p, dict) else default for p in payloads]
 
 
-def hidden_time(events: pd.DataFrame, end_ms: float) -> float:
-    """Seconds the tab was hidden (``visibility`` hidden → visible), up to ``end_ms``."""
-    hidden_since, total = None, 0.0
-    for t, payload in zip(events["client_t_ms"], events["payload"], strict=True):
-        if payload.get("state") == "hidden" and hidden_since is None:
-            hidden_since = t
-        elif payload.get("state") == "visible" and hidden_since is not None:
-            total += t - hidden_since
-            hidden_since = None
-    if hidden_since is not None:
-        total += max(0.0, end_ms - hidden_since)
-    return total / 1000.0
+def _hashable(value):
+    return value if isinstance(value, (str, int, float, bool, type(None))) else repr(value)
 
 
-def interval_time(events: pd.DataFrame, start: str, end: str) -> float:
-    """Seconds between each ``end`` event and the open ``start`` of the same object (rotation, translation)."""
-    open_at: dict[str, float] = {}
-    total = 0.0
-    for kind, t, payload in zip(events["type"], events["client_t_ms"], events["payload"], strict=True):
-        obj = payload.get("object")
-        if kind == start:
-            open_at[obj] = t
-        elif kind == end and obj in open_at:
-            total += t - open_at.pop(obj)
-    return total / 1000.0
+def _sequential_sums(keys: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """Per key (0..n-1), the sum of ``values`` added one at a time in their order, as a Python loop adds them (so
+    the sums are the same to the last bit as the one-trial-at-a-time computation's)."""
+    sums = [0.0] * n
+    for k, v in zip(keys.tolist(), values.tolist(), strict=True):
+        sums[k] += v
+    return np.array(sums)
 
 
-def text_queries(events: pd.DataFrame) -> int:
-    """Keyword searches. The box logs its text as the participant types, so a run of searches whose texts
-    extend or shorten one another counts once; a pick or a context query in between starts a new one."""
-    count, last = 0, ""
-    for kind, payload in zip(events["type"], events["payload"], strict=True):
-        if kind == "search":
-            text = str(payload.get("text", "")).strip().lower()
-            if text and not (last and (text.startswith(last) or last.startswith(text))):
-                count += 1
-            last = text
-        elif kind in ("insert", "replace", "context_query"):
+def _hidden_ms(kinds, t, payloads, key, end, n) -> np.ndarray:
+    """Milliseconds each trial's tab was hidden: from a ``visibility`` hidden to the next visible (repeats
+    ignored); a tab still hidden at the end counts until the trial's end."""
+    vis = np.flatnonzero(kinds == "visibility")
+    states = np.array(_payload_field(payloads[vis], "state"), dtype=object)
+    known = np.isin(states, ["hidden", "visible"])
+    vis, states = vis[known], states[known]
+    if not len(vis):
+        return np.zeros(n)
+    previous = np.r_[np.array(["visible"], dtype=object), states[:-1]]
+    previous[np.r_[True, key[vis][1:] != key[vis][:-1]]] = "visible"  # each trial starts visible
+    changed = states != previous  # so they alternate within a trial: hidden, visible, hidden, …
+    changes, hidden = vis[changed], states[changed] == "hidden"
+    ck, ct = key[changes], t[changes]
+    durations = np.zeros(len(changes))
+    closes = np.flatnonzero(~hidden)  # each follows the hidden of its own trial
+    durations[closes] = ct[closes] - ct[closes - 1]
+    trailing = np.r_[ck[1:] != ck[:-1], True] & hidden
+    durations[trailing] = [max(0.0, e - h) for e, h in zip(end[ck[trailing]], ct[trailing], strict=True)]
+    return _sequential_sums(ck, durations, n)
+
+
+def measures_by_trial(events: pd.DataFrame, key: np.ndarray, n: int) -> pd.DataFrame:
+    """Every measure of :data:`TRIAL_MEASURES` for ``n`` trials at once, by group operations.
+
+    ``events`` (columns ``type``, ``client_t_ms``, ``payload``) are ordered by trial and, within a trial, by
+    ``seq``; ``key[i]`` is the trial (0..n-1) that event i belongs to. A trial runs from its first
+    ``trial_start`` to its last ``trial_done`` (NaN without either); the tab is hidden from a ``visibility``
+    hidden to the next visible (repeats ignored; still hidden at the end counts until ``trial_done``); a
+    rotation or move runs from an object's latest start to its end (an end without a start counts nothing); a run
+    of searches whose texts extend or shorten one another is one keyword query, and a pick or a context query
+    starts a new run."""
+    kinds = events["type"].to_numpy(object)
+    t = events["client_t_ms"].to_numpy(float)
+    payloads = events["payload"].to_numpy(object)
+    key = np.asarray(key, dtype=np.int64)
+    frame = pd.DataFrame({"key": key, "t": t})
+
+    def per_trial(mask: np.ndarray, how: str, fill=np.nan) -> np.ndarray:
+        grouped = frame.loc[mask].groupby("key")["t"].agg(how)
+        out = np.full(n, fill)
+        out[grouped.index.to_numpy()] = grouped.to_numpy()
+        return out
+
+    def count(mask: np.ndarray) -> np.ndarray:
+        return np.bincount(key[mask], minlength=n).astype(np.int64)
+
+    start, end = per_trial(kinds == "trial_start", "min"), per_trial(kinds == "trial_done", "max")
+    total = (end - start) / 1000.0
+
+    hidden_ms = _hidden_ms(kinds, t, payloads, key, end, n)
+    active = np.where(np.isfinite(total), total - hidden_ms / 1000.0, np.nan)
+
+    def interval(start_kind: str, end_kind: str) -> np.ndarray:
+        rows = np.flatnonzero((kinds == start_kind) | (kinds == end_kind))
+        objects = [_hashable(o) for o in _payload_field(payloads[rows], "object")]
+        sub = pd.DataFrame({"key": key[rows], "obj": pd.Series(objects, dtype=object), "t": t[rows],
+                            "is_end": kinds[rows] == end_kind})
+        by_object = sub.groupby(["key", "obj"], sort=False, dropna=False)
+        opened = ~by_object["is_end"].shift(1, fill_value=True).to_numpy(bool)  # the previous one was a start
+        before = by_object["t"].shift(1).to_numpy(float)
+        pairs = sub["is_end"].to_numpy(bool) & opened
+        durations = np.where(pairs, sub["t"].to_numpy(float) - np.where(pairs, before, 0.0), 0.0)
+        return _sequential_sums(key[rows][pairs], durations[pairs], n) / 1000.0
+
+    moves = np.flatnonzero(kinds == "move_end")
+    distance = np.zeros(n)
+    if len(moves):
+        lists: dict[int, list] = {}
+        for k, d in zip(key[moves], _payload_field(payloads[moves], "distance", 0.0), strict=True):
+            lists.setdefault(int(k), []).append(d)
+        for k, values in lists.items():
+            distance[k] = float(np.sum(values))
+
+    n_text = _text_query_counts(kinds, payloads, key, n)
+    n_context = count(kinds == "context_query")
+    return pd.DataFrame({
+        "total_time": total, "active_time": active,
+        "rotation_time": interval("rotate_start", "rotate_end"),
+        "translation_time": interval("move_start", "move_end"),
+        "translation_distance": distance, "n_text_queries": n_text, "n_context_queries": n_context,
+        "n_queries": n_text + n_context, "objects_inserted": count(kinds == "insert"),
+        "n_picks": count((kinds == "insert") | (kinds == "replace")),
+    }, columns=list(TRIAL_MEASURES))
+
+
+def _text_query_counts(kinds, payloads, key, n) -> np.ndarray:
+    """Keyword searches per trial. The box logs its text as the participant types, so a run of searches whose
+    texts extend or shorten one another counts once; a pick or a context query in between starts a new one."""
+    rows = np.flatnonzero(np.isin(kinds, ["search", "insert", "replace", "context_query"]))
+    texts = [str(p.get("text", "")).strip().lower() if kind == "search" and isinstance(p, dict) else
+             ("" if kind == "search" else None) for kind, p in zip(kinds[rows], payloads[rows], strict=True)]
+    counts = np.zeros(n, dtype=np.int64)
+    last, last_key = "", None
+    for k, text in zip(key[rows], texts, strict=True):
+        if k != last_key:
+            last, last_key = "", k
+        if text is None:  # a pick or a context query
             last = ""
-    return count
+            continue
+        if text and not (last and (text.startswith(last) or last.startswith(text))):
+            counts[k] += 1
+        last = text
+    return counts
 
 
 def trial_measures(events: pd.DataFrame) -> dict[str, float]:
     """Every measure of one trial from its events (in ``seq`` order)."""
-    kinds = events["type"]
-    total = total_time(events)
-    end = events.loc[kinds == "trial_done", "client_t_ms"].max() if (kinds == "trial_done").any() else np.nan
-    visibility = events[kinds == "visibility"]
-    n_text = text_queries(events)
-    n_context = int((kinds == "context_query").sum())
-    distances = [p.get("distance", 0.0) for p in events.loc[kinds == "move_end", "payload"]]
-    return {
-        "total_time": total,
-        "active_time": total - hidden_time(visibility, end) if np.isfinite(total) else np.nan,
-        "rotation_time": interval_time(events, "rotate_start", "rotate_end"),
-        "translation_time": interval_time(events, "move_start", "move_end"),
-        "translation_distance": float(np.sum(distances)),
-        "n_text_queries": n_text,
-        "n_context_queries": n_context,
-        "n_queries": n_text + n_context,
-        "objects_inserted": int((kinds == "insert").sum()),
-        "n_picks": int(kinds.isin(["insert", "replace"]).sum()),
-    }
+    row = measures_by_trial(events, np.zeros(len(events), dtype=np.int64), 1).iloc[0]
+    return {name: row[name].item() for name in TRIAL_MEASURES}
 
 
-def _events_by_trial(data: StudyData):
-    ev = data.events.dropna(subset=["trial"]).sort_values(["participant", "seq"])
-    return dict(iter(ev.groupby(["participant", ev["trial"].astype(int)], sort=False)))
+def text_queries(events: pd.DataFrame) -> int:
+    """Keyword searches of one trial's events (see :func:`measures_by_trial`)."""
+    return int(_text_query_counts(events["type"].to_numpy(object), events["payload"].to_numpy(object),
+                                  np.zeros(len(events), dtype=np.int64), 1)[0])
 
 
 def trials_table(data: StudyData) -> pd.DataFrame:
     """One row per scheduled (non-practice) trial with its design columns, measures and ``complete``."""
-    trials = data.trials[data.trials["kind"] == "trial"].copy()
-    groups = _events_by_trial(data)
-    rows = []
-    empty = pd.DataFrame({"type": pd.Series(dtype=str), "client_t_ms": pd.Series(dtype=float), "payload": []})
-    for t in trials.itertuples(index=False):
-        ev = groups.get((t.participant, int(t.trial)), empty)
-        rows.append(trial_measures(ev))
-    measures = pd.DataFrame(rows, index=trials.index, columns=list(TRIAL_MEASURES))
+    trials = data.trials[data.trials["kind"] == "trial"].copy().reset_index(drop=True)
+    ev = data.events.dropna(subset=["trial"])
+    ev = ev.assign(trial=ev["trial"].astype(int)).sort_values(["participant", "trial", "seq"], kind="stable")
+    wanted = pd.MultiIndex.from_arrays([trials["participant"], trials["trial"].astype(int)])
+    unique = wanted.unique()  # a trial listed twice gets the same measures twice
+    position = unique.get_indexer(pd.MultiIndex.from_arrays([ev["participant"], ev["trial"]]))
+    ev, position = ev[position >= 0], position[position >= 0]
+    measures = measures_by_trial(ev, position, len(unique)).iloc[unique.get_indexer(wanted)].reset_index(drop=True)
     out = pd.concat([trials, measures], axis=1)
     out["complete"] = np.isfinite(out["total_time"].astype(float))
     for name in TRIAL_MEASURES:
         out.loc[~out["complete"], name] = np.nan
-    return out.reset_index(drop=True)
+    return out
 
 
 def event_dicts(events: pd.DataFrame) -> list[dict]:
