@@ -1,8 +1,13 @@
-"""Analysis benchmark: time for the whole report (read export → measures → bootstrap → mixed models → tables
-→ figures → README) on synthetic exports of 20 × 9 and 200 × 9 trials, as the CLI runs it.
+"""Analysis benchmark: time and peak memory of the whole report (read export → measures → bootstrap → mixed
+models → tables → figures → README) on synthetic exports of 20, 200 and 2,000 participants × 9 trials, as the CLI
+runs it, each in a fresh process, three runs each (median and range).
 
-Prints one JSON object. Budgets on a 2-core machine: 20 × 9 ≤ 10 s, 200 × 9 ≤ 60 s.
-Usage: .venv/bin/python benchmarks/bench_analysis.py [--resamples 1000]
+Budgets on a 2-core machine: 200 × 9 ≤ 10 s; 2,000 × 9 (a large online study) ≤ 90 s and ≤ 2 GB peak memory.
+``--baseline DIR`` also runs the same reports with the analysis package of another checkout (e.g. a git worktree
+of an earlier revision), in the same run, for comparison.
+
+Usage: .venv/bin/python benchmarks/bench_analysis.py [--sizes 20,200,2000] [--runs 3] [--resamples 1000]
+                                                      [--baseline DIR [--baseline-sizes 20,200]]
 """
 
 from __future__ import annotations
@@ -10,21 +15,24 @@ from __future__ import annotations
 import argparse
 import json
 import resource
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from analysis.load import read_export  # noqa: E402
-from analysis.report import build_report  # noqa: E402
-from analysis.synthetic import write_export  # noqa: E402
 
 
-def report_seconds(participants: int, resamples: int, work: Path) -> tuple[float, dict]:
-    export = write_export(work / f"export{participants}", participants=participants, seed=participants)
+def one_report(root: Path, participants: int, resamples: int, work: Path) -> dict:
+    """In this process: the report of a synthetic export, timed by stage (the export is written first, untimed)."""
+    sys.path.insert(0, str(root))
+    from analysis.load import read_export
+    from analysis.report import build_report
+    from analysis.synthetic import write_export
+
+    export = write_export(work / "export", participants=participants, seed=participants)
     stages: dict[str, float] = {}
     start = time.perf_counter()
     last = [start, "read"]
@@ -34,23 +42,53 @@ def report_seconds(participants: int, resamples: int, work: Path) -> tuple[float
         stages[last[1]] = stages.get(last[1], 0.0) + now - last[0]
         last[:] = [now, label.split(" of ")[0]]
 
-    summary = build_report(read_export(export), work / f"report{participants}", resamples=resamples,
-                           progress=progress)
+    summary = build_report(read_export(export), work / "report", resamples=resamples, progress=progress)
     progress("end")
+    seconds = time.perf_counter() - start
     assert not any("not modelled" in n for n in summary["notes"]), summary["notes"]
-    return time.perf_counter() - start, {k: round(v, 2) for k, v in stages.items()}
+    return {"seconds": seconds, "stages_s": {k: round(v, 2) for k, v in stages.items()},
+            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def measure(root: Path, participants: int, runs: int, resamples: int) -> dict:
+    results = []
+    for _ in range(runs):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = subprocess.run([sys.executable, __file__, "--one", str(participants), "--root", str(root),
+                                  "--resamples", str(resamples), "--work", tmp], capture_output=True, text=True)
+        if out.returncode != 0:
+            raise SystemExit(f"report of {participants} participants failed:\n{out.stderr[-3000:]}")
+        results.append(json.loads(out.stdout))
+    times = sorted(r["seconds"] for r in results)
+    median = statistics.median(times)
+    middle = min(results, key=lambda r: abs(r["seconds"] - median))
+    return {"median_s": round(median, 2), "range_s": [round(times[0], 2), round(times[-1], 2)],
+            "stages_of_median_run_s": middle["stages_s"],
+            "peak_rss_mb": round(max(r["peak_rss_mb"] for r in results), 1)}
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sizes", default="20,200,2000", help="participants per study, comma-separated")
+    parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--resamples", type=int, default=1000)
+    parser.add_argument("--baseline", help="another checkout whose analysis package to time in the same run")
+    parser.add_argument("--baseline-sizes", default="20,200", help="the sizes to time the baseline at")
+    parser.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--root", default=str(ROOT), help=argparse.SUPPRESS)
+    parser.add_argument("--work", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        small, small_stages = report_seconds(20, args.resamples, Path(tmp))
-        large, large_stages = report_seconds(200, args.resamples, Path(tmp))
-    print(json.dumps({"benchmark": "analysis", "report_20x9_s": round(small, 2), "report_200x9_s": round(large, 2),
-                      "stages_20x9_s": small_stages, "stages_200x9_s": large_stages, "resamples": args.resamples,
-                      "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}))
+    if args.one:
+        print(json.dumps(one_report(Path(args.root), args.one, args.resamples, Path(args.work))))
+        return 0
+    sizes = [int(s) for s in args.sizes.split(",")]
+    out = {"benchmark": "analysis", "trials_per_participant": 9, "resamples": args.resamples, "runs": args.runs,
+           "reports": {f"{n}x9": measure(ROOT, n, args.runs, args.resamples) for n in sizes}}
+    if args.baseline:
+        out["baseline"] = {"checkout": args.baseline, "reports": {
+            f"{n}x9": measure(Path(args.baseline).resolve(), int(n), args.runs, args.resamples)
+            for n in args.baseline_sizes.split(",")}}
+    print(json.dumps(out))
     return 0
 
 
