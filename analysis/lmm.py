@@ -32,12 +32,14 @@ STARTS = (1.0, 0.1, 3.0)
 class _Profiled:
     """−2 log-likelihood (or the REML criterion) as a function of θ alone."""
 
-    def __init__(self, design: Design, reml: bool):
+    def __init__(self, design: Design, reml: bool, crossed: bool = True):
+        """``crossed``: solve random intercepts through :mod:`analysis.crossed` (False: the dense q×q solve that
+        slopes need, kept for them and for tests that compare the two)."""
         self.design, self.reml = design, reml
         X, y = design.X, design.y
         self.n, self.p = X.shape
         self.xtx, self.xty, self.yty = X.T @ X, X.T @ y, float(y @ y)
-        if all(t.slope is None for t in design.random):
+        if crossed and all(t.slope is None for t in design.random):
             # Crossed intercepts: cross-tabulations and per-level sums, factors largest first (analysis.crossed).
             self.order = sorted(range(len(design.random)), key=lambda i: -len(design.random[i].levels))
             self.crossed = CrossedIntercepts([design.random[i] for i in self.order])

@@ -211,3 +211,22 @@ def test_poisson_needs_counts_and_rows_with_missing_values_are_dropped(sim):
     d.loc[[0, 5, 9], "n_queries"] = np.nan
     f = fit(build_design(d, "n_queries", ["condition"], ["participant"]), "poisson")
     assert f.nobs == len(d) - 3 and f.dropped == 3
+
+
+@pytest.mark.parametrize("reml", [False, True])
+def test_the_crossed_intercepts_solve_equals_the_dense_one(sim, reml):
+    """The Schur-complement solve of analysis.crossed gives the dense q×q Cholesky's deviance, fixed effects and
+    σ² at any θ, on unbalanced data with the grouping factors in either order."""
+    from analysis.lmm import _Profiled
+
+    rng = np.random.default_rng(5)
+    unbalanced = sim.drop(index=rng.choice(len(sim), 41, replace=False))
+    for random in (["participant", "scene"], ["scene", "participant"], ["participant"]):
+        design = build_design(unbalanced, "log_total", ["condition"], random)
+        fast, dense = _Profiled(design, reml), _Profiled(design, reml, crossed=False)
+        assert fast.crossed is not None and dense.crossed is None
+        for theta in [np.full(len(random), 1.0), rng.uniform(0, 3, len(random)), np.zeros(len(random))]:
+            a, b = fast.solve(theta), dense.solve(theta)
+            assert a["deviance"] == pytest.approx(b["deviance"], rel=1e-12, abs=1e-9)
+            assert a["beta"] == pytest.approx(b["beta"], rel=1e-10, abs=1e-12)
+            assert a["sigma2"] == pytest.approx(b["sigma2"], rel=1e-10)
