@@ -101,7 +101,8 @@ def read_export(folder: str | Path) -> StudyData:
         if not path.exists():
             raise AnalysisError("is missing from the export", str(path))
         try:
-            frame = pd.read_csv(path, dtype={"payload": str, "answer": str}, keep_default_na=False, na_values=[""])
+            frame = pd.read_csv(path, dtype={"payload": str, "answer": str, "scene": str, "condition": str},
+                                keep_default_na=False, na_values=[""])  # ids are text: "01" is not "1", "NA" a name
         except pd.errors.ParserError as e:
             raise AnalysisError(f"is not valid CSV ({e})", str(path)) from None
         tables[name] = _check_columns(name, _unescape(frame))

@@ -33,8 +33,27 @@ def _payload_field(payloads, name: str, default=None) -> list:
     return [p.get(name, default) if isinstance(p, dict) else default for p in payloads]
 
 
-def _hashable(value):
-    return value if isinstance(value, (str, int, float, bool, type(None))) else repr(value)
+class _Unmatched:
+    """An object id that pairs with nothing, not even itself (as a NaN id never matched in a Python dict)."""
+
+
+_NO_ID = object()  # a missing object id: one id, as ``None`` was one key
+
+
+def _object_key(value):
+    """A group key for an object id, pairing starts and ends as a dict keyed by the id would."""
+    if value is None:
+        return _NO_ID
+    if isinstance(value, float) and value != value:
+        return _Unmatched()
+    return value if isinstance(value, (str, int, float, bool)) else repr(value)
+
+
+def _object_array(values: list) -> np.ndarray:
+    """A 1-D object array of ``values`` as they are (lists stay elements, not a second dimension)."""
+    out = np.empty(len(values), dtype=object)
+    out[:] = values
+    return out
 
 
 def _sequential_sums(keys: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
@@ -50,8 +69,8 @@ def _hidden_ms(kinds, t, payloads, key, end, n) -> np.ndarray:
     """Milliseconds each trial's tab was hidden: from a ``visibility`` hidden to the next visible (repeats
     ignored); a tab still hidden at the end counts until the trial's end."""
     vis = np.flatnonzero(kinds == "visibility")
-    states = np.array(_payload_field(payloads[vis], "state"), dtype=object)
-    known = np.isin(states, ["hidden", "visible"])
+    states = _object_array(_payload_field(payloads[vis], "state"))
+    known = np.array([state in ("hidden", "visible") for state in states], dtype=bool)
     vis, states = vis[known], states[known]
     if not len(vis):
         return np.zeros(n)
@@ -101,7 +120,7 @@ def measures_by_trial(events: pd.DataFrame, key: np.ndarray, n: int) -> pd.DataF
 
     def interval(start_kind: str, end_kind: str) -> np.ndarray:
         rows = np.flatnonzero((kinds == start_kind) | (kinds == end_kind))
-        objects = [_hashable(o) for o in _payload_field(payloads[rows], "object")]
+        objects = [_object_key(o) for o in _payload_field(payloads[rows], "object")]
         sub = pd.DataFrame({"key": key[rows], "obj": pd.Series(objects, dtype=object), "t": t[rows],
                             "is_end": kinds[rows] == end_kind})
         by_object = sub.groupby(["key", "obj"], sort=False, dropna=False)
@@ -154,8 +173,8 @@ def _text_query_counts(kinds, payloads, key, n) -> np.ndarray:
 
 def trial_measures(events: pd.DataFrame) -> dict[str, float]:
     """Every measure of one trial from its events (in ``seq`` order)."""
-    row = measures_by_trial(events, np.zeros(len(events), dtype=np.int64), 1).iloc[0]
-    return {name: row[name].item() for name in TRIAL_MEASURES}
+    frame = measures_by_trial(events, np.zeros(len(events), dtype=np.int64), 1)
+    return {name: frame[name].iloc[0].item() for name in TRIAL_MEASURES}
 
 
 def text_queries(events: pd.DataFrame) -> int:

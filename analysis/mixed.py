@@ -2,8 +2,8 @@
 
 ``fit`` dispatches on the family: Gaussian (linear mixed model, :mod:`analysis.lmm`) or Poisson (log link,
 Laplace or adaptive Gauss–Hermite likelihood, :mod:`analysis.glmm`). The numbers reproduce lme4's ``lmer``
-(``REML = FALSE``) with its default settings, and ``glmer`` with its inner solve converged (its defaults stop it
-early: see :mod:`analysis.glmm`); tests compare them with lme4's own output, on random studies in every run. What
+(``REML = FALSE``) and ``glmer`` run to convergence (their defaults stop a little early: see
+:mod:`analysis.glmm`); tests compare them with lme4's own output, on random studies in every run. What
 they return (:class:`MixedFit`, :class:`LRTest`, :class:`Comparison`, :class:`Contrast`) is in
 :mod:`analysis.results`.
 """

@@ -30,8 +30,8 @@ TEMPLATE = r"""# Reproduces the likelihood-ratio tests and fixed effects of this
 # condition.
 suppressMessages(library(lme4))
 
-here <- local({
-  file <- sub("^--file=", "", grep("^--file=", commandArgs(FALSE), value = TRUE))
+here <- local({  # this script's folder (Rscript writes a space in its path as "~+~")
+  file <- gsub("~+~", " ", sub("^--file=", "", grep("^--file=", commandArgs(FALSE), value = TRUE)), fixed = TRUE)
   if (length(file) == 1) dirname(normalizePath(file)) else getwd()
 })
 conditions <- @CONDITIONS@
@@ -42,16 +42,19 @@ measures <- data.frame(
   rows = @MEASURE_TABLES@,
   stringsAsFactors = FALSE)
 
-trials <- read.csv(file.path(here, "measures", "trials.csv"), stringsAsFactors = FALSE)
+# Ids are text ("01" is not "1", and a scene called "NA" is a scene); only an empty field is missing.
+ids <- c(participant = "character", scene = "character", condition = "character")
+trials <- read.csv(file.path(here, "measures", "trials.csv"), colClasses = ids, na.strings = "")
 trials <- trials[as.logical(as.character(trials$complete)), ]
-picks <- read.csv(file.path(here, "measures", "picks.csv"), stringsAsFactors = FALSE)
+picks <- read.csv(file.path(here, "measures", "picks.csv"), colClasses = ids, na.strings = "")
 converged <- glmerControl(optimizer = "bobyqa", tolPwrss = 1e-13, optCtrl = list(rhoend = 1e-10, maxfun = 1e5))
 
 fit_measure <- function(m) {
   d <- if (m$rows == "picks") picks else trials
   d <- d[d$condition %in% conditions & !is.na(d[[m$measure]]), ]
   d$y <- d[[m$measure]]
-  if (length(unique(d$y)) < 2) stop("is constant; there is no variance to model")
+  if (m$family == "poisson" && all(d$y == 0)) stop("is zero everywhere; there is nothing to model")
+  if (m$family != "poisson" && length(unique(d$y)) < 2) stop("is constant; there is no variance to model")
   d$condition <- droplevels(factor(d$condition, levels = conditions))
   groups <- Filter(function(g) length(unique(d[[g]])) > 1, c("participant", "scene"))
   if (length(groups) == 0) stop("no grouping factor with more than one level")
@@ -66,7 +69,8 @@ fit_measure <- function(m) {
   f1 <- fit(full)
   f0 <- fit(null)
   test <- anova(f0, f1)
-  list(chisq = test$Chisq[2], df = test$Df[2], n = nobs(f1), p = test[["Pr(>Chisq)"]][2],
+  df <- if ("Chi Df" %in% names(test)) test[["Chi Df"]][2] else test$Df[2]  # lme4 before 1.1-23 named it so
+  list(chisq = test$Chisq[2], df = df, n = nobs(f1), p = test[["Pr(>Chisq)"]][2],
        fixef = fixef(f1), se = sqrt(diag(as.matrix(vcov(f1)))),
        note = if (isSingular(f1)) "singular fit (a variance at zero)" else "")
 }

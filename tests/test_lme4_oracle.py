@@ -6,18 +6,20 @@ A study: 6–60 participants, three conditions, 2–8 scenes (each participant d
 condition), random effect sizes, some of them zero (condition effects and either variance component), drop-outs
 and missing trials (unbalanced), log-normal times and Poisson counts with small means.
 
-Tolerances (``../shared/data/lme4_reference/README.md``): fixed effects and Gaussian SEs rtol 1e-4 (or 1e-4 of a
-standard error, for an estimate near zero); log-likelihoods atol 1e-4; LR χ² rtol 1e-4 or atol 1e-3; variance
-components rtol 1e-3, or 1e-6 of the residual variance (Gaussian; 1e-4 on the log scale for Poisson) for a
-component at zero. Poisson fits are compared with glmer's converged fit (inner PIRLS to tolPwrss = 1e-13; see
-analysis/glmm.py for why its defaults differ) at the same tolerances, SEs for fits not on the boundary (a zero
-variance leaves no curvature to compare); glmer's default fit is checked to lie near it (estimates within 1%
-of an SE, SEs within 5%).
+lme4 is run to convergence (its default optimizer stops early where the likelihood is flat: with two scenes a
+variance can be ~1% off). Tolerances (``../shared/data/lme4_reference/README.md``): fixed effects and Gaussian SEs
+rtol 1e-4 (or 1e-4 of a standard error, for an estimate near zero); log-likelihoods atol 1e-4; LR χ² rtol 1e-4 or
+atol 1e-3; variance components rtol 1e-3, or 1e-6 of the residual variance (Gaussian; 1e-4 on the log scale for
+Poisson) for a component at zero. Poisson fits are compared with glmer's converged fit (inner PIRLS to tolPwrss =
+1e-13) at the same tolerances; their SEs with lme4's own Hessian of its deviance function restarted until converged
+(see tests/lme4_oracle.R and analysis/glmm.py), for fits not on the boundary (a zero variance leaves no curvature
+to compare); glmer's default fit is checked to lie near them (estimates within 2% of an SE, SEs within 5%).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 
 import numpy as np
@@ -90,39 +92,47 @@ def saturated_loglik(y: np.ndarray) -> float:
     return float((y * np.log(np.where(y > 0, y, 1)) - y - gammaln(y + 1)).sum())
 
 
+def near(a, b, tolerance: float) -> bool:
+    """|a − b| ≤ tolerance, and both are numbers (a NaN on either side is a difference, never a pass)."""
+    return a is not None and b is not None and math.isfinite(a) and math.isfinite(b) and abs(a - b) <= tolerance
+
+
 def compare(name: str, ours, theirs: dict, *, saturated: float = 0.0) -> list[str]:
     """What differs between our fit and lme4's, beyond the tolerances (empty when they agree)."""
     problems = []
     gaussian = ours.family == "gaussian"
     loglik = -theirs["REMLcrit"] / 2 if ours.reml else theirs["logLik"] + saturated
-    if abs(ours.loglik - loglik) > 1e-4:
+    if not near(ours.loglik, loglik, 1e-4):
         problems.append(f"{name}: logLik {ours.loglik!r} vs lme4 {loglik!r}")
     if list(ours.fixed) != list(theirs["fixef"]):
         return problems + [f"{name}: fixed effects {list(ours.fixed)} vs lme4 {list(theirs['fixef'])}"]
     singular = ours.singular or theirs["singular"]
+    ses = theirs["se"]  # Poisson: from lme4's converged deviance (None when its Hessian has no inverse)
+    if ses is None and not singular:
+        problems.append(f"{name}: lme4's converged Hessian could not be inverted")
     for term, value in ours.fixed.items():
-        se = theirs["se"][term]
-        if abs(value - theirs["fixef"][term]) > 1e-4 * max(abs(theirs["fixef"][term]), se):
+        se = (ses or theirs["se_glmer"])[term]
+        if not near(value, theirs["fixef"][term], 1e-4 * max(abs(theirs["fixef"][term]), se)):
             problems.append(f"{name}: {term} {value!r} vs lme4 {theirs['fixef'][term]!r} (SE {se:.3g})")
-        if (gaussian or not singular) and abs(ours.se[term] - se) > 1e-4 * se:
+        if ses and not singular and not near(ours.se[term], se, 1e-4 * se):
             problems.append(f"{name}: SE of {term} {ours.se[term]!r} vs lme4 {se!r}")
     residual = theirs["varcomp"].get("residual", 0.0)
     for group, value in theirs["varcomp"].items():
-        mine = ours.variance[group]
         floor = 1e-6 * residual if gaussian else 1e-4
-        if abs(mine - value) > max(1e-3 * abs(value), floor):
-            problems.append(f"{name}: variance of {group} {mine!r} vs lme4 {value!r}")
+        if not near(ours.variance[group], value, max(1e-3 * abs(value), floor)):
+            problems.append(f"{name}: variance of {group} {ours.variance[group]!r} vs lme4 {value!r}")
     return problems
 
 
 def default_glmer_problems(name: str, theirs: dict) -> list[str]:
-    """glmer with its default settings against the converged fit: estimates within 1% of an SE, SEs within 5%
-    (the error its default inner tolerance leaves; on 30 random studies at most 0.3% and 1.4%)."""
+    """glmer with its default settings against the converged values: estimates within 2% of an SE, SEs within
+    5% (the error its inner solve leaves; on 30 random studies at most 0.3% and 1.4%)."""
     default, problems = theirs["default"], []
+    ses = theirs["se"] or theirs["se_glmer"]
     for term, value in theirs["fixef"].items():
-        se = theirs["se"][term]
-        if abs(default["fixef"][term] - value) > 0.01 * se or (
-                not theirs["singular"] and abs(default["se"][term] - se) > 0.05 * se):
+        se = ses[term]
+        if not near(default["fixef"][term], value, 0.02 * se) or (
+                not theirs["singular"] and theirs["se"] and not near(default["se"][term], se, 0.05 * se)):
             problems.append(f"{name}: glmer's default fit of {term} {default['fixef'][term]!r} ± "
                             f"{default['se'][term]!r} vs converged {value!r} ± {se!r}")
     return problems
@@ -130,7 +140,7 @@ def default_glmer_problems(name: str, theirs: dict) -> list[str]:
 
 def lr_problems(name: str, ours, theirs_full: dict, theirs_null: dict, df: int) -> list[str]:
     chi2 = max(0.0, 2 * (theirs_full["logLik"] - theirs_null["logLik"]))
-    if ours.df != df or abs(ours.chi2 - chi2) > max(1e-4 * chi2, 1e-3):
+    if ours.df != df or not near(ours.chi2, chi2, max(1e-4 * chi2, 1e-3)):
         return [f"{name}: LR χ²({ours.df}) {ours.chi2!r} vs lme4 χ²({df}) {chi2!r}"]
     return []
 

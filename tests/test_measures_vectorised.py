@@ -18,7 +18,7 @@ from simulation.run import simulate
 
 def same(data: StudyData) -> pd.DataFrame:
     new, old = trials_table(data), legacy_trials_table(data)
-    pd.testing.assert_frame_equal(new, old, check_exact=True, check_dtype=False)
+    pd.testing.assert_frame_equal(new, old, check_exact=True)
     return new
 
 
@@ -54,7 +54,12 @@ def test_a_hand_made_log_of_odd_events():
         ("search", 3700, {"text": "Ch"}), ("search", 3800, {"text": " chair "}), ("search", 3900, {"text": "CHA"}),
         ("replace", 4000, {}), ("search", 4100, {"text": "chair"}), ("search", 4200, {"text": "lamp"}),
         ("search", 4300, {}), ("context_query", 4400, {}), ("insert", 4500, {"object": "b"}),
-        ("move_end", 4600, {"object": "b"}), ("trial_done", 5000.125, None), ("trial_done", 5100, None)]:
+        ("move_end", 4600, {"object": "b"}),
+        ("rotate_start", 4610, {"object": None}), ("rotate_end", 4620.5, {"object": None}),  # no id: one id
+        ("rotate_start", 4630, {"object": float("nan")}), ("rotate_end", 4640, {"object": float("nan")}),  # never pair
+        ("rotate_start", 4650, {"object": None}), ("rotate_end", 4660, {"object": float("nan")}),
+        ("visibility", 4700, {"state": ["hidden"]}), ("visibility", 4710, {"state": None}),
+        ("trial_done", 5000.125, None), ("trial_done", 5100, None)]:
         log(1, 0, kind, t, payload)
     # trial 1: hidden at done; trial 2: no done (incomplete); trial 3: no events at all; trial 5: not scheduled
     for kind, t, payload in [("trial_start", 10000, None), ("visibility", 12000, {"state": "hidden"}),
@@ -79,8 +84,21 @@ def test_a_hand_made_log_of_odd_events():
                      events=events, survey=pd.DataFrame(columns=["participant", "survey", "question", "answer"]))
     table = same(data).set_index(["participant", "trial"])
     assert table.loc[(1, 0), "n_text_queries"] == 3 and table.loc[(1, 0), "translation_distance"] == pytest.approx(0.3)
+    assert table.loc[(1, 0), "rotation_time"] == pytest.approx((3400 - 3100 + 3650.3 - 3500 + 10.5 + 20) / 1000)
     assert table.loc[(1, 0), "active_time"] == pytest.approx((5100 - 1000.5 - (1900.25 - 1200)) / 1000)  # the last done
     assert table.loc[(1, 1), "active_time"] == pytest.approx(2.0)  # hidden from 12 s until done at 15 s
     assert not table.loc[(1, 2), "complete"] and not table.loc[(1, 3), "complete"]
     assert table.loc[(2, 0), "total_time"] == pytest.approx(8.0) and table.loc[(2, 1), "total_time"] < 0
     assert np.isnan(table.loc[(1, 3), "n_queries"])
+
+
+def test_an_object_id_that_is_a_list_pairs_by_its_text():
+    """The loops failed on an id that is not hashable (a list); the group operations pair it by its repr."""
+    from analysis.measures import trial_measures
+
+    events = pd.DataFrame([{"type": k, "client_t_ms": t, "payload": p} for k, t, p in [
+        ("trial_start", 0, {}), ("rotate_start", 100, {"object": ["c"]}), ("rotate_end", 350, {"object": ["c"]}),
+        ("rotate_end", 400, {"object": ["d"]}), ("trial_done", 1000, {})]])
+    measures = trial_measures(events)
+    assert measures["rotation_time"] == pytest.approx(0.25) and measures["total_time"] == 1.0
+    assert isinstance(measures["n_queries"], int)

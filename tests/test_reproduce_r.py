@@ -37,9 +37,10 @@ def test_reproduce_r_finds_the_reports_numbers(tmp_path, demo_resources):
     app = make_app(tmp_path / "server")
     summary = simulate(6, seed=11, study="demo", app=app)
     assert summary["completed"] == 6
-    report = build_report(read_database(app.config["SQLALCHEMY_DATABASE_URI"]), tmp_path / "report", resamples=20)
-    script = tmp_path / "report" / "reproduce.R"
-    assert "Rscript reproduce.R" in (tmp_path / "report" / "README.md").read_text()
+    folder = tmp_path / "my study" / "report"  # a path with a space, as people name folders
+    report = build_report(read_database(app.config["SQLALCHEMY_DATABASE_URI"]), folder, resamples=20)
+    script = folder / "reproduce.R"
+    assert "Rscript reproduce.R" in (folder / "README.md").read_text()
     ran = subprocess.run([rscript, str(script)], capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert ran.returncode == 0, ran.stderr
     tests, not_modelled, fixed = printed(ran.stdout)
@@ -57,3 +58,30 @@ def test_reproduce_r_finds_the_reports_numbers(tmp_path, demo_resources):
             assert estimate == pytest.approx(value["estimate"], abs=1e-4 * max(abs(value["estimate"]), se)), term
             if not (ours[measure]["family"] == "poisson" and ours[measure]["singular"]):  # no curvature at θ = 0
                 assert se == pytest.approx(value["se"], rel=1e-4), (measure, term)
+
+
+def test_ids_stay_text_in_r_as_in_the_report(tmp_path):
+    """Scenes named "01", "1", "001", "NA", "TRUE" and "1e3" are six scenes to the report and to reproduce.R alike
+    (R's read.csv would make numbers, a logical and a missing value of them)."""
+    import pandas as pd
+
+    from analysis.load import read_export
+    from analysis.synthetic import write_export
+
+    rscript = require_lme4()
+    export = write_export(tmp_path / "export", participants=12, seed=6)
+    names = {"S1": "01", "S2": "1", "S3": "001", "S4": "NA", "S5": "TRUE", "S6": "1e3"}
+    trials = pd.read_csv(export / "trials.csv", keep_default_na=False)
+    trials["scene"] = trials["scene"].map(lambda s: names.get(s, s))
+    trials.to_csv(export / "trials.csv", index=False)
+    data = read_export(export)
+    assert set(data.trials["scene"]) >= set(names.values())
+    report = build_report(data, tmp_path / "report", resamples=20)
+    assert report["tests"]["total_time"]["groups"]["scene"] == 6
+    ran = subprocess.run([rscript, str(tmp_path / "report" / "reproduce.R")], capture_output=True, text=True,
+                         timeout=300)
+    assert ran.returncode == 0, ran.stderr
+    tests, _, fixed = printed(ran.stdout)
+    for measure, lrt in tests.items():
+        assert (lrt["n"], lrt["df"]) == (report["tests"][measure]["lrt"]["n"], report["tests"][measure]["lrt"]["df"])
+        assert lrt["chi2"] == pytest.approx(report["tests"][measure]["lrt"]["chi2"], rel=1e-4, abs=1e-3), measure
