@@ -37,6 +37,7 @@ from scipy.special import gammaln
 from statsmodels.genmod.families import Poisson
 from statsmodels.genmod.generalized_linear_model import GLM
 
+from .boundary import escape_zero
 from .crossed import CrossedIntercepts, Curvature
 from .design import Design, formula_of
 from .errors import AnalysisError
@@ -176,6 +177,8 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
         model.u = np.zeros(model.q)
         fits.append(optimize.minimize(model.deviance, start, method="L-BFGS-B", bounds=bounds, options=options))
     best = min(fits, key=lambda r: r.fun)
+    model.u = np.zeros(model.q)
+    best = escape_zero(model.deviance, best, list(range(k)), bounds, options)
     x = np.concatenate([np.abs(best.x[:k]), best.x[k:]])
     dev = model.deviance(x)
     hess = _hessian(model.deviance, x)

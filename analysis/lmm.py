@@ -21,6 +21,7 @@ import numpy as np
 from scipy import optimize
 from scipy.linalg import block_diag, cho_factor, cho_solve, solve_triangular
 
+from .boundary import escape_zero
 from .crossed import CrossedIntercepts
 from .design import Design, formula_of
 from .errors import AnalysisError
@@ -121,6 +122,8 @@ def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
     fits = [optimize.minimize(model.deviance, model.start(s), method="L-BFGS-B", bounds=model.bounds)
             for s in STARTS]
     best = min(fits, key=lambda r: r.fun)
+    best = escape_zero(model.deviance, best, [i for i, (low, _) in enumerate(model.bounds) if low == 0],
+                       model.bounds)
     # Polish: Nelder–Mead needs no gradient, so it can settle θ to ~1e-9 where finite differences cannot.
     again = optimize.minimize(model.deviance, best.x, method="Nelder-Mead", bounds=model.bounds,
                               options={"xatol": 1e-9, "fatol": 1e-10, "maxiter": 2000})

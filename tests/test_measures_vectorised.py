@@ -84,7 +84,7 @@ def test_a_hand_made_log_of_odd_events():
                      events=events, survey=pd.DataFrame(columns=["participant", "survey", "question", "answer"]))
     table = same(data).set_index(["participant", "trial"])
     assert table.loc[(1, 0), "n_text_queries"] == 3 and table.loc[(1, 0), "translation_distance"] == pytest.approx(0.3)
-    assert table.loc[(1, 0), "rotation_time"] == pytest.approx((3400 - 3100 + 3650.3 - 3500 + 10.5 + 20) / 1000)
+    assert table.loc[(1, 0), "rotation_time"] == pytest.approx((3400 - 3100 + 3650.3 - 3500 + 4620.5 - 4610) / 1000)
     assert table.loc[(1, 0), "active_time"] == pytest.approx((5100 - 1000.5 - (1900.25 - 1200)) / 1000)  # the last done
     assert table.loc[(1, 1), "active_time"] == pytest.approx(2.0)  # hidden from 12 s until done at 15 s
     assert not table.loc[(1, 2), "complete"] and not table.loc[(1, 3), "complete"]

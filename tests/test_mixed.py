@@ -230,3 +230,20 @@ def test_the_crossed_intercepts_solve_equals_the_dense_one(sim, reml):
             assert a["deviance"] == pytest.approx(b["deviance"], rel=1e-12, abs=1e-9)
             assert a["beta"] == pytest.approx(b["beta"], rel=1e-10, abs=1e-12)
             assert a["sigma2"] == pytest.approx(b["sigma2"], rel=1e-10)
+
+
+def test_a_small_variance_is_found_where_the_gradient_fit_stops_at_zero():
+    """θ = 0 is a stationary point of the deviance (it is even in θ), so L-BFGS-B stopped there on this study
+    although a participant variance of ~26 s² fits better (lme4 finds it); the fit now leaves zero."""
+    from test_lme4_oracle import random_study
+
+    from analysis.lmm import _Profiled, fit_lmm
+
+    data, _ = random_study(np.random.default_rng([107, 1]))
+    data["condition"] = pd.Categorical(data["condition"], ["none", "basic", "full"])
+    design = build_design(data, "total_time", ["condition"], ["participant", "scene"])
+    fitted = fit_lmm(design)
+    profiled = _Profiled(design, reml=False)
+    grid = min(profiled.deviance(np.array([p, s])) for p in np.linspace(0, 0.3, 61) for s in np.linspace(0, 0.3, 31))
+    assert fitted.loglik >= -grid / 2 - 1e-9 and fitted.variance["participant"] > 1.0
+    assert fitted.loglik > -profiled.deviance(np.zeros(2)) / 2 + 1e-3  # better than both variances at zero
