@@ -164,7 +164,7 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
         raise AnalysisError("adaptive quadrature needs a single grouping factor; use the Laplace approximation")
     if y.sum() == 0:
         raise AnalysisError("is zero everywhere; there is nothing to model", f"response {design.response!r}")
-    # The largest factor first: its block of the curvature is the diagonal one (see _Curvature).
+    # The largest factor first: its block of the curvature is the diagonal one (see analysis.crossed).
     design = replace(design, random=tuple(sorted(design.random, key=lambda t: -len(t.levels))))
     model = _Laplace(design, n_agq)
     beta0 = GLM(y, design.X, family=Poisson()).fit().params

@@ -45,7 +45,7 @@ def study() -> None:
 @click.argument("folder", type=click.Path(file_okay=False))
 @click.option("--corpus", default="ai2thor", show_default=True, help="The scene corpus the study's priors and "
               "models come from: the built-in 'ai2thor', or 'stanford:DIR' (a copy of the Stanford Scene Database: "
-              "the study gets its own library and priors, built here in about a minute).")
+              "the study gets its own library and priors, built here in a minute or two).")
 @click.option("--meshes", default=None, type=click.Path(file_okay=False), help="The Stanford corpus's OBJ mesh folder "
               "(default: $SCENESUGGEST_STANFORD_MESHES, DIR/models or DIR/../stanford_models/models).")
 @click.option("--title", default=None, help="The title participants see (default: from the folder's name).")

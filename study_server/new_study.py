@@ -49,6 +49,8 @@ priors = "priors/stanford.npz"    # trained on every scene of the corpus by 'sce
 library = "library/stanford"      # one representative model per top-100 category of the corpus (rebuild:
 #                                 # 'scenesuggest assets build CORPUS --out DIR')"""
 STANFORD_PRACTICE_TITLE = "Practice: a side table"
+#: The representative categories :func:`side_table` and :func:`desk_corner` compose the starter scenes from.
+STARTER_CATEGORIES = {"EndTable", "Mug", "Clock", "Desk", "Monitor", "Keyboard", "DeskLamp", "OfficeChair", "Poster"}
 ROOM = (5.0, 2.7, 4.0)  # metres: width X, height Y, depth Z; the back wall is at z = -2
 BACK = -ROOM[2] / 2
 
@@ -106,8 +108,12 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
     folder). ``meshes``: the Stanford mesh folder (default: as for every Stanford command); ``say`` hears
     progress. Raises :class:`InitError` naming what is wrong (a folder in use, an unknown corpus, a bad id, a
     corpus the starter scenes need more of)."""
-    folder = Path(folder)
+    folder = Path(folder).absolute()
     stanford = stanford_folder(corpus)
+    if meshes is not None and stanford is None:
+        raise InitError("only a Stanford corpus has meshes to find", field="--meshes")
+    if meshes is not None and not Path(meshes).is_dir():
+        raise InitError(f"{meshes}: no such folder (expected the corpus's OBJ meshes)", field="--meshes")
     study_id = study_id or study_id_for(folder)
     if not re.fullmatch(r"[A-Za-z0-9_-]+", study_id):
         raise InitError(f"{study_id!r}: use letters, digits, '-' and '_' only", field="--id")
@@ -117,7 +123,10 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
     if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
         raise InitError("already exists and is not an empty folder: nothing was written (a new study never "
                         "overwrites anything)", file=str(folder))
-    tmp = temporary_folder_beside(folder)
+    try:
+        tmp = temporary_folder_beside(folder)
+    except OSError as e:
+        raise InitError(f"cannot make the study folder there ({e.strerror or e})", file=str(folder)) from None
     try:
         (tmp / "scenes").mkdir()
         if stanford is None:
@@ -126,18 +135,36 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
                 shutil.copyfile(DEMO_SCENES / name, tmp / "scenes" / name)
         else:
             write_stanford_resources(tmp, stanford, meshes, say)
-            resources = Template(STANFORD_RESOURCES).substitute(corpus=json.dumps(f"stanford:{stanford}"))
+            resources = Template(STANFORD_RESOURCES).substitute(
+                corpus=json.dumps(f"stanford:{stanford}", ensure_ascii=False))
             practice_title = STANFORD_PRACTICE_TITLE
         (tmp / "study.toml").write_text(study_file_text(study_id, title, resources, practice_title),
                                         encoding="utf-8")
         (tmp / "README.md").write_text(readme_text(folder, study_id, title), encoding="utf-8")
-        os.rename(tmp, folder)  # over an empty folder at most: anything written there meanwhile stops it
+        _move_in(tmp, folder)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     library = folder / "library"
     return sorted([p for p in folder.rglob("*") if p.is_file() and library not in p.parents]
                   + ([library / "stanford"] if library.is_dir() else []))
+
+
+def _move_in(tmp: Path, folder: Path) -> None:
+    """Put the finished ``tmp`` in place: renamed to ``folder`` when that is absent; into it, entry by entry, when
+    it is an empty folder (which stays the same folder: someone's working directory stays valid)."""
+    if not folder.exists():
+        try:
+            os.rename(tmp, folder)  # over an empty folder made meanwhile at most
+        except OSError:
+            raise InitError("was filled while the study was being made: nothing was written",
+                            file=str(folder)) from None
+        return
+    if not folder.is_dir() or any(folder.iterdir()):
+        raise InitError("was filled while the study was being made: nothing was written", file=str(folder))
+    for entry in tmp.iterdir():
+        os.rename(entry, folder / entry.name)
+    tmp.rmdir()
 
 
 def write_stanford_resources(out: Path, root: Path, meshes: str | Path | None, say) -> None:
@@ -156,6 +183,10 @@ def write_stanford_resources(out: Path, root: Path, meshes: str | Path | None, s
                         "OBJ meshes; default DIR/models or DIR/../stanford_models/models)", field="--meshes")
     corpus = load_corpus(f"stanford:{root}", meshes=mesh_dir)
     reps, origin = study_representatives(corpus, mesh_dir)
+    lacking = sorted(STARTER_CATEGORIES - {category for category, _ in reps})
+    if lacking:
+        raise InitError(f"the starter scenes need a model of each of {', '.join(lacking)}, which the corpus's "
+                        f"representatives ({origin}) lack", field="--corpus")
     library = out / "library" / "stanford"
     library.parent.mkdir()
     say(f"building the model library: {len(reps)} models, one per category ({origin}), about a minute …")

@@ -79,6 +79,12 @@ def test_the_command_writes_a_study_and_refuses_a_folder_in_use(tmp_path):
         "README.md", "desk-corner.json", "practice.json", "study.toml"]
     again = cli("pilot")
     assert again.returncode == 2 and "already exists and is not an empty folder" in again.stderr
+    here = tmp_path / "here"
+    here.mkdir()
+    made = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "init", ".", "--json"],
+                          capture_output=True, text=True, cwd=here)  # the working directory, empty
+    assert made.returncode == 0, made.stderr
+    assert sorted(p.name for p in here.iterdir()) == ["README.md", "scenes", "study.toml"]
 
 
 def test_a_study_on_the_stanford_corpus_gets_its_own_library_priors_and_scenes(tmp_path, stanford_dir,
@@ -137,3 +143,26 @@ def test_a_stanford_study_without_meshes_is_refused_before_anything_is_built(tmp
         init_study(tmp_path / "s", corpus=f"stanford:{copy}")
     assert info.value.field == "--meshes" and "SCENESUGGEST_STANFORD_MESHES" in info.value.message
     assert sorted(p.name for p in tmp_path.iterdir()) == ["db"]
+
+
+def test_bad_mesh_folders_and_places_are_named_before_anything_is_built(tmp_path, stanford_dir, stanford_meshes):
+    with pytest.raises(InitError) as info:
+        init_study(tmp_path / "a", corpus=f"stanford:{stanford_dir}", meshes=tmp_path / "no-such-folder")
+    assert info.value.field == "--meshes" and "no such folder" in info.value.message
+    with pytest.raises(InitError) as info:
+        init_study(tmp_path / "b", meshes=stanford_meshes)  # the built-in corpus has no meshes to find
+    assert info.value.field == "--meshes"
+    (tmp_path / "a-file").write_text("x")
+    with pytest.raises(InitError) as info:
+        init_study(tmp_path / "a-file" / "study")
+    assert "cannot make the study folder" in info.value.message
+    # a representatives file without the starter scenes' categories: refused before the minute of building
+    meshes = tmp_path / "copy" / "models"
+    meshes.parent.mkdir()
+    meshes.symlink_to(stanford_meshes)
+    lines = (stanford_meshes.parent / "representatives.tsv").read_text().splitlines()
+    (meshes.parent / "representatives.tsv").write_text("\n".join(l for l in lines if not l.startswith("Desk\t")))
+    with pytest.raises(InitError) as info:
+        init_study(tmp_path / "c", corpus=f"stanford:{stanford_dir}", meshes=meshes)
+    assert "Desk" in info.value.message and info.value.field == "--corpus"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file", "copy"]  # nothing written
