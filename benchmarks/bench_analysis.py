@@ -25,14 +25,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def one_report(root: Path, participants: int, resamples: int, work: Path) -> dict:
-    """In this process: the report of a synthetic export, timed by stage (the export is written first, untimed)."""
+def one_report(root: Path, export: Path, resamples: int, work: Path) -> dict:
+    """In this process: the report of ``export`` with the analysis package of ``root``, timed by stage."""
     sys.path.insert(0, str(root))
     from analysis.load import read_export
     from analysis.report import build_report
-    from analysis.synthetic import write_export
 
-    export = write_export(work / "export", participants=participants, seed=participants)
     stages: dict[str, float] = {}
     start = time.perf_counter()
     last = [start, "read"]
@@ -50,14 +48,16 @@ def one_report(root: Path, participants: int, resamples: int, work: Path) -> dic
             "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
-def measure(root: Path, participants: int, runs: int, resamples: int) -> dict:
+def measure(root: Path, export: Path, runs: int, resamples: int) -> dict:
+    """``runs`` reports of ``export``, each in a fresh process: median and range of the time, the stages of the
+    median run, the largest peak memory."""
     results = []
     for _ in range(runs):
         with tempfile.TemporaryDirectory() as tmp:
-            out = subprocess.run([sys.executable, __file__, "--one", str(participants), "--root", str(root),
+            out = subprocess.run([sys.executable, __file__, "--one", str(export), "--root", str(root),
                                   "--resamples", str(resamples), "--work", tmp], capture_output=True, text=True)
         if out.returncode != 0:
-            raise SystemExit(f"report of {participants} participants failed:\n{out.stderr[-3000:]}")
+            raise SystemExit(f"report of {export} failed:\n{out.stderr[-3000:]}")
         results.append(json.loads(out.stdout))
     times = sorted(r["seconds"] for r in results)
     median = statistics.median(times)
@@ -74,20 +74,30 @@ def main() -> int:
     parser.add_argument("--resamples", type=int, default=1000)
     parser.add_argument("--baseline", help="another checkout whose analysis package to time in the same run")
     parser.add_argument("--baseline-sizes", default="20,200", help="the sizes to time the baseline at")
-    parser.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--one", help=argparse.SUPPRESS)
     parser.add_argument("--root", default=str(ROOT), help=argparse.SUPPRESS)
     parser.add_argument("--work", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(one_report(Path(args.root), args.one, args.resamples, Path(args.work))))
+        print(json.dumps(one_report(Path(args.root), Path(args.one), args.resamples, Path(args.work))))
         return 0
-    sizes = [int(s) for s in args.sizes.split(",")]
+    sys.path.insert(0, str(ROOT))
+    from analysis.synthetic import write_export
+
+    sizes = [int(n) for n in args.sizes.split(",")]
+    baseline_sizes = [int(n) for n in args.baseline_sizes.split(",")] if args.baseline else []
     out = {"benchmark": "analysis", "trials_per_participant": 9, "resamples": args.resamples, "runs": args.runs,
-           "reports": {f"{n}x9": measure(ROOT, n, args.runs, args.resamples) for n in sizes}}
+           "reports": {}}
     if args.baseline:
-        out["baseline"] = {"checkout": args.baseline, "reports": {
-            f"{n}x9": measure(Path(args.baseline).resolve(), int(n), args.runs, args.resamples)
-            for n in args.baseline_sizes.split(",")}}
+        out["baseline"] = {"checkout": args.baseline, "reports": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sorted(set(sizes) | set(baseline_sizes)):
+            export = write_export(Path(tmp) / f"export{n}", participants=n, seed=n)  # the same data for both
+            if n in sizes:
+                out["reports"][f"{n}x9"] = measure(ROOT, export, args.runs, args.resamples)
+            if n in baseline_sizes:
+                out["baseline"]["reports"][f"{n}x9"] = measure(Path(args.baseline).resolve(), export, args.runs,
+                                                               args.resamples)
     print(json.dumps(out))
     return 0
 

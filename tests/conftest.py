@@ -18,7 +18,10 @@ sys.path.insert(0, str(ROOT / "benchmarks"))  # serverproc: the server as a subp
 BROWSER_TESTS = Path(__file__).resolve().parent / "browser"
 # The lme4 oracle's random studies (tests/test_lme4_oracle.py): drawn afresh each run unless set. Set here, before
 # any worker process starts, so that every worker draws the same studies.
-LME4_SEED = int(os.environ.setdefault("SCENESUGGEST_LME4_SEED", str(secrets.randbelow(10**6))))
+_seed = os.environ.setdefault("SCENESUGGEST_LME4_SEED", str(secrets.randbelow(10**6)))
+if not _seed.isdigit():
+    raise pytest.UsageError(f"SCENESUGGEST_LME4_SEED must be a whole number ≥ 0, not {_seed!r}")
+LME4_SEED = int(_seed)
 
 
 def require_lme4() -> str:
