@@ -4,13 +4,13 @@
 #   Rscript tests/lme4_oracle.R TRIALS.csv OUT.json
 #
 # TRIALS.csv: participant, scene, condition (levels none, basic, full; none the reference), total_time, n_queries.
-# Each fit: fixef, its SEs, variance components, logLik, isSingular; every fit is run to convergence (BOBYQA to
-# rhoend = 1e-12 for lmer, 1e-10 for glmer), as the defaults stop early where the likelihood is flat. Poisson fits
-# are made with the inner PIRLS solved to tolPwrss = 1e-13; their "se" come from lme4's own finite-difference
-# Hessian (deriv12, step 1e-4) of its own deviance function, restarted from its last linear predictor until its
-# value stops changing — glmer's PIRLS evaluates the log-determinant at the weights of the iteration before the
-# last, from a fixed start, which no tolPwrss fully converges (see analysis/glmm.py). "se_glmer" holds glmer's
-# vcov() of the same fit, "default" the fit with glmer's default settings, to show how far those are.
+# Each fit: fixef, its SEs, variance components, logLik, isSingular. lmer runs to convergence (BOBYQA to rhoend =
+# 1e-12: its default stops early where the likelihood is flat). Poisson fits are lme4's own deviance function,
+# restarted from its last linear predictor until its value stops changing (glmer's PIRLS evaluates the log-
+# determinant at the weights of the iteration before the last, from a fixed start, which no tolPwrss fully
+# converges; see analysis/glmm.py), optimized by BOBYQA from glmer's fit, with SEs from lme4's deriv12 of it;
+# "glmer" holds glmer's own fit with tolPwrss = 1e-13 and "default" glmer with its defaults, to show how far those
+# are.
 suppressMessages({ library(lme4); library(jsonlite) })
 args <- commandArgs(trailingOnly = TRUE)
 d <- read.csv(args[1], stringsAsFactors = FALSE)
@@ -35,11 +35,13 @@ CONVERGED <- glmerControl(optimizer = "bobyqa", tolPwrss = 1e-13, optCtrl = list
 # lmer's default BOBYQA stops at ~1e-6 on θ, which in a flat likelihood (two scenes) leaves a variance ~1% off
 LMM_CONVERGED <- lmerControl(optimizer = "bobyqa", optCtrl = list(rhoend = 1e-12, maxfun = 1e5))
 lmm <- function(formula, reml = FALSE) describe(lmer(formula, d, REML = reml, control = LMM_CONVERGED), reml)
-converged_se <- function(m, formula, n_agq) {
+# glmer's deviance function, restarted from its own last linear predictor until its value stops changing: the
+# Laplace (or quadrature) deviance with the inner solve converged, which glmer's one pass leaves ~1e-7–1e-6 off.
+restarted_deviance <- function(formula, n_agq) {
   devfun <- glmer(formula, d, family = poisson, nAGQ = n_agq, devFunOnly = TRUE)
   rho <- environment(devfun)
   rho$tolPwrss <- 1e-13
-  restarted <- function(p) {
+  function(p) {
     last <- Inf
     for (i in 1:50) {
       value <- devfun(p)
@@ -49,19 +51,27 @@ converged_se <- function(m, formula, n_agq) {
     }
     value
   }
-  k <- length(getME(m, "theta"))
-  h <- lme4:::deriv12(restarted, c(getME(m, "theta"), fixef(m)))$Hessian
-  v <- tryCatch(2 * solve(h)[-seq_len(k), -seq_len(k), drop = FALSE], error = function(e) NULL)
-  if (is.null(v) || any(!is.finite(diag(v))) || any(diag(v) <= 0)) return(NULL)
-  as.list(setNames(sqrt(diag(v)), names(fixef(m))))
 }
 
+# The fit at the optimum of that deviance (BOBYQA from glmer's converged fit, as lme4 optimizes), its SEs from lme4's
+# deriv12 there; "glmer" is glmer's own fit with tolPwrss = 1e-13, "default" glmer with its defaults.
 pois <- function(formula, n_agq = 1) {
-  converged <- glmer(formula, d, family = poisson, nAGQ = n_agq, control = CONVERGED)
-  fit <- describe(converged)
-  fit$se_glmer <- fit$se
-  fit$se <- converged_se(converged, formula, n_agq)
-  c(fit, list(default = describe(glmer(formula, d, family = poisson, nAGQ = n_agq))))
+  m <- glmer(formula, d, family = poisson, nAGQ = n_agq, control = CONVERGED)
+  deviance <- restarted_deviance(formula, n_agq)
+  theta <- getME(m, "theta")
+  k <- length(theta)
+  opt <- minqa::bobyqa(c(theta, fixef(m)), deviance, lower = c(rep(0, k), rep(-Inf, length(fixef(m)))),
+                       control = list(rhobeg = 1e-3, rhoend = 1e-11, maxfun = 1e5))
+  x <- opt$par
+  h <- lme4:::deriv12(deviance, x)$Hessian
+  v <- tryCatch(2 * solve(h)[-seq_len(k), -seq_len(k), drop = FALSE], error = function(e) NULL)
+  se <- if (is.null(v) || any(!is.finite(diag(v))) || any(diag(v) <= 0)) NULL else
+    as.list(setNames(sqrt(diag(v)), names(fixef(m))))
+  list(fixef = as.list(setNames(x[-seq_len(k)], names(fixef(m)))), se = se,
+       varcomp = as.list(setNames(x[seq_len(k)]^2, sub("\\..*$", "", names(theta)))),
+       logLik = -opt$fval / 2, nobs = nobs(m), singular = any(x[seq_len(k)] < 1e-4),
+       se_glmer = as.list(sqrt(diag(as.matrix(vcov(m))))), glmer = describe(m),
+       default = describe(glmer(formula, d, family = poisson, nAGQ = n_agq)))
 }
 
 out <- list(

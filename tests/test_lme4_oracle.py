@@ -6,14 +6,14 @@ A study: 6–60 participants, three conditions, 2–8 scenes (each participant d
 condition), random effect sizes, some of them zero (condition effects and either variance component), drop-outs
 and missing trials (unbalanced), log-normal times and Poisson counts with small means.
 
-lme4 is run to convergence (its default optimizer stops early where the likelihood is flat: with two scenes a
-variance can be ~1% off). Tolerances (``../shared/data/lme4_reference/README.md``): fixed effects and Gaussian SEs
-rtol 1e-4 (or 1e-4 of a standard error, for an estimate near zero); log-likelihoods atol 1e-4; LR χ² rtol 1e-4 or
-atol 1e-3; variance components rtol 1e-3, or 1e-6 of the residual variance (Gaussian; 1e-4 on the log scale for
-Poisson) for a component at zero. Poisson fits are compared with glmer's converged fit (inner PIRLS to tolPwrss =
-1e-13) at the same tolerances; their SEs with lme4's own Hessian of its deviance function restarted until converged
-(see tests/lme4_oracle.R and analysis/glmm.py), for fits not on the boundary (a zero variance leaves no curvature
-to compare); glmer's default fit is checked to lie near them (estimates within 2% of an SE, SEs within 5%).
+lme4 is run to convergence: lmer's BOBYQA to rhoend = 1e-12 (its default stops early where the likelihood is flat:
+with two scenes a variance can be ~1% off), and Poisson fits on lme4's own deviance function restarted until its
+inner solve converges (see tests/lme4_oracle.R and analysis/glmm.py). Tolerances
+(``../shared/data/lme4_reference/README.md``): fixed effects and SEs rtol 1e-4 (or 1e-4 of a standard error, for an
+estimate near zero); log-likelihoods atol 1e-4; LR χ² rtol 1e-4 or atol 1e-3; variance components rtol 1e-3, or
+1e-6 of the residual variance (Gaussian; 1e-4 on the log scale for Poisson) for a component at zero. Poisson SEs
+are compared for fits not on the boundary (a zero variance leaves no curvature to compare); glmer's default fit is
+checked to lie near the converged one (estimates within 2% of an SE, SEs within 5%).
 """
 
 from __future__ import annotations
