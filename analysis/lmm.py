@@ -21,10 +21,10 @@ import numpy as np
 from scipy import optimize
 from scipy.linalg import block_diag, cho_factor, cho_solve, solve_triangular
 
-from .boundary import escape_zero
 from .crossed import CrossedIntercepts
 from .design import Design, formula_of
 from .errors import AnalysisError
+from .optimum import minimize
 from .results import MixedFit
 
 STARTS = (1.0, 0.1, 3.0)
@@ -119,11 +119,8 @@ def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
     if np.ptp(design.y) == 0:
         raise AnalysisError("is constant; there is no variance to model", f"response {design.response!r}")
     model = _Profiled(design, reml)
-    fits = [optimize.minimize(model.deviance, model.start(s), method="L-BFGS-B", bounds=model.bounds)
-            for s in STARTS]
-    best = min(fits, key=lambda r: r.fun)
-    best = escape_zero(model.deviance, best, [i for i, (low, _) in enumerate(model.bounds) if low == 0],
-                       model.bounds)
+    best = minimize(model.deviance, [model.start(s) for s in STARTS], model.bounds,
+                    [i for i, (low, _) in enumerate(model.bounds) if low == 0])
     # Polish: Nelder–Mead needs no gradient, so it can settle θ to ~1e-9 where finite differences cannot.
     again = optimize.minimize(model.deviance, best.x, method="Nelder-Mead", bounds=model.bounds,
                               options={"xatol": 1e-9, "fatol": 1e-10, "maxiter": 2000})

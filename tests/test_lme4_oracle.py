@@ -12,8 +12,9 @@ inner solve converges (see tests/lme4_oracle.R and analysis/glmm.py). Tolerances
 (``../shared/data/lme4_reference/README.md``): fixed effects and SEs rtol 1e-4 (or 1e-4 of a standard error, for an
 estimate near zero); log-likelihoods atol 1e-4; LR χ² rtol 1e-4 or atol 1e-3; variance components rtol 1e-3, or
 1e-6 of the residual variance (Gaussian; 1e-4 on the log scale for Poisson) for a component at zero. Poisson SEs
-are compared for fits not on the boundary (a zero variance leaves no curvature to compare); glmer's default fit is
-checked to lie near the converged one (estimates within 2% of an SE, SEs within 5%).
+are compared for fits not on the boundary (a zero variance leaves no curvature to compare). glmer's default fit is
+recorded beside (``default`` in the R output) but not held to anything: on small counts its vcov can be far off
+(seed 304, study 1: SEs of 0.003 where the converged fit has 0.19).
 """
 
 from __future__ import annotations
@@ -124,20 +125,6 @@ def compare(name: str, ours, theirs: dict, *, saturated: float = 0.0) -> list[st
     return problems
 
 
-def default_glmer_problems(name: str, theirs: dict) -> list[str]:
-    """glmer with its default settings against the converged values: estimates within 2% of an SE, SEs within
-    5% (the error its inner solve leaves; on 30 random studies at most 0.3% and 1.4%)."""
-    default, problems = theirs["default"], []
-    ses = theirs["se"] or theirs["se_glmer"]
-    for term, value in theirs["fixef"].items():
-        se = ses[term]
-        if not near(default["fixef"][term], value, 0.02 * se) or (
-                not theirs["singular"] and theirs["se"] and not near(default["se"][term], se, 0.05 * se)):
-            problems.append(f"{name}: glmer's default fit of {term} {default['fixef'][term]!r} ± "
-                            f"{default['se'][term]!r} vs converged {value!r} ± {se!r}")
-    return problems
-
-
 def lr_problems(name: str, ours, theirs_full: dict, theirs_null: dict, df: int) -> list[str]:
     chi2 = max(0.0, 2 * (theirs_full["logLik"] - theirs_null["logLik"]))
     if ours.df != df or not near(ours.chi2, chi2, max(1e-4 * chi2, 1e-3)):
@@ -163,8 +150,6 @@ def test_every_model_of_the_report_matches_lme4_on_a_random_study(study, tmp_pat
     problems = []
     for name, fitted in ours.items():
         problems += compare(name, fitted, lme4[name], saturated=agq_offset if name.endswith("agq_participant") else 0)
-        if fitted.family == "poisson":
-            problems += default_glmer_problems(name, lme4[name])
     for full, null in (("time_ml", "time_ml_null"), ("log_time_ml", "log_time_ml_null"), ("queries", "queries_null")):
         problems += lr_problems(full, lr_test(ours[null], ours[full]), lme4[full], lme4[null], 2)
     assert not problems, f"{len(problems)} difference(s) from lme4 on {where}:\n" + "\n".join(problems)
