@@ -7,8 +7,8 @@ reweighted least squares finds the conditional mode û and the Laplace approxima
     −2 ℓ ≈ −2 Σ log Pois(y | μ(û)) + ‖û‖² + log det(Λ'Z'WZΛ + I),   W = diag(μ).
 
 With a single grouping factor ``n_agq > 1`` replaces it by adaptive Gauss–Hermite quadrature around û. (θ, β)
-are optimised together (bounded L-BFGS-B from two starts, keeping the better), as lme4's second stage does;
-standard errors come from the finite-difference Hessian of −2 ℓ over (θ, β), lme4's default.
+are optimised together (bounded L-BFGS-B from two starts, the best restarted: :mod:`analysis.optimum`), as lme4's
+second stage does; standard errors come from the finite-difference Hessian of −2 ℓ over (θ, β), lme4's default.
 
 Why glmer's numbers differ slightly from these (its default SEs by 0.3–0.6% on the reference data; on 30 random
 studies by up to 1.4%, estimates by up to 0.3% of an SE, logLik by up to 9e-4; on one study with small counts its

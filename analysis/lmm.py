@@ -12,7 +12,8 @@ statsmodels' MixedLM gives the same estimates (crossed factors as variance compo
 this formulation takes well under a second, which is what keeps the report's budget.
 
 The flat likelihood in a variance near zero can stop one optimiser early, so each fit is multi-start (bounded
-L-BFGS-B from θ = 1, 0.1 and 3, the best polished by Nelder–Mead). Fixed-effect covariances are lme4's σ² (X'V⁻¹X)⁻¹.
+L-BFGS-B from θ = 1, 0.1 and 3, the best restarted and moved off zero variances by :mod:`analysis.optimum`, then
+polished by Nelder–Mead). Fixed-effect covariances are lme4's σ² (X'V⁻¹X)⁻¹.
 """
 
 from __future__ import annotations
