@@ -31,9 +31,11 @@ TEMPLATE = r"""# Reproduces the likelihood-ratio tests and fixed effects of this
 # converged value). Fixed effects are treatment-coded against the first condition.
 suppressMessages(library(lme4))
 
-here <- local({  # this script's folder (Rscript writes a space in its path as "~+~")
+here <- local({  # this script's folder, run by Rscript (which writes a space as "~+~") or source()d
   file <- gsub("~+~", " ", sub("^--file=", "", grep("^--file=", commandArgs(FALSE), value = TRUE)), fixed = TRUE)
-  if (length(file) == 1) dirname(normalizePath(file)) else getwd()
+  sourced <- tryCatch(sys.frame(1)$ofile, error = function(e) NULL)
+  if (!is.null(sourced)) dirname(normalizePath(sourced))
+  else if (length(file) == 1) dirname(normalizePath(file)) else getwd()
 })
 conditions <- @CONDITIONS@
 measures <- data.frame(
