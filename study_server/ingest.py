@@ -1,6 +1,6 @@
 """Event ingestion: batches stored all or nothing, idempotent by (participant, seq), never overwritten.
 
-Concurrency assumptions: a batch is one transaction of ``INSERT … ON CONFLICT DO NOTHING`` rows (one executemany),
+Concurrency assumptions: a batch is one transaction of ``INSERT … ON CONFLICT DO NOTHING`` rows (one statement),
 so a batch sent twice (a retry after a lost answer, a second tab, a reload replaying its outbox under a new
 page id) stores each event once, whichever copy wins; batches of one participant may arrive in any order and in
 parallel. A seq that is already stored with *different* content (type, trial, client time or payload) is a
@@ -60,41 +60,49 @@ def insert_events(rows: list[dict]) -> int:
     parameters made by the columns' own bind processors (what SQLAlchemy would send), straight to the driver: a
     general execute's per-row work was a third of the insert's CPU, and SQLAlchemy's multi-row statement for
     PostgreSQL is too long for psycopg to cache its conversion. SQLite: one executemany, whose row count is the
-    rows inserted. PostgreSQL: psycopg's pipelined executemany of ``… RETURNING seq`` (its row count says nothing),
-    one result set per row, holding the row when it was new."""
+    rows inserted. PostgreSQL (psycopg): one statement of column arrays (:func:`_unnest_insert`), whose returned
+    rows are those inserted."""
     connection = db.session.connection()
     dialect = connection.dialect
-    sql, columns = _compiled_insert(dialect)
     if dialect.paramstyle == "qmark":  # SQLite
+        sql, columns = _compiled_insert(dialect)
         params = [tuple(r[c] if p is None else p(r[c]) for c, p in columns) for r in rows]
         return connection.exec_driver_sql(sql, params).rowcount
     if dialect.driver != "psycopg":  # another driver: SQLAlchemy's own multi-row insert, which says what was new
         statement = insert_ignore(Event.__table__, ["participant_id", "seq"]).returning(Event.__table__.c.seq)
         return len(db.session.execute(statement, rows).all())
-    params = [{c: r[c] if p is None else p(r[c]) for c, p in columns} for r in rows]
-    inserted = 0
+    sql, columns = _unnest_insert(dialect)
+    params = [[r[c] if p is None else p(r[c]) for r in rows] for c, p in columns]  # one array per column
     try:
         with connection.connection.dbapi_connection.cursor() as cursor:  # in the session's transaction
-            cursor.executemany(sql, params, returning=True)
-            while True:
-                inserted += cursor.fetchone() is not None
-                if not cursor.nextset():
-                    return inserted
+            cursor.execute(sql, params)
+            return len(cursor.fetchall())
     except dialect.loaded_dbapi.Error as e:  # as SQLAlchemy would raise it: a lost database answers 503
         raise DBAPIError.instance(sql, None, e, dialect.loaded_dbapi.Error,
                                   connection_invalidated=dialect.is_disconnect(e, None, None)) from e
 
 
 @functools.lru_cache(maxsize=8)
+def _unnest_insert(dialect) -> tuple[str, tuple]:
+    """PostgreSQL's events insert-or-ignore as one statement whatever the batch: each column's values as one array,
+    ``INSERT … SELECT FROM unnest(…) ON CONFLICT DO NOTHING RETURNING seq`` (one parse, one round trip; the rows
+    returned are those that were new). Its SQL and, in parameter order, (column, bind processor)."""
+    table = Event.__table__
+    names = ("participant_id", "seq", "page_id", "type", "trial", "client_t", "server_t", "payload", "vocabulary")
+    arrays = ", ".join(f"%s::{table.c[n].type.compile(dialect=dialect)}[]" for n in names)
+    sql = (f"INSERT INTO {table.name} ({', '.join(names)}) SELECT * FROM unnest({arrays}) "
+           f"ON CONFLICT (participant_id, seq) DO NOTHING RETURNING seq")
+    return sql, tuple((n, table.c[n].type.dialect_impl(dialect).bind_processor(dialect)) for n in names)
+
+
+@functools.lru_cache(maxsize=8)
 def _compiled_insert(dialect) -> tuple[str, tuple]:
-    """The events insert-or-ignore compiled for ``dialect``: its SQL and, in parameter order, (column, bind
-    processor). PostgreSQL's returns the seq of a row it inserted."""
+    """The events insert-or-ignore compiled for ``dialect`` (SQLite's, for one executemany): its SQL and, in
+    parameter order, (column, bind processor)."""
     table = Event.__table__
     names = ("participant_id", "seq", "page_id", "type", "trial", "client_t", "server_t", "payload", "vocabulary")
     statement = dialect_insert(dialect.name)(table).values({n: bindparam(n) for n in names}).on_conflict_do_nothing(
         index_elements=["participant_id", "seq"])
-    if dialect.name == "postgresql":
-        statement = statement.returning(table.c.seq)
     compiled = statement.compile(dialect=dialect)
     order = compiled.positiontup or names
     return compiled.string, tuple((n, table.c[n].type.dialect_impl(dialect).bind_processor(dialect)) for n in order)
