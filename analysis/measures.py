@@ -103,9 +103,9 @@ def measures_by_trial(events: pd.DataFrame, key: np.ndarray, n: int) -> pd.DataF
     key = np.asarray(key, dtype=np.int64)
     frame = pd.DataFrame({"key": key, "t": t})
 
-    def per_trial(mask: np.ndarray, how: str, fill=np.nan) -> np.ndarray:
+    def per_trial(mask: np.ndarray, how: str) -> np.ndarray:
         grouped = frame.loc[mask].groupby("key")["t"].agg(how)
-        out = np.full(n, fill)
+        out = np.full(n, np.nan)
         out[grouped.index.to_numpy()] = grouped.to_numpy()
         return out
 
@@ -127,8 +127,7 @@ def measures_by_trial(events: pd.DataFrame, key: np.ndarray, n: int) -> pd.DataF
         opened = ~by_object["is_end"].shift(1, fill_value=True).to_numpy(bool)  # the previous one was a start
         before = by_object["t"].shift(1).to_numpy(float)
         pairs = sub["is_end"].to_numpy(bool) & opened
-        durations = np.where(pairs, sub["t"].to_numpy(float) - np.where(pairs, before, 0.0), 0.0)
-        return _sequential_sums(key[rows][pairs], durations[pairs], n) / 1000.0
+        return _sequential_sums(key[rows][pairs], t[rows][pairs] - before[pairs], n) / 1000.0
 
     moves = np.flatnonzero(kinds == "move_end")
     distance = np.zeros(n)

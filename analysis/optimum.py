@@ -10,8 +10,8 @@ stop on "no further reduction" with a poor curvature model; a fresh start from i
 The deviance of a mixed model is even in each relative standard deviation θ_k (it depends on θ_k²), so θ_k = 0
 is a stationary point: a gradient method whose step overshoots onto that bound finds a zero projected gradient
 there and stops, even when the deviance is lower at a small positive θ_k. lme4's derivative-free BOBYQA does not
-stop there. After the gradient fits, :func:`escape_zero` scans small values of every component at zero and
-restarts the fit from any point that is better, until none is.
+stop there. After the gradient fits, :func:`off_zero` scans small values of every component at zero, and the fit
+restarts from a point that is better.
 """
 
 from __future__ import annotations
@@ -25,36 +25,29 @@ SCAN = (0.3, 0.1, 0.03, 0.01, 0.003)  # the θ tried for a component at zero
 AT_ZERO = 1e-3
 
 
-def escape_zero(deviance: Callable[[np.ndarray], float], best: optimize.OptimizeResult, zero_bounded: list[int],
-                bounds: list, options: dict | None = None) -> optimize.OptimizeResult:
-    """``best`` (an L-BFGS-B result over ``bounds``), or a better one restarted from a scanned point where a
-    component listed in ``zero_bounded`` was at zero."""
-    for _ in range(len(zero_bounded) + 1):
-        trials = []
-        for i in zero_bounded:
-            if abs(best.x[i]) >= AT_ZERO:
-                continue
-            for value in SCAN:
-                x = best.x.copy()
-                x[i] = value
-                trials.append((deviance(x), x))
-        better = [(f, x) for f, x in trials if f < best.fun]
-        if not better:
-            return best
-        start = min(better, key=lambda fx: fx[0])[1]
-        again = optimize.minimize(deviance, start, method="L-BFGS-B", jac="3-point", bounds=bounds, options=options)
-        if not again.fun < best.fun:
-            return best
-        best = again
-    return best
+def off_zero(deviance: Callable[[np.ndarray], float], best: optimize.OptimizeResult,
+             zero_bounded: list[int]) -> np.ndarray | None:
+    """The best point that beats ``best`` with one of its ``zero_bounded`` components at zero set to a small
+    value of :data:`SCAN`, or None."""
+    found, value = None, best.fun
+    for i in zero_bounded:
+        if abs(best.x[i]) >= AT_ZERO:
+            continue
+        for small in SCAN:
+            x = best.x.copy()
+            x[i] = small
+            f = deviance(x)
+            if f < value:
+                found, value = x, f
+    return found
 
 
 def minimize(deviance: Callable[[np.ndarray], float], starts: list[np.ndarray], bounds: list,
-             zero_bounded: list[int], options: dict | None = None,
-             before: Callable[[], None] = lambda: None) -> optimize.OptimizeResult:
-    """The best optimum from ``starts`` (``before`` runs before each fit, e.g. to reset warm starts), restarted
-    and moved off zero variances until no step improves it by more than 1e-10."""
-    options = {"ftol": 1e-15, "gtol": 1e-9, "maxiter": 2000} | (options or {})
+             zero_bounded: list[int], before: Callable[[], None] = lambda: None) -> optimize.OptimizeResult:
+    """The best optimum from ``starts`` (``before`` runs before each fit, e.g. to reset warm starts), restarted —
+    from a scanned point off zero where one beats it, else from itself — until no restart improves it by more
+    than 1e-10."""
+    options = {"ftol": 1e-15, "gtol": 1e-9, "maxiter": 2000}
 
     def fit(x):
         before()
@@ -62,9 +55,8 @@ def minimize(deviance: Callable[[np.ndarray], float], starts: list[np.ndarray], 
 
     best = min((fit(x) for x in starts), key=lambda r: r.fun)
     for _ in range(10):
-        moved = escape_zero(deviance, best, zero_bounded, bounds, options)
-        again = fit(moved.x)
-        again = again if again.fun < moved.fun else moved
+        start = off_zero(deviance, best, zero_bounded)
+        again = fit(best.x if start is None else start)
         if not again.fun < best.fun - 1e-10:
             return again if again.fun < best.fun else best
         best = again

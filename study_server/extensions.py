@@ -13,17 +13,11 @@ db = SQLAlchemy(model_class=Base)
 migrate = Migrate()
 
 
-def dialect_insert(name: str):
-    """The ``insert`` construct of a database (SQLite or PostgreSQL: both spell ``ON CONFLICT DO NOTHING``, each
-    through its own dialect)."""
-    if name == "postgresql":
+def insert_ignore(model, index_elements: list[str] | None = None):
+    """``INSERT … ON CONFLICT DO NOTHING`` for the session's database (SQLite or PostgreSQL spell it alike but
+    through their own dialect)."""
+    if db.session.get_bind().dialect.name == "postgresql":
         from sqlalchemy.dialects.postgresql import insert
     else:
         from sqlalchemy.dialects.sqlite import insert
-    return insert
-
-
-def insert_ignore(model, index_elements: list[str] | None = None):
-    """``INSERT … ON CONFLICT DO NOTHING`` for the session's database."""
-    return dialect_insert(db.session.get_bind().dialect.name)(model).on_conflict_do_nothing(
-        index_elements=index_elements)
+    return insert(model).on_conflict_do_nothing(index_elements=index_elements)

@@ -20,7 +20,7 @@ from sqlalchemy.exc import DBAPIError
 
 from scenesuggest.events import MAX_SEQ, EventError, check_version, validate_batch
 
-from .extensions import db, dialect_insert, insert_ignore
+from .extensions import db, insert_ignore
 from .models import Event, Participant, log, utcnow
 
 PAGE_ID_MAX = 64
@@ -55,17 +55,20 @@ class OverQuota(Exception):
     """The participant's event or byte quota is used up."""
 
 
+#: The events columns an insert writes, in parameter order.
+EVENT_COLUMNS = ("participant_id", "seq", "page_id", "type", "trial", "client_t", "server_t", "payload", "vocabulary")
+
+
 def insert_events(rows: list[dict]) -> int:
     """Insert the rows that are new; returns how many were. The insert is compiled once per database and its
     parameters made by the columns' own bind processors (what SQLAlchemy would send), straight to the driver: a
-    general execute's per-row work was a third of the insert's CPU, and SQLAlchemy's multi-row statement for
-    PostgreSQL is too long for psycopg to cache its conversion. SQLite: one executemany, whose row count is the
+    general execute's per-row work was a third of the insert's CPU. SQLite: one executemany, whose row count is the
     rows inserted. PostgreSQL (psycopg): one statement of column arrays (:func:`_unnest_insert`), whose returned
     rows are those inserted."""
     connection = db.session.connection()
     dialect = connection.dialect
-    if dialect.paramstyle == "qmark":  # SQLite
-        sql, columns = _compiled_insert(dialect)
+    if dialect.name == "sqlite":
+        sql, columns = _sqlite_insert(dialect)
         params = [tuple(r[c] if p is None else p(r[c]) for c, p in columns) for r in rows]
         return connection.exec_driver_sql(sql, params).rowcount
     if dialect.driver != "psycopg":  # another driver: SQLAlchemy's own multi-row insert, which says what was new
@@ -82,30 +85,32 @@ def insert_events(rows: list[dict]) -> int:
                                   connection_invalidated=dialect.is_disconnect(e, None, None)) from e
 
 
+def _bind_processors(dialect, names) -> tuple:
+    """(column, its bind processor for ``dialect``) for each of ``names``."""
+    table = Event.__table__
+    return tuple((n, table.c[n].type.dialect_impl(dialect).bind_processor(dialect)) for n in names)
+
+
 @functools.lru_cache(maxsize=8)
 def _unnest_insert(dialect) -> tuple[str, tuple]:
     """PostgreSQL's events insert-or-ignore as one statement whatever the batch: each column's values as one array,
     ``INSERT … SELECT FROM unnest(…) ON CONFLICT DO NOTHING RETURNING seq`` (one parse, one round trip; the rows
     returned are those that were new). Its SQL and, in parameter order, (column, bind processor)."""
     table = Event.__table__
-    names = ("participant_id", "seq", "page_id", "type", "trial", "client_t", "server_t", "payload", "vocabulary")
-    arrays = ", ".join(f"%s::{table.c[n].type.compile(dialect=dialect)}[]" for n in names)
-    sql = (f"INSERT INTO {table.name} ({', '.join(names)}) SELECT * FROM unnest({arrays}) "
+    arrays = ", ".join(f"%s::{table.c[n].type.compile(dialect=dialect)}[]" for n in EVENT_COLUMNS)
+    sql = (f"INSERT INTO {table.name} ({', '.join(EVENT_COLUMNS)}) SELECT * FROM unnest({arrays}) "
            f"ON CONFLICT (participant_id, seq) DO NOTHING RETURNING seq")
-    return sql, tuple((n, table.c[n].type.dialect_impl(dialect).bind_processor(dialect)) for n in names)
+    return sql, _bind_processors(dialect, EVENT_COLUMNS)
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled_insert(dialect) -> tuple[str, tuple]:
-    """The events insert-or-ignore compiled for ``dialect`` (SQLite's, for one executemany): its SQL and, in
-    parameter order, (column, bind processor)."""
-    table = Event.__table__
-    names = ("participant_id", "seq", "page_id", "type", "trial", "client_t", "server_t", "payload", "vocabulary")
-    statement = dialect_insert(dialect.name)(table).values({n: bindparam(n) for n in names}).on_conflict_do_nothing(
-        index_elements=["participant_id", "seq"])
-    compiled = statement.compile(dialect=dialect)
-    order = compiled.positiontup or names
-    return compiled.string, tuple((n, table.c[n].type.dialect_impl(dialect).bind_processor(dialect)) for n in order)
+def _sqlite_insert(dialect) -> tuple[str, tuple]:
+    """The events insert-or-ignore compiled for SQLite: its SQL and, in parameter order, (column, bind processor)."""
+    from sqlalchemy.dialects.sqlite import insert
+
+    statement = insert(Event.__table__).values({n: bindparam(n) for n in EVENT_COLUMNS})
+    compiled = statement.on_conflict_do_nothing(index_elements=["participant_id", "seq"]).compile(dialect=dialect)
+    return compiled.string, _bind_processors(dialect, compiled.positiontup)
 
 
 def _same(stored: Event, e: dict) -> bool:

@@ -4,6 +4,7 @@ it skip with a reason when it is absent, except under CI=true, where its absence
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import secrets
 import sys
@@ -24,35 +25,37 @@ if not _seed.isdigit():
 LME4_SEED = int(_seed)
 
 
-def require_lme4() -> str:
-    """The Rscript to run, with lme4 and jsonlite; skips (fails under CI=true) naming what to install."""
+@functools.cache
+def _lme4() -> tuple[str | None, str]:
+    """(the Rscript that has lme4 and jsonlite, their versions) or (None, what to install): probed once."""
     import shutil
     import subprocess
 
     rscript = shutil.which("Rscript")
-    message = None
     if rscript is None:
-        message = "R is not installed (apt-get install r-base-core r-cran-lme4 r-cran-jsonlite)"
-    elif subprocess.run([rscript, "-e", "library(lme4); library(jsonlite)"], capture_output=True).returncode:
-        message = "R has no lme4 or jsonlite (apt-get install r-cran-lme4 r-cran-jsonlite)"
-    if message:
-        pytest.fail(message + " — required under CI=true") if IN_CI else pytest.skip(message)
+        return None, "R is not installed (apt-get install r-base-core r-cran-lme4 r-cran-jsonlite)"
+    probe = subprocess.run([rscript, "-e", 'library(lme4); library(jsonlite); cat(R.version.string, "| lme4", '
+                            'format(packageVersion("lme4")), "| jsonlite", format(packageVersion("jsonlite")))'],
+                           capture_output=True, text=True)
+    if probe.returncode:
+        return None, "R has no lme4 or jsonlite (apt-get install r-cran-lme4 r-cran-jsonlite)"
+    return rscript, probe.stdout.strip()
+
+
+def require_lme4() -> str:
+    """The Rscript to run, with lme4 and jsonlite; skips naming what to install (under CI=true: fails)."""
+    rscript, said = _lme4()
+    if rscript is None:
+        if IN_CI:
+            pytest.fail(said + " — required under CI=true")
+        pytest.skip(said)
     return rscript
 
 
 def pytest_report_header(config) -> list[str]:
     """The lme4 oracle's seed, and the R and lme4 it runs against."""
-    import shutil
-    import subprocess
-
-    lines = [f"lme4 oracle: seed {LME4_SEED} (SCENESUGGEST_LME4_SEED={LME4_SEED} repeats this run's studies)"]
-    if shutil.which("Rscript"):
-        probe = subprocess.run(["Rscript", "-e", 'cat(R.version.string, "| lme4", format(packageVersion("lme4")), '
-                                '"| jsonlite", format(packageVersion("jsonlite")))'], capture_output=True, text=True)
-        lines.append(f"lme4 oracle: {probe.stdout.strip() or probe.stderr.strip().splitlines()[-1]}")
-    else:
-        lines.append("lme4 oracle: no Rscript on PATH")
-    return lines
+    return [f"lme4 oracle: seed {LME4_SEED} (SCENESUGGEST_LME4_SEED={LME4_SEED} repeats this run's studies)",
+            f"lme4 oracle: {_lme4()[1]}"]
 
 
 def pytest_collection_modifyitems(config, items) -> None:

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from scenesuggest.authoring import SceneAuthor
 from scenesuggest.scene import Scene
 from scenesuggest.scene_types import infer_scene_type
+from study_server.new_study import side_table  # the practice scene of every new Stanford study
 
 ROOM = (5.0, 2.7, 4.0)
 BACK = -ROOM[2] / 2
@@ -40,10 +41,6 @@ def held_out() -> list[str]:
     return sorted(source for _, source in TARGETS.values() if source)
 
 
-def _practice(a: SceneAuthor) -> None:
-    table = a.put("EndTable", "room", 0.0, BACK + 0.6)
-    a.put("Mug", table, -0.15, BACK + 0.55, yaw_deg=30)
-    a.put("Clock", table, 0.15, BACK + 0.6)
 
 
 def _desk(a: SceneAuthor) -> None:
@@ -118,7 +115,7 @@ def _bookshelf(a: SceneAuthor) -> None:
 
 
 COMPOSE: dict[str, Callable[[SceneAuthor], None]] = {
-    "practice": _practice, "desk": _desk, "computer-desk": _computer_desk, "bedroom-corner": _bedroom_corner,
+    "practice": side_table, "desk": _desk, "computer-desk": _computer_desk, "bedroom-corner": _bedroom_corner,
     "living-corner": _living_corner, "dining-table": _dining_table, "bookshelf": _bookshelf,
 }
 
