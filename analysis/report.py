@@ -17,6 +17,7 @@ from scenesuggest.scoring import FORMULA
 
 from . import figures
 from .closeness import SCORE_TEST, closeness_table, score_over_time
+from .errors import AnalysisError
 from .jsonout import dumps
 from .load import StudyData
 from .measures import TRIAL_MEASURES, participants_table, picks_table, trials_table
@@ -108,7 +109,10 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
         notes.append("how close to the target: the data has no scores (an export made before trials were scored)")
     modelled = MEASURES + ([SCORE_TEST] if scored else [])
     results = condition_tests(trials, picks, conditions, progress, modelled)
-    write_reproduce_r(out, modelled, conditions)
+    try:
+        write_reproduce_r(out, modelled, conditions)
+    except AnalysisError as e:
+        notes.append(f"{REPRODUCE_R}: not written — {e}")
     tables += [tests_table(results), contrasts_table(results), survey_table(people)]
     for r in results:
         if r.error:

@@ -16,6 +16,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from .errors import AnalysisError
+
 FILE_NAME = "reproduce.R"
 
 TEMPLATE = r"""# Reproduces the likelihood-ratio tests and fixed effects of this report with R's lme4.
@@ -105,8 +107,12 @@ for (name in names(fits)) {
 """
 
 
-def _r_vector(values) -> str:
-    """An R character vector literal (JSON string escapes are valid R string escapes)."""
+def _r_vector(values, what: str) -> str:
+    """An R character vector literal (JSON string escapes are valid R string escapes). R strings hold no NUL and
+    UTF-8 no lone surrogate: such a value raises :class:`AnalysisError` naming it."""
+    for v in map(str, values):
+        if "\0" in v or any(0xD800 <= ord(c) <= 0xDFFF for c in v):
+            raise AnalysisError(f"{v!r} holds a character R cannot (a NUL or a lone surrogate)", what)
     return "c(" + ", ".join(json.dumps(str(v), ensure_ascii=False) for v in values) + ")"
 
 
@@ -118,7 +124,7 @@ def write_reproduce_r(out: str | Path, measures, conditions: list[str]) -> Path:
     for key, values in (("CONDITIONS", conditions), ("MEASURE_NAMES", [m[0] for m in measures]),
                         ("MEASURE_LABELS", [m[1] for m in measures]), ("MEASURE_FAMILIES", [m[3] for m in measures]),
                         ("MEASURE_TABLES", [m[4] for m in measures])):
-        text = text.replace(f"@{key}@", _r_vector(values))
+        text = text.replace(f"@{key}@", _r_vector(values, "condition" if key == "CONDITIONS" else "measure"))
     path = Path(out) / FILE_NAME
     path.write_text(text, encoding="utf-8")
     return path

@@ -85,3 +85,30 @@ def test_ids_stay_text_in_r_as_in_the_report(tmp_path):
     for measure, lrt in tests.items():
         assert (lrt["n"], lrt["df"]) == (report["tests"][measure]["lrt"]["n"], report["tests"][measure]["lrt"]["df"])
         assert lrt["chi2"] == pytest.approx(report["tests"][measure]["lrt"]["chi2"], rel=1e-4, abs=1e-3), measure
+
+
+@pytest.mark.filterwarnings("ignore:Glyph 0")  # matplotlib has no glyph for the NUL in a figure legend
+def test_condition_names_r_cannot_hold_leave_the_script_out_and_say_so(tmp_path):
+    """Quotes, backslashes, other scripts and long names are written as R strings; a NUL or a lone surrogate
+    (which no R string holds) leaves reproduce.R unwritten, says why in the notes, and the rest of the report
+    stands."""
+    from analysis.errors import AnalysisError
+    from analysis.load import read_export
+    from analysis.reproduce import write_reproduce_r
+    from analysis.synthetic import write_export
+    from analysis.tables import MEASURES
+
+    odd = ['say "hi"', "back\\slash", "ünï ☃ 条件", "x" * 10_000]
+    text = write_reproduce_r(tmp_path, MEASURES, odd).read_text(encoding="utf-8")
+    assert 'c("say \\"hi\\"", "back\\\\slash", "ünï ☃ 条件", "' + "x" * 10_000 + '")' in text
+    for bad in ("nul\x00here", "lone\ud800surrogate"):
+        with pytest.raises(AnalysisError) as info:
+            write_reproduce_r(tmp_path / "bad", MEASURES, ["none", bad])
+        assert info.value.where == "condition"
+    data = read_export(write_export(tmp_path / "export", participants=6, seed=2))
+    data.trials["condition"] = data.trials["condition"].replace("full", "full\x00")
+    data.manifest.pop("design", None)
+    report = build_report(data, tmp_path / "report", resamples=20)
+    assert not (tmp_path / "report" / "reproduce.R").exists()
+    assert any(n.startswith("reproduce.R: not written") for n in report["notes"])
+    assert (tmp_path / "report" / "results.json").exists() and report["tests"]["total_time"].get("lrt")
