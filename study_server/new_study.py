@@ -37,6 +37,7 @@ DEMO_SCENES = PACKAGE / "demo" / "scenes"
 PRACTICE = ("practice", "Practice: a dining table", "practice.json")
 TARGET = ("desk-corner", "A desk corner", "desk-corner.json")
 CORPORA = ("ai2thor", "stanford:DIR")
+MAX_ID, MAX_TITLE = 64, 200  # a study id goes into URLs, file names and exports; a title onto every page
 #: The [resources] table of a study on the built-in corpus: the server's own priors and library.
 SERVER_RESOURCES = """corpus = "ai2thor"
 # priors = "priors/ai2thor.npz"   # a priors file ('scenesuggest priors train CORPUS -o FILE') and
@@ -60,8 +61,8 @@ class InitError(SceneSuggestError):
 
 
 def study_id_for(folder: Path) -> str:
-    """A study id from a folder name: lower case letters, digits, '-' and '_'."""
-    slug = re.sub(r"[^a-z0-9_-]+", "-", folder.resolve().name.lower()).strip("-_")
+    """A study id from a folder name: lower case letters, digits, '-' and '_' (at most ``MAX_ID``)."""
+    slug = re.sub(r"[^a-z0-9_-]+", "-", folder.resolve().name.lower())[:MAX_ID].strip("-_")
     return slug or "study"
 
 
@@ -108,6 +109,10 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
     folder). ``meshes``: the Stanford mesh folder (default: as for every Stanford command); ``say`` hears
     progress. Raises :class:`InitError` naming what is wrong (a folder in use, an unknown corpus, a bad id, a
     corpus the starter scenes need more of)."""
+    for value, field in ((str(folder), "FOLDER"), (corpus, "--corpus"), (str(meshes or ""), "--meshes"),
+                         (study_id or "", "--id"), (title or "", "--title")):
+        if "\0" in value or any(0xD800 <= ord(c) <= 0xDFFF for c in value):
+            raise InitError("holds a NUL or a character that is not UTF-8 (a lone surrogate)", field=field)
     folder = Path(folder).absolute()
     stanford = stanford_folder(corpus)
     if meshes is not None and stanford is None:
@@ -115,11 +120,11 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
     if meshes is not None and not Path(meshes).is_dir():
         raise InitError(f"{meshes}: no such folder (expected the corpus's OBJ meshes)", field="--meshes")
     study_id = study_id or study_id_for(folder)
-    if not re.fullmatch(r"[A-Za-z0-9_-]+", study_id):
-        raise InitError(f"{study_id!r}: use letters, digits, '-' and '_' only", field="--id")
+    if not re.fullmatch(rf"[A-Za-z0-9_-]{{1,{MAX_ID}}}", study_id):
+        raise InitError(f"{study_id[:80]!r}: use 1 to {MAX_ID} letters, digits, '-' and '_'", field="--id")
     title = (title or study_id.replace("-", " ").replace("_", " ").capitalize()).strip()
-    if not title or any(ord(c) < 32 for c in title):
-        raise InitError("expected a title on one line", field="--title")
+    if not title or len(title) > MAX_TITLE or any(ord(c) < 32 for c in title):
+        raise InitError(f"expected a title of 1 to {MAX_TITLE} characters on one line", field="--title")
     if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
         raise InitError("already exists and is not an empty folder: nothing was written (a new study never "
                         "overwrites anything)", file=str(folder))

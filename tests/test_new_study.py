@@ -57,11 +57,19 @@ def test_init_never_overwrites_and_names_what_is_wrong(tmp_path):
     (tmp_path / "empty").mkdir()
     assert init_study(tmp_path / "empty")  # an empty folder is free
     for kwargs, field in (({"corpus": "stanford:/nowhere"}, "--corpus"), ({"study_id": "a b"}, "--id"),
-                          ({"title": "two\nlines"}, "--title")):
+                          ({"title": "two\nlines"}, "--title"), ({"title": "lone \udc80 byte"}, "--title"),
+                          ({"title": "x" * 10_000_000}, "--title"), ({"study_id": "a" * 65}, "--id"),
+                          ({"corpus": "stanford:/tmp/\0x"}, "--corpus"), ({"meshes": "m\0"}, "--meshes")):
         with pytest.raises(InitError) as info:
             init_study(tmp_path / "x", **kwargs)
         assert info.value.field == field
     assert not (tmp_path / "x").exists()
+    with pytest.raises(InitError) as info:
+        init_study(str(tmp_path / "nul\0name"))
+    assert info.value.field == "FOLDER"
+    long = init_study(tmp_path / ("a" * 100))  # a long folder name: its id is cut to 64 characters
+    assert load_study(long[-1]).id == "a" * 64
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a" * 100, "empty", "used"]  # nothing else written
 
 
 def test_the_command_writes_a_study_and_refuses_a_folder_in_use(tmp_path):
