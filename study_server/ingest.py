@@ -95,9 +95,11 @@ def _bind_processors(dialect, names) -> tuple:
 def _unnest_insert(dialect) -> tuple[str, tuple]:
     """PostgreSQL's events insert-or-ignore as one statement whatever the batch: each column's values as one array,
     ``INSERT … SELECT FROM unnest(…) ON CONFLICT DO NOTHING RETURNING seq`` (one parse, one round trip; the rows
-    returned are those that were new). Its SQL and, in parameter order, (column, bind processor)."""
+    returned are those that were new). The arrays go in PostgreSQL's binary format (``%b``): as text, every
+    payload's quotes were escaped one by one, a third of the request's CPU. Its SQL and, in parameter order,
+    (column, bind processor)."""
     table = Event.__table__
-    arrays = ", ".join(f"%s::{table.c[n].type.compile(dialect=dialect)}[]" for n in EVENT_COLUMNS)
+    arrays = ", ".join(f"%b::{table.c[n].type.compile(dialect=dialect)}[]" for n in EVENT_COLUMNS)
     sql = (f"INSERT INTO {table.name} ({', '.join(EVENT_COLUMNS)}) SELECT * FROM unnest({arrays}) "
            f"ON CONFLICT (participant_id, seq) DO NOTHING RETURNING seq")
     return sql, _bind_processors(dialect, EVENT_COLUMNS)
