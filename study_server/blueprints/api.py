@@ -90,9 +90,17 @@ def body() -> dict:
 
 
 def model_json(study_id: str, m) -> dict:
-    return {"id": m.id, "name": m.name, "category": m.category, "category_path": m.category_path,
-            "size": list(m.size), "asset": url_for("participant.asset", study_id=study_id, filename=m.asset),
-            "thumbnail": url_for("participant.asset", study_id=study_id, filename=m.thumbnail)}
+    """What the API says of model ``m`` (size in metres, asset and thumbnail URLs): a new dict each call, made
+    from the study runtime's copy."""
+    cache = runtime(study_id).model_descriptions
+    key = (request.script_root, m.id)
+    if key not in cache:
+        cache[key] = {"id": m.id, "name": m.name, "category": m.category, "category_path": list(m.category_path),
+                      "size": list(m.size),
+                      "asset": url_for("participant.asset", study_id=study_id, filename=m.asset),
+                      "thumbnail": url_for("participant.asset", study_id=study_id, filename=m.thumbnail)}
+    d = cache[key]
+    return {**d, "size": list(d["size"]), "category_path": list(d["category_path"])}
 
 
 def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
