@@ -54,6 +54,7 @@ class StudyServer:
                  study: Path = DEMO_STUDY, env: dict | None = None):
         self.env = {**os.environ, "SCENESUGGEST_INSTANCE": str(instance), "DATABASE_URL": database_url,
                     "SCENESUGGEST_STUDIES": str(study), "SCENESUGGEST_SECRET_KEY": "loopback-only-" + "x" * 32,
+                    "SCENESUGGEST_WARM": "1",  # as 'study serve' runs it
                     **(env or {})}
         if migrate:
             subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "migrate"], env=self.env, check=True,

@@ -77,6 +77,9 @@ def create_app(config: dict | None = None) -> Flask:
     from .studies import load_studies
 
     app.extensions["studies"] = load_studies(app.config["STUDY_FILES"], check=app.config.get("CHECK_RESOURCES", True))
+    if app.config.get("WARM_STUDIES"):
+        for study_runtime in app.extensions["studies"].values():
+            study_runtime.warm()
 
     from . import errors
     from .blueprints import admin, api, health, participant, vendor

@@ -140,6 +140,7 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
                f"admin:            {base}/admin/  (password: the one whose hash is in "
                "SCENESUGGEST_ADMIN_PASSWORD_HASH)")
     sys.stdout.flush()
+    os.environ.setdefault("SCENESUGGEST_WARM", "1")  # each worker loads the studies before its first request
     os.execv(sys.executable, [sys.executable, "-m", "gunicorn", "--workers", str(workers), "--bind",
                               f"{host}:{port}", "--access-logfile", "-", "study_server:create_app()"])
 

@@ -13,6 +13,8 @@ study files name by corpus only | ``var/`` of the checkout; installed: ``var/sce
 | ``SCENESUGGEST_PROXY_HOPS`` | how many reverse proxies stand before the app: their ``X-Forwarded-For``, \
 ``-Proto``, ``-Host`` and ``-Port`` are believed for that many hops, no more (the client's address for rate \
 limits, ``https`` for URLs) | ``0``: none believed |
+| ``SCENESUGGEST_WARM`` | ``1``: each app process loads every study's priors, library and engines before its \
+first request (``study serve`` sets it); ``0``: on first use | ``1`` in production, else ``0`` |
 | ``SCENESUGGEST_ENV`` | ``development`` or ``production`` (a secret key from the environment is then required, \
 cookies are ``Secure``) | ``development`` |
 """
@@ -91,8 +93,13 @@ def from_environment(instance: Path) -> dict:
     if not hops.isdigit() or int(hops) > MAX_PROXY_HOPS:
         raise ConfigError(f"expected the number of reverse proxies before the app, 0 to {MAX_PROXY_HOPS}",
                           field="SCENESUGGEST_PROXY_HOPS")
+    warm = os.environ.get("SCENESUGGEST_WARM", "1" if production else "0")
+    if warm not in ("0", "1"):
+        raise ConfigError("expected 1 (load every study's resources before the first request) or 0",
+                          field="SCENESUGGEST_WARM")
     return {
         "ENV_NAME": env,
+        "WARM_STUDIES": warm == "1",
         "PROXY_HOPS": int(hops),
         "DEBUG": False,
         "SESSION_COOKIE_SECURE": production,

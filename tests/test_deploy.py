@@ -94,6 +94,50 @@ def test_proxy_hops_must_be_a_small_number(monkeypatch, tmp_path):
     assert from_environment(tmp_path / "instance")["PROXY_HOPS"] == 2
 
 
+def test_warm_defaults_on_in_production_only_and_must_be_0_or_1(monkeypatch, tmp_path):
+    from study_server.config import ConfigError, from_environment
+
+    monkeypatch.delenv("SCENESUGGEST_WARM", raising=False)
+    assert from_environment(tmp_path / "instance")["WARM_STUDIES"] is False
+    monkeypatch.setenv("SCENESUGGEST_ENV", "production")
+    monkeypatch.setenv("SCENESUGGEST_SECRET_KEY", "k" * 64)
+    assert from_environment(tmp_path / "instance")["WARM_STUDIES"] is True
+    for bad in ("yes", "2", ""):
+        monkeypatch.setenv("SCENESUGGEST_WARM", bad)
+        with pytest.raises(ConfigError) as info:
+            from_environment(tmp_path / "instance")
+        assert info.value.field == "SCENESUGGEST_WARM"
+
+
+def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_path, demo_resources, monkeypatch):
+    """Warmed: the priors and the library are loaded when the app is built, so the first click reads nothing from
+    disk (a cold app loads both on it)."""
+    from flowhelp import auth, to_trials
+
+    from scenesuggest.priors import Priors
+    from study_server import studies
+
+    loads = []
+    for owner, name in ((Priors, "load"), (studies, "load_index")):
+        real = getattr(owner, name)
+        monkeypatch.setattr(owner, name, lambda *a, real=real, name=name, **k: (loads.append(name), real(*a, **k))[1])
+    for warm in (False, True):
+        app = make_app(tmp_path / str(warm), WARM_STUDIES=warm)
+        at_start = sorted(loads)
+        client = app.test_client()
+        headers = auth(to_trials(client))
+        trial = client.get("/api/session", headers=headers).json["trial"]
+        objects = client.get(f"/api/scenes/{trial['scene']}?which=target", headers=headers).json["objects"]
+        o = next(o for o in objects if o.get("parent"))
+        r = client.post("/api/suggest", headers=headers, json={
+            "trial": trial["index"], "scene": {"objects": objects}, "parent": o["parent"],
+            "point": o["contact_point"], "normal": o["contact_normal"]})
+        assert trial["condition"] != "none" and r.status_code == 200 and r.json["suggestions"]
+        assert (at_start, sorted(loads)) == ((["load", "load_index"], ["load", "load_index"]) if warm else
+                                             ([], ["load", "load_index"])), warm
+        loads.clear()
+
+
 def test_healthz_says_when_the_database_cannot_be_reached(tmp_path, demo_resources):
     import socket
 
