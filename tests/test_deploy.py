@@ -112,6 +112,8 @@ def test_warm_defaults_on_in_production_only_and_must_be_0_or_1(monkeypatch, tmp
 def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_path, demo_resources, monkeypatch):
     """Warmed: the priors and the library are loaded when the app is built, so the first click reads nothing from
     disk (a cold app loads both on it)."""
+    import gc
+
     from flowhelp import auth, to_trials
 
     from scenesuggest.priors import Priors
@@ -122,7 +124,9 @@ def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_
         real = getattr(owner, name)
         monkeypatch.setattr(owner, name, lambda *a, real=real, name=name, **k: (loads.append(name), real(*a, **k))[1])
     for warm in (False, True):
+        gc.unfreeze()
         app = make_app(tmp_path / str(warm), WARM_STUDIES=warm)
+        assert (gc.get_freeze_count() > 0) == warm  # and what is loaded is left out of collections
         at_start = sorted(loads)
         client = app.test_client()
         headers = auth(to_trials(client))
@@ -136,6 +140,7 @@ def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_
         assert (at_start, sorted(loads)) == ((["load", "load_index"], ["load", "load_index"]) if warm else
                                              ([], ["load", "load_index"])), warm
         loads.clear()
+    gc.unfreeze()
 
 
 def test_healthz_says_when_the_database_cannot_be_reached(tmp_path, demo_resources):
