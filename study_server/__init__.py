@@ -78,12 +78,6 @@ def create_app(config: dict | None = None) -> Flask:
     from .studies import load_studies
 
     app.extensions["studies"] = load_studies(app.config["STUDY_FILES"], check=app.config.get("CHECK_RESOURCES", True))
-    if app.config.get("WARM_STUDIES"):
-        for study_runtime in app.extensions["studies"].values():
-            study_runtime.warm()
-        # what is loaded now lives as long as the process: the collector need never walk it again (a full
-        # collection over it took ~0.1 s, a pause in whichever request set it off)
-        gc.freeze()
 
     from . import errors
     from .blueprints import admin, api, health, participant, vendor
@@ -107,6 +101,13 @@ def create_app(config: dict | None = None) -> Flask:
     app.register_error_handler(errors.RequestError, errors.answer)
     app.register_error_handler(HTTPException, errors.http_error)
     app.register_error_handler(Exception, errors.unexpected)
+    if app.config.get("WARM_STUDIES") and app.config.get("CHECK_RESOURCES", True):  # a server, not a command
+        for study_runtime in app.extensions["studies"].values():
+            study_runtime.warm()
+        # what is loaded now lives as long as the process: the collector need never walk it again (a full
+        # collection over it took ~0.1 s, a pause in whichever request set it off); garbage goes first
+        gc.collect()
+        gc.freeze()
     return app
 
 

@@ -130,7 +130,7 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
     """Prepare, migrate, then serve the configured studies with gunicorn (SCENESUGGEST_STUDIES, DATABASE_URL)."""
     if prepare:
         _prepare(config.study_files())
-    app = create_app()
+    app = create_app({"WARM_STUDIES": False})  # this process only migrates; the workers warm
     upgrade_database(app)
     password_file = config.ensure_admin_password(config.instance_path())
     base = f"http://{host}:{port}"

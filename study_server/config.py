@@ -14,7 +14,8 @@ study files name by corpus only | ``var/`` of the checkout; installed: ``var/sce
 ``-Proto``, ``-Host`` and ``-Port`` are believed for that many hops, no more (the client's address for rate \
 limits, ``https`` for URLs) | ``0``: none believed |
 | ``SCENESUGGEST_WARM`` | ``1``: each app process loads every study's priors, library and engines before its \
-first request (``study serve`` sets it); ``0``: on first use | ``1`` in production, else ``0`` |
+first request (``study serve`` sets it unless set; commands that do not serve never warm); ``0``: on first use \
+| ``1`` in production, else ``0`` |
 | ``SCENESUGGEST_ENV`` | ``development`` or ``production`` (a secret key from the environment is then required, \
 cookies are ``Secure``) | ``development`` |
 """

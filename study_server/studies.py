@@ -58,9 +58,10 @@ class StudyRuntime:
         self._engines: dict[str, Engine] = {}
         self._placeable: dict[str, frozenset[str]] = {}
         self._periods: dict[str, float] = {}
-        #: What the API says of a model, by (mount point, model id): made once, as a model's size is computed
-        #: from its bounding box and its URLs by routing (a third of a suggestion request's work before).
-        self.model_descriptions: dict[tuple[str, str], dict] = {}
+        #: What the API says of each model, by id, its URLs below the app's mount point: made once, as a model's
+        #: size is computed from its bounding box and its URLs by routing (a sixth of a suggestion request's CPU).
+        #: Bounded by the library: one entry per model.
+        self.model_descriptions: dict[str, dict] = {}
 
     def check_resources(self) -> None:
         """Fail at start-up, naming the key, when the priors file or the model library is missing or unreadable
@@ -80,9 +81,17 @@ class StudyRuntime:
     def warm(self) -> None:
         """Load now what the first requests would otherwise load (priors, library, search index, taxonomy and
         each suggesting condition's engine): a served process does this before it takes a request, so the first
-        participant's click costs what every other does (the priors alone took a quarter of a second)."""
-        _ = self.search_index, self.taxonomy  # cached properties: loaded on first read
-        for c in self.study.conditions:
+        participant's click costs what every other does (the priors alone took a quarter of a second). A file
+        that cannot be loaded stops the start-up with a :class:`StudyFileError` naming it."""
+        s = self.study
+        for key, load in (("priors", lambda: self.priors), ("library", lambda: self.search_index)):
+            try:
+                load()
+            except Exception as e:  # noqa: BLE001 - any failure to read it, said with the file and the key
+                raise StudyFileError(f"cannot be loaded ({type(e).__name__}: {e})", file=str(s.path),
+                                     field=f"resources.{key}") from None
+        _ = self.taxonomy  # a cached property: loaded on first read
+        for c in s.conditions:
             if c.id != "none":
                 self.placeable(c.id)
 

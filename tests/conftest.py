@@ -167,7 +167,8 @@ def make_app(tmp_path, database_url: str | None = None, studies=None, **config):
     app = create_app({
         "INSTANCE_PATH": str(tmp_path / "instance"),
         "SQLALCHEMY_DATABASE_URI": database_url or f"sqlite:///{tmp_path / 'study.sqlite3'}",
-        "STUDY_FILES": studies or [DEMO_STUDY], "SECRET_KEY": "test-secret", "TESTING": True, **config})
+        "STUDY_FILES": studies or [DEMO_STUDY], "SECRET_KEY": "test-secret", "TESTING": True,
+        "WARM_STUDIES": False, **config})
     upgrade_database(app)
     return app
 

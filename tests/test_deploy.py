@@ -110,8 +110,9 @@ def test_warm_defaults_on_in_production_only_and_must_be_0_or_1(monkeypatch, tmp
 
 
 def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_path, demo_resources, monkeypatch):
-    """Warmed: the priors and the library are loaded when the app is built, so the first click reads nothing from
-    disk (a cold app loads both on it)."""
+    """Warmed: the priors, the library and every suggesting condition's engine are loaded when the app is built,
+    so the first click reads nothing from disk (a cold app loads both on it); what was loaded is frozen out of
+    the collector's reach."""
     import gc
 
     from flowhelp import auth, to_trials
@@ -123,24 +124,51 @@ def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_
     for owner, name in ((Priors, "load"), (studies, "load_index")):
         real = getattr(owner, name)
         monkeypatch.setattr(owner, name, lambda *a, real=real, name=name, **k: (loads.append(name), real(*a, **k))[1])
-    for warm in (False, True):
+    try:
+        for warm in (False, True):
+            gc.unfreeze()
+            app = make_app(tmp_path / str(warm), WARM_STUDIES=warm)
+            assert (gc.get_freeze_count() > 0) == warm
+            rt = app.extensions["studies"]["demo"]
+            assert sorted(rt._engines) == (["basic", "full"] if warm else [])
+            at_start = sorted(loads)
+            client = app.test_client()
+            headers = auth(to_trials(client))
+            trial = client.get("/api/session", headers=headers).json["trial"]
+            objects = client.get(f"/api/scenes/{trial['scene']}?which=target", headers=headers).json["objects"]
+            o = next(o for o in objects if o.get("parent"))
+            r = client.post("/api/suggest", headers=headers, json={
+                "trial": trial["index"], "scene": {"objects": objects}, "parent": o["parent"],
+                "point": o["contact_point"], "normal": o["contact_normal"]})
+            assert trial["condition"] != "none" and r.status_code == 200 and r.json["suggestions"]
+            assert (at_start, sorted(loads)) == ((["load", "load_index"], ["load", "load_index"]) if warm else
+                                                 ([], ["load", "load_index"])), warm
+            loads.clear()
+    finally:
         gc.unfreeze()
-        app = make_app(tmp_path / str(warm), WARM_STUDIES=warm)
-        assert (gc.get_freeze_count() > 0) == warm  # and what is loaded is left out of collections
-        at_start = sorted(loads)
-        client = app.test_client()
-        headers = auth(to_trials(client))
-        trial = client.get("/api/session", headers=headers).json["trial"]
-        objects = client.get(f"/api/scenes/{trial['scene']}?which=target", headers=headers).json["objects"]
-        o = next(o for o in objects if o.get("parent"))
-        r = client.post("/api/suggest", headers=headers, json={
-            "trial": trial["index"], "scene": {"objects": objects}, "parent": o["parent"],
-            "point": o["contact_point"], "normal": o["contact_normal"]})
-        assert trial["condition"] != "none" and r.status_code == 200 and r.json["suggestions"]
-        assert (at_start, sorted(loads)) == ((["load", "load_index"], ["load", "load_index"]) if warm else
-                                             ([], ["load", "load_index"])), warm
-        loads.clear()
-    gc.unfreeze()
+
+
+def test_a_warmed_app_with_priors_it_cannot_load_stops_at_start_naming_the_file(tmp_path, demo_resources):
+    """Priors whose header passes the start-up check but whose arrays are gone: a warmed server says so at
+    start-up (file and key); a cold one starts and /healthz reports it."""
+    import numpy as np
+    from conftest import DEMO_STUDY, copy_demo_study
+
+    from study_server.study_file import StudyFileError, load_study
+
+    demo = load_study(DEMO_STUDY)
+    with np.load(demo.priors) as good:
+        np.savez(tmp_path / "header-only.npz", meta=good["meta"])
+    study = copy_demo_study(tmp_path)
+    study.write_text(study.read_text().replace(
+        'corpus = "ai2thor"\n', f'corpus = "ai2thor"\npriors = "{tmp_path / "header-only.npz"}"\n'
+                                 f'library = "{demo.library}"\n', 1))
+    with pytest.raises(StudyFileError) as info:
+        make_app(tmp_path / "warm", studies=[study], WARM_STUDIES=True)
+    assert info.value.field == "resources.priors" and info.value.file == str(study), info.value
+    cold = make_app(tmp_path / "cold", studies=[study])
+    r = cold.test_client().get("/healthz")
+    assert r.status_code == 503 and r.json["studies"]["demo"].startswith("unavailable"), r.json
 
 
 def test_healthz_says_when_the_database_cannot_be_reached(tmp_path, demo_resources):

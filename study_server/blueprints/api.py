@@ -89,18 +89,20 @@ def body() -> dict:
     return data
 
 
-def model_json(study_id: str, m) -> dict:
-    """What the API says of model ``m`` (size in metres, asset and thumbnail URLs): a new dict each call, made
-    from the study runtime's copy."""
-    cache = runtime(study_id).model_descriptions
-    key = (request.script_root, m.id)
-    if key not in cache:
-        cache[key] = {"id": m.id, "name": m.name, "category": m.category, "category_path": list(m.category_path),
-                      "size": list(m.size),
-                      "asset": url_for("participant.asset", study_id=study_id, filename=m.asset),
-                      "thumbnail": url_for("participant.asset", study_id=study_id, filename=m.thumbnail)}
-    d = cache[key]
-    return {**d, "size": list(d["size"]), "category_path": list(d["category_path"])}
+def model_json(rt, m) -> dict:
+    """What the API says of model ``m`` of study runtime ``rt`` (size in metres, asset and thumbnail URLs): a new
+    dict each call. Made once per model (:attr:`StudyRuntime.model_descriptions`, URLs below the mount point, which
+    is prefixed per request)."""
+    d = rt.model_descriptions.get(m.id)
+    if d is None:
+        root = len(request.script_root)
+        d = rt.model_descriptions[m.id] = {
+            "id": m.id, "name": m.name, "category": m.category, "category_path": tuple(m.category_path),
+            "size": tuple(m.size),
+            "asset": url_for("participant.asset", study_id=rt.study.id, filename=m.asset)[root:],
+            "thumbnail": url_for("participant.asset", study_id=rt.study.id, filename=m.thumbnail)[root:]}
+    prefix = request.script_root
+    return {**d, "asset": prefix + d["asset"], "thumbnail": prefix + d["thumbnail"]}
 
 
 def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
@@ -217,7 +219,7 @@ def suggest():
     scene = live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
     try:
         items, surface = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
-                                            data.get("normal"), lambda m: model_json(who.study_id, m))
+                                            data.get("normal"), lambda m: model_json(rt, m))
     except SceneSuggestError as e:
         raise RequestError(400, e.message, e.field) from None
     participant = who.id if isinstance(who, Participant) else None
@@ -258,7 +260,7 @@ def search():
     if participant is not None:
         db.session.commit()
     return jsonify({"list_id": list_id, "query": text,
-                    "hits": [dict(model_json(who.study_id, rt.library[h.model_id]), rank=i + 1)
+                    "hits": [dict(model_json(rt, rt.library[h.model_id]), rank=i + 1)
                              for i, h in enumerate(hits)]})
 
 
@@ -266,7 +268,7 @@ def search():
 def models():
     who = caller()
     rt = runtime(who.study_id)
-    return jsonify({"models": [model_json(who.study_id, m) for m in rt.fixed_list]})
+    return jsonify({"models": [model_json(rt, m) for m in rt.fixed_list]})
 
 
 @bp.get("/scenes/<scene_id>")
