@@ -95,6 +95,7 @@ def test_the_command_writes_a_study_and_refuses_a_folder_in_use(tmp_path):
     assert sorted(p.name for p in here.iterdir()) == ["README.md", "scenes", "study.toml"]
 
 
+@pytest.mark.slow  # builds a real 100-model library: about a minute and a half
 def test_a_study_on_the_stanford_corpus_gets_its_own_library_priors_and_scenes(tmp_path, stanford_dir,
                                                                                stanford_meshes, stanford):
     """`--corpus stanford:DIR`: a library of one model per top-100 category, priors trained on every scene of
