@@ -82,7 +82,7 @@ def create_app(config: dict | None = None) -> Flask:
     from . import errors
     from .blueprints import admin, api, health, participant, vendor
     from .importmap import IMPORT_MAP
-    from .security import csrf_token, security_headers
+    from .security import CookieSessions, csrf_token, security_headers
 
     app.register_blueprint(vendor.bp)
     app.register_blueprint(participant.bp)
@@ -94,6 +94,7 @@ def create_app(config: dict | None = None) -> Flask:
         from werkzeug.middleware.proxy_fix import ProxyFix
 
         app.wsgi_app = ProxyFix(app.wsgi_app, x_for=hops, x_proto=hops, x_host=hops, x_port=hops)
+    app.session_interface = CookieSessions()
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token
     app.jinja_env.globals["import_map"] = IMPORT_MAP

@@ -10,6 +10,7 @@ from datetime import timedelta
 from functools import wraps
 
 from flask import abort, current_app, redirect, request, session, url_for
+from flask.sessions import SecureCookieSessionInterface
 from itsdangerous import BadSignature, URLSafeTimedSerializer
 from sqlalchemy import delete, func, or_, select
 from werkzeug.security import check_password_hash
@@ -188,6 +189,17 @@ def admin_required(view):
             return redirect(url_for("admin.login", next=request.path))
         return view(*args, **kwargs)
     return wrapped
+
+
+class CookieSessions(SecureCookieSessionInterface):
+    """Flask's signed-cookie sessions, left out of the JSON API: it authenticates by token and keeps nothing in
+    the session, so its requests neither read the cookie nor answer with a refreshed one (a participant's page
+    sent a batch a second, each answered with a new Set-Cookie). Pages refresh it as before."""
+
+    def open_session(self, app, request):
+        if request.path.startswith("/api/"):
+            return self.null_session_class()
+        return super().open_session(app, request)
 
 
 def security_headers(response):

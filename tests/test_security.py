@@ -115,6 +115,20 @@ def test_a_planted_session_cookie_does_not_make_the_victim_the_attacker(app):
     assert boot(enter(attacker, query="pid=attacker"))["token"] == attacker_boot["token"]
 
 
+def test_the_api_neither_reads_nor_refreshes_the_cookie_session(client):
+    """A participant's browser sends its (permanent) session cookie with every API call: pages refresh it, the
+    token-authenticated API answers without a Set-Cookie, and a cookie that is not ours changes nothing there."""
+    b = to_trials(client)
+    assert "session=" in client.get("/study/demo/").headers.get("Set-Cookie", "")
+    for path, method in (("/api/heartbeat", client.post), ("/api/session", client.get), ("/api/models", client.get)):
+        r = method(path, headers=auth(b))
+        assert r.status_code == 200 and "Set-Cookie" not in r.headers and "Cookie" not in r.headers.get("Vary", "")
+    client.set_cookie("session", "forged.value.here")
+    r = client.post("/api/heartbeat", headers=auth(b))
+    assert r.status_code == 200 and "Set-Cookie" not in r.headers
+    assert client.post("/api/heartbeat").status_code == 401  # the cookie alone is nobody
+
+
 def test_no_secret_or_instance_data_is_tracked():
     import re
     import subprocess
