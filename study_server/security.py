@@ -5,12 +5,13 @@ from __future__ import annotations
 import hashlib
 import hmac
 import ipaddress
+import re
 import secrets
 from datetime import timedelta
 from functools import wraps
 
 from flask import abort, current_app, redirect, request, session, url_for
-from flask.sessions import SecureCookieSessionInterface
+from flask.sessions import NullSession, SecureCookieSessionInterface
 from itsdangerous import BadSignature, URLSafeTimedSerializer
 from sqlalchemy import delete, func, or_, select
 from werkzeug.security import check_password_hash
@@ -191,13 +192,29 @@ def admin_required(view):
     return wrapped
 
 
+class _NoSession(NullSession):
+    """The session of a request that has none: reading finds nothing, writing is a programming error."""
+
+    def _fail(self, *args, **kwargs):
+        raise RuntimeError("this request has no cookie session (the JSON API and model assets: CookieSessions)")
+
+    __setitem__ = __delitem__ = clear = pop = popitem = update = setdefault = _fail
+
+
+#: Requests that never read or refresh the cookie session: the JSON API (it authenticates by token) and the model
+#: assets (their answers must carry no Set-Cookie, or no proxy caches them).
+SESSIONLESS = re.compile(r"/api/|/study/[^/]+/assets/")
+
+
 class CookieSessions(SecureCookieSessionInterface):
-    """Flask's signed-cookie sessions, left out of the JSON API: it authenticates by token and keeps nothing in
-    the session, so its requests neither read the cookie nor answer with a refreshed one (a participant's page
-    sent a batch a second, each answered with a new Set-Cookie). Pages refresh it as before."""
+    """Flask's signed-cookie sessions, left out of requests that need none (:data:`SESSIONLESS`): a participant's
+    permanent session was read and answered with a refreshed Set-Cookie (and ``Vary: Cookie``) on every event
+    batch and every model file, which kept nginx from caching the models. Pages refresh it as before."""
+
+    null_session_class = _NoSession
 
     def open_session(self, app, request):
-        if request.path.startswith("/api/"):
+        if SESSIONLESS.match(request.path):
             return self.null_session_class()
         return super().open_session(app, request)
 

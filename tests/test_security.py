@@ -115,11 +115,16 @@ def test_a_planted_session_cookie_does_not_make_the_victim_the_attacker(app):
     assert boot(enter(attacker, query="pid=attacker"))["token"] == attacker_boot["token"]
 
 
-def test_the_api_neither_reads_nor_refreshes_the_cookie_session(client):
-    """A participant's browser sends its (permanent) session cookie with every API call: pages refresh it, the
-    token-authenticated API answers without a Set-Cookie, and a cookie that is not ours changes nothing there."""
+def test_the_api_and_model_files_neither_read_nor_refresh_the_cookie_session(client):
+    """A participant's browser sends its (permanent) session cookie with every API call and model file: pages
+    refresh it; the token-authenticated API and the models (which nginx caches only without a Set-Cookie) answer
+    without one, and a cookie that is not ours changes nothing there."""
     b = to_trials(client)
     assert "session=" in client.get("/study/demo/").headers.get("Set-Cookie", "")
+    model = client.get("/api/models", headers=auth(b)).json["models"][0]
+    for url in (model["asset"], model["thumbnail"]):
+        r = client.get(url)
+        assert r.status_code == 200 and "Set-Cookie" not in r.headers and "Cookie" not in r.headers.get("Vary", "")
     for path, method in (("/api/heartbeat", client.post), ("/api/session", client.get), ("/api/models", client.get)):
         r = method(path, headers=auth(b))
         assert r.status_code == 200 and "Set-Cookie" not in r.headers and "Cookie" not in r.headers.get("Vary", "")
