@@ -3,6 +3,7 @@
 completes the demo in Chromium over https; the admin login limit counts the real client through the proxy and a
 spoofed X-Forwarded-For buys nothing; killing one app server mid-study loses nothing."""
 
+import json
 import signal
 import ssl
 import threading
@@ -12,6 +13,7 @@ import urllib.request
 
 import pytest
 from conftest import IN_CI, make_app
+from flowhelp import DEMOGRAPHICS
 from integrityhelp import PASSWORD
 from serverproc import NginxProxy, StudyServer, nginx_missing
 from sqlalchemy import create_engine, text
@@ -20,6 +22,7 @@ from werkzeug.security import generate_password_hash
 from simulation.page import read_page
 from simulation.run import simulate
 from simulation.transport import HttpTransport
+from simulation.walker import Walker
 
 from .conftest import ARGS, CHROMIUM, _require_browser, new_context
 from .pagehelp import done, exit_survey, place_with_suggestions, ready, start
@@ -75,6 +78,15 @@ def test_behind_nginx_over_https_on_postgresql(deployment):
     status, headers, _ = fetch(f"{proxy.https}/static/js/trial.js", {"Accept-Encoding": "gzip"})
     assert status == 200 and headers["Content-Encoding"] == "gzip" and "max-age=3600" in headers["Cache-Control"]
     assert fetch(f"{proxy.https}/vendor/three/package.json")[0] == 404
+
+    # a participant's model files come from nginx's cache: the app answers them without refreshing the session
+    http = HttpTransport(proxy.https)
+    token = Walker(http, "demo").to_first_trial({"pid": "cached"}, lambda _: DEMOGRAPHICS).boot["token"]
+    cookie = "; ".join(f"{c.name}={c.value}" for c in http.jar)
+    assert "session=" in cookie
+    model = json.loads(fetch(f"{proxy.https}/api/models", {"Authorization": f"Bearer {token}"})[2])["models"][0]
+    answers = [fetch(proxy.https + model["asset"], {"Cookie": cookie})[1] for _ in range(2)]
+    assert "Set-Cookie" not in answers[0] and answers[1]["X-Cache-Status"] == "HIT", dict(answers[1])
 
     # the admin login limit: the client nginx saw, whatever it claims to be
     guesses = []
