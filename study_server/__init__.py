@@ -81,6 +81,7 @@ def create_app(config: dict | None = None) -> Flask:
 
     from . import errors
     from .blueprints import admin, api, health, participant, vendor
+    from .boot import api_base
     from .importmap import IMPORT_MAP
     from .security import CookieSessions, csrf_token, security_headers
 
@@ -97,6 +98,7 @@ def create_app(config: dict | None = None) -> Flask:
     app.session_interface = CookieSessions()
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token
+    app.jinja_env.globals["api_base"] = api_base
     app.jinja_env.globals["import_map"] = IMPORT_MAP
     app.jinja_env.globals["mturk_submit_hosts"] = participant.MTURK_SUBMIT
     app.register_error_handler(errors.RequestError, errors.answer)

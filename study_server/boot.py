@@ -13,8 +13,14 @@ from scenesuggest.events import VERSION as EVENT_VOCABULARY
 from .study_file import Study
 
 
+def api_base() -> str:
+    """Where the JSON API is for this request (below the app's mount point): for the editor's boot data and the
+    exit pages, which flush the outbox there."""
+    return url_for("api.session_state").rsplit("/", 1)[0]
+
+
 def trial_boot(study: Study, token: str, trial: dict, next_url: str, preview: bool = False) -> dict:
     """``trial``: index, kind, condition, scene, block, number and of (the trial's place among the trials)."""
     return {"study": study.id, "token": token, "preview": preview, "trial": trial, "page_id": secrets.token_hex(8),
-            "api": url_for("api.session_state").rsplit("/", 1)[0], "next": next_url,
+            "api": api_base(), "next": next_url,
             "limits": {"trial_minutes": study.trial_minutes}, "vocabulary": EVENT_VOCABULARY}

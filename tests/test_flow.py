@@ -74,6 +74,20 @@ def test_the_completion_code_waits_for_the_last_events(client, app):
     assert r.status_code == 302 and b"DEMO-DONE" in client.get("/study/demo/").data
 
 
+def test_the_exit_pages_flush_to_the_api_below_the_apps_mount_point(client, app):
+    """The exit survey and the saving page send the last events where the API is, as the editor does: below
+    the mount point when the app is served under a path."""
+    b = to_trials(client)
+    finish_all_trials(client, b)
+    assert 'data-api="/api"' in client.get("/study/demo/").get_data(as_text=True)
+    assert 'data-api="/lab/api"' in client.get("/study/demo/", environ_overrides={"SCRIPT_NAME": "/lab"}
+                                               ).get_data(as_text=True)
+    page = client.get("/study/demo/")
+    saving = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "99", "attempt": "0"},
+                         environ_overrides={"SCRIPT_NAME": "/lab"})
+    assert saving.status_code == 202 and 'data-api="/lab/api"' in saving.get_data(as_text=True)
+
+
 def test_when_the_network_is_gone_the_code_comes_after_a_few_attempts(client, app):
     b = to_trials(client)
     finish_all_trials(client, b)
