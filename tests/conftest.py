@@ -47,8 +47,8 @@ def require_lme4() -> str:
     rscript, said = _lme4()
     if rscript is None:
         if IN_CI:
-            pytest.fail(said + " — required under CI=true")
-        pytest.skip(said)
+            pytest.fail(f"the lme4 oracle needs R with lme4 and jsonlite: {said} — required under CI=true")
+        pytest.skip(f"the lme4 oracle needs R with lme4 and jsonlite: {said}")
     return rscript
 
 
