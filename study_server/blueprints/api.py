@@ -93,15 +93,14 @@ def model_json(rt, m) -> dict:
     """What the API says of model ``m`` of study runtime ``rt`` (size in metres, asset and thumbnail URLs): a new
     dict each call. Made once per model (:attr:`StudyRuntime.model_descriptions`, URLs below the mount point, which
     is prefixed per request)."""
+    prefix = request.script_root
     d = rt.model_descriptions.get(m.id)
     if d is None:
-        root = len(request.script_root)
         d = rt.model_descriptions[m.id] = {
             "id": m.id, "name": m.name, "category": m.category, "category_path": tuple(m.category_path),
             "size": tuple(m.size),
-            "asset": url_for("participant.asset", study_id=rt.study.id, filename=m.asset)[root:],
-            "thumbnail": url_for("participant.asset", study_id=rt.study.id, filename=m.thumbnail)[root:]}
-    prefix = request.script_root
+            **{key: url_for("participant.asset", study_id=rt.study.id, filename=name)[len(prefix):]
+               for key, name in (("asset", m.asset), ("thumbnail", m.thumbnail))}}
     return {**d, "asset": prefix + d["asset"], "thumbnail": prefix + d["thumbnail"]}
 
 
