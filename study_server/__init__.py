@@ -14,7 +14,7 @@ from sqlalchemy import event
 from werkzeug.exceptions import HTTPException
 
 from . import config as settings
-from .extensions import db, migrate
+from .extensions import db, json_text, json_value, migrate
 
 MIGRATIONS = settings.MIGRATIONS
 
@@ -64,10 +64,12 @@ def create_app(config: dict | None = None) -> Flask:
     app = Flask(__name__, instance_path=str(instance))  # templates/ and static/ of the package
     app.config.update(settings.from_environment(instance))
     app.config.update(config or {})
-    app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})
+    options = app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})
+    options.setdefault("json_serializer", json_text)
+    options.setdefault("json_deserializer", json_value)
     _check_driver(app.config["SQLALCHEMY_DATABASE_URI"])
     if app.config["SQLALCHEMY_DATABASE_URI"].startswith("sqlite"):
-        app.config["SQLALCHEMY_ENGINE_OPTIONS"].setdefault("connect_args", {"timeout": 10})
+        options.setdefault("connect_args", {"timeout": 10})
         _private_sqlite_file(app.config["SQLALCHEMY_DATABASE_URI"])
     db.init_app(app)
     migrate.init_app(app, db, directory=str(MIGRATIONS))

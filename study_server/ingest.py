@@ -12,7 +12,6 @@ seq up to which every event is stored (``acked_seq``): the client may forget eve
 from __future__ import annotations
 
 import functools
-import json
 import re
 
 from sqlalchemy import BigInteger, Integer, bindparam, case, func, select, update
@@ -20,7 +19,7 @@ from sqlalchemy.exc import DBAPIError
 
 from scenesuggest.events import MAX_SEQ, EventError, check_version, validate_batch
 
-from .extensions import db, insert_ignore
+from .extensions import db, insert_ignore, json_text
 from .models import Event, Participant, log, utcnow
 
 PAGE_ID_MAX = 64
@@ -55,34 +54,45 @@ class OverQuota(Exception):
     """The participant's event or byte quota is used up."""
 
 
-#: The events columns an insert writes, in parameter order.
-EVENT_COLUMNS = ("participant_id", "seq", "page_id", "type", "trial", "client_t", "server_t", "payload", "vocabulary")
+#: The events columns an insert writes: those the whole batch shares …
+BATCH_COLUMNS = ("participant_id", "page_id", "server_t", "vocabulary")
+#: … and each event's own, with the key of the (validated) event that gives it.
+EVENT_FIELDS = {"seq": "seq", "type": "type", "trial": "trial", "client_t": "t", "payload": "payload"}
 
 
-def insert_events(rows: list[dict]) -> int:
-    """Insert the rows that are new; returns how many were. The insert is compiled once per database and its
-    parameters made by the columns' own bind processors (what SQLAlchemy would send), straight to the driver: a
-    general execute's per-row work was a third of the insert's CPU. SQLite: one executemany, whose row count is the
-    rows inserted. PostgreSQL (psycopg): one statement of column arrays (:func:`_unnest_insert`), whose returned
-    rows are those inserted."""
+def insert_events(common: dict, batch: list[dict]) -> int:
+    """Insert the events of ``batch`` (validated) that are new, with the ``common`` values of
+    :data:`BATCH_COLUMNS`; returns how many were new. The insert is compiled once per database and its parameters
+    made by the columns' own bind processors (what SQLAlchemy would send; a shared value processed once), one
+    column at a time, straight to the driver: a general execute's per-row work was a third of the insert's CPU.
+    SQLite: one executemany, whose row count is the rows inserted. PostgreSQL (psycopg): one statement of column
+    arrays (:func:`_unnest_insert`), whose returned rows are those inserted."""
     connection = db.session.connection()
     dialect = connection.dialect
-    if dialect.name == "sqlite":
-        sql, columns = _sqlite_insert(dialect)
-        params = [tuple(r[c] if p is None else p(r[c]) for c, p in columns) for r in rows]
-        return connection.exec_driver_sql(sql, params).rowcount
-    if dialect.driver != "psycopg":  # another driver: SQLAlchemy's own multi-row insert, which says what was new
+    if dialect.name != "sqlite" and dialect.driver != "psycopg":  # another driver: SQLAlchemy's own insert
         statement = insert_ignore(Event.__table__, ["participant_id", "seq"]).returning(Event.__table__.c.seq)
+        rows = [common | {c: e[k] for c, k in EVENT_FIELDS.items()} for e in batch]
         return len(db.session.execute(statement, rows).all())
-    sql, columns = _unnest_insert(dialect)
-    params = [[r[c] if p is None else p(r[c]) for r in rows] for c, p in columns]  # one array per column
+    sql, columns = (_sqlite_insert if dialect.name == "sqlite" else _unnest_insert)(dialect)
+    arrays = [_column(common, batch, c, p) for c, p in columns]
+    if dialect.name == "sqlite":
+        return connection.exec_driver_sql(sql, list(zip(*arrays, strict=True))).rowcount
     try:
         with connection.connection.dbapi_connection.cursor() as cursor:  # in the session's transaction
-            cursor.execute(sql, params)
+            cursor.execute(sql, arrays)
             return len(cursor.fetchall())
     except dialect.loaded_dbapi.Error as e:  # as SQLAlchemy would raise it: a lost database answers 503
         raise DBAPIError.instance(sql, None, e, dialect.loaded_dbapi.Error,
                                   connection_invalidated=dialect.is_disconnect(e, None, None)) from e
+
+
+def _column(common: dict, batch: list[dict], column: str, process) -> list:
+    """Column ``column``'s values for the events of ``batch``, through its bind processor ``process`` (or None)."""
+    if column in common:
+        value = common[column]
+        return [value if process is None else process(value)] * len(batch)
+    key = EVENT_FIELDS[column]
+    return [e[key] for e in batch] if process is None else [process(e[key]) for e in batch]
 
 
 def _bind_processors(dialect, names) -> tuple:
@@ -99,10 +109,11 @@ def _unnest_insert(dialect) -> tuple[str, tuple]:
     payload's quotes were escaped one by one, a third of the request's CPU. Its SQL and, in parameter order,
     (column, bind processor)."""
     table = Event.__table__
-    arrays = ", ".join(f"%b::{table.c[n].type.compile(dialect=dialect)}[]" for n in EVENT_COLUMNS)
-    sql = (f"INSERT INTO {table.name} ({', '.join(EVENT_COLUMNS)}) SELECT * FROM unnest({arrays}) "
+    names = (*BATCH_COLUMNS, *EVENT_FIELDS)
+    arrays = ", ".join(f"%b::{table.c[n].type.compile(dialect=dialect)}[]" for n in names)
+    sql = (f"INSERT INTO {table.name} ({', '.join(names)}) SELECT * FROM unnest({arrays}) "
            f"ON CONFLICT (participant_id, seq) DO NOTHING RETURNING seq")
-    return sql, _bind_processors(dialect, EVENT_COLUMNS)
+    return sql, _bind_processors(dialect, names)
 
 
 @functools.lru_cache(maxsize=8)
@@ -110,7 +121,7 @@ def _sqlite_insert(dialect) -> tuple[str, tuple]:
     """The events insert-or-ignore compiled for SQLite: its SQL and, in parameter order, (column, bind processor)."""
     from sqlalchemy.dialects.sqlite import insert
 
-    statement = insert(Event.__table__).values({n: bindparam(n) for n in EVENT_COLUMNS})
+    statement = insert(Event.__table__).values({n: bindparam(n) for n in (*BATCH_COLUMNS, *EVENT_FIELDS)})
     compiled = statement.on_conflict_do_nothing(index_elements=["participant_id", "seq"]).compile(dialect=dialect)
     return compiled.string, _bind_processors(dialect, compiled.positiontup)
 
@@ -135,10 +146,15 @@ def _conflicts(participant_id: int, batch: list[dict]) -> list[int]:
     return [i for i in differing if not any(_same(s, batch[i]) for s in elsewhere)]
 
 
+_EVENTS = Event.__table__.c
+#: How many events of a participant are stored from a seq on, and the highest seq.
+_STORED_FROM = select(func.count(), func.max(_EVENTS.seq)).where(_EVENTS.participant_id == bindparam("pid"),
+                                                                 _EVENTS.seq >= bindparam("start"))
+
+
 def contiguous_seq(participant_id: int, start: int) -> int:
     """The highest seq s ≥ start−1 such that every event from ``start`` to s is stored."""
-    count, top = db.session.execute(select(func.count(), func.max(Event.seq)).where(
-        Event.participant_id == participant_id, Event.seq >= start)).one()
+    count, top = db.session.connection().execute(_STORED_FROM, {"pid": participant_id, "start": start}).one()
     if not count:
         return start - 1
     if top - start + 1 == count:  # no gap: the usual case, answered without reading every seq
@@ -167,16 +183,14 @@ def store(participant: Participant, page_id: str, events: list, quota: tuple[int
     batch = validate_batch(events, version)
     now, pid, before = utcnow(), participant.id, participant.acked_seq
     if batch:
-        rows = [{"participant_id": pid, "seq": e["seq"], "page_id": page_id, "type": e["type"],
-                 "trial": e["trial"], "client_t": e["t"], "server_t": now, "payload": e["payload"],
-                 "vocabulary": version} for e in batch]
-        inserted = insert_events(rows)
+        common = {"participant_id": pid, "page_id": page_id, "server_t": now, "vocabulary": version}
+        inserted = insert_events(common, batch)
         if inserted < len(batch):  # some seqs were stored before: the same events (a resend), or others
             positions = _conflicts(pid, batch)
             if positions:
                 _refuse_conflict(participant, page_id, batch, positions)
         if nbytes is None:
-            nbytes = sum(len(json.dumps(e["payload"])) for e in batch)
+            nbytes = sum(len(json_text(e["payload"])) for e in batch)
         size = nbytes * inserted // len(batch)
     else:
         inserted, size = 0, 0
@@ -187,7 +201,7 @@ def store(participant: Participant, page_id: str, events: list, quota: tuple[int
     values = {"pid": pid, "acked": acked, "n": inserted, "size": size, "now": now}
     if limited:
         values |= {"max_events": quota[0], "max_bytes": quota[1]}
-    counted = db.session.execute(_COUNT_WITH_QUOTA if limited else _COUNT, values)
+    counted = db.session.connection().execute(_COUNT_WITH_QUOTA if limited else _COUNT, values)
     if counted.rowcount != 1:
         db.session.rollback()
         raise OverQuota()

@@ -10,7 +10,7 @@ import re
 from dataclasses import dataclass
 
 from flask import Blueprint, jsonify, request, url_for
-from sqlalchemy import select
+from sqlalchemy import bindparam, select
 
 from scenesuggest import scene_json
 from scenesuggest.errors import SceneSuggestError
@@ -20,7 +20,7 @@ from scenesuggest.events import MAX_SEQ, EventError, text_problem
 from .. import flow, ingest, lists, trial_check
 from ..authoring import live_scene
 from ..errors import RequestError
-from ..extensions import db
+from ..extensions import db, json_value
 from ..models import Participant, Trial, log, utcnow
 from ..openapi import openapi_document
 from ..security import read_preview_token
@@ -38,6 +38,9 @@ class Preview:
     scene: str
 
 
+_BY_TOKEN = select(Participant).where(Participant.token == bindparam("token"))
+
+
 def caller() -> Participant | Preview:
     header = request.headers.get("Authorization", "")
     if not header.startswith("Bearer ") or not header[7:].strip():
@@ -48,7 +51,7 @@ def caller() -> Participant | Preview:
         if preview is None:
             raise RequestError(401, "invalid preview token", "Authorization")
         return Preview(*preview)
-    p = db.session.scalar(select(Participant).where(Participant.token == token)) if len(token) <= 64 else None
+    p = db.session.scalar(_BY_TOKEN, {"token": token}) if len(token) <= 64 else None
     if p is None:
         raise RequestError(401, "unknown session token", "Authorization")
     return p
@@ -75,8 +78,15 @@ def _check_strings(value, path: str) -> None:
 
 
 def body() -> dict:
+    """The request's JSON object; 400 names what is wrong. Decoded as the database's JSON is (orjson, three times
+    faster than json on an event batch; json for what orjson refuses — a number past a double's range, a lone
+    surrogate, NaN — so that validation can name the field that holds it)."""
+    if not request.is_json:
+        raise RequestError(400, "expected a JSON object body (Content-Type: application/json)", "body")
     try:
-        data = request.get_json(silent=True)
+        data = json_value(request.get_data(cache=True))
+    except ValueError as e:
+        raise RequestError(400, f"the body is not JSON: {e}", "body") from None
     except RecursionError:  # json raises this, not a ValueError, for arrays nested thousands deep
         raise RequestError(400, "the JSON is nested too deeply", "body") from None
     if not isinstance(data, dict):
