@@ -45,7 +45,8 @@ def json_text(value) -> str:
 def json_value(text: str | bytes):
     """The value of JSON ``text`` (the engine's deserializer; the API's request bodies): orjson, or json for what
     orjson refuses — NaN or Infinity (which json.dumps wrote), a number past a double's range, a lone surrogate —
-    whose value, or error (a ValueError, or RecursionError when nested thousands deep), is then json's."""
+    whose value, or error (a ValueError, or RecursionError when nested thousands deep), is then json's. An integer
+    past 64 bits reads as the nearest double (validation bounds every integer field far below that)."""
     try:
         return orjson.loads(text)
     except orjson.JSONDecodeError:

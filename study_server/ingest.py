@@ -169,6 +169,20 @@ def contiguous_seq(participant_id: int, start: int) -> int:
     return last
 
 
+def _acked(participant: Participant, before: int, batch: list[dict], inserted: int) -> int:
+    """The highest seq up to which every event is stored, once ``batch`` is (``before``: the participant's acked
+    seq as read). The usual batch — the next seqs after ``before``, all new, and no event beyond ``before`` stored
+    when the participant was read — answers without a query: its last seq (every seq up to ``before`` was stored,
+    and this transaction stores the rest). Should a parallel batch of later seqs commit meanwhile, that answer is
+    lower than the highest, never higher: the client keeps those events and sends them again (stored once)."""
+    n = len(batch)
+    if n and inserted == n and participant.events_stored == before + 1:
+        seqs = [e["seq"] for e in batch]  # distinct (validated): n of them from before+1 to before+n are all of them
+        if min(seqs) == before + 1 and max(seqs) == before + n:
+            return before + n
+    return contiguous_seq(participant.id, before + 1)
+
+
 def store(participant: Participant, page_id: str, events: list, quota: tuple[int, int] | None = None,
           nbytes: int | None = None, vocabulary=None) -> int:
     """Validate (raising :class:`scenesuggest.events.EventError`) and store a batch of a session that is still
@@ -194,7 +208,7 @@ def store(participant: Participant, page_id: str, events: list, quota: tuple[int
         size = nbytes * inserted // len(batch)
     else:
         inserted, size = 0, 0
-    acked = contiguous_seq(pid, before + 1)
+    acked = _acked(participant, before, batch, inserted)
     # one statement: acked_seq only ever moves forwards (a slower parallel batch may commit after a faster one);
     # the quota is checked on the row as it is now, so parallel batches cannot each slip under it
     limited = quota is not None and inserted > 0

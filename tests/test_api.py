@@ -58,6 +58,28 @@ def test_ingestion_is_idempotent_and_acknowledges_contiguous_seqs(client, app):
         assert sorted(e.seq for e in db.session.query(Event)) == list(range(7))
 
 
+def test_a_batch_racing_a_later_one_is_acknowledged_no_further_than_what_is_stored(client, app):
+    """The usual batch (the next seqs, all new) is acknowledged without counting: its last seq. Should a batch of
+    later seqs commit between reading the participant and storing, that answer is lower than what is stored,
+    never higher, and the next batch is acknowledged up to everything."""
+    from study_server import ingest
+
+    b = to_trials(client)
+    post = lambda events: client.post("/api/events", headers=auth(b), json={"page_id": "p1", "events": events})  # noqa: E731
+    assert post([ev(s) for s in range(3)]).json["acked_seq"] == 2  # the usual batch
+    with app.app_context():
+        stale = db.session.query(Participant).filter_by(platform_id="p1").one()  # as read: acked 2, 3 stored
+        db.session.expunge(stale)
+    assert post([ev(s) for s in range(6, 9)]).json["acked_seq"] == 2  # the later batch wins the race: a gap
+    with app.app_context():
+        db.session.add(stale)  # the racing batch, with the participant as it read it (before the later one)
+        acked = ingest.store(stale, "p1", [ev(s) for s in range(3, 6)])
+        assert acked == 5  # lower than 8: never more than what is stored
+        assert sorted(e.seq for e in db.session.query(Event)) == list(range(9))
+    assert post([ev(9)]).json["acked_seq"] == 9  # the next batch: everything
+    assert post([ev(s) for s in range(3, 6)]).json["acked_seq"] == 9  # the client's resend: stored once
+
+
 def test_parallel_duplicate_batches_store_each_event_once(client, app):
     b = to_trials(client)
     batches = [[ev(s) for s in range(k, k + 50)] for k in range(0, 500, 50)]
