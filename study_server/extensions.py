@@ -46,7 +46,8 @@ def json_value(text: str | bytes):
     """The value of JSON ``text`` (the engine's deserializer; the API's request bodies): orjson, or json for what
     orjson refuses — NaN or Infinity (which json.dumps wrote), a number past a double's range, a lone surrogate —
     whose value, or error (a ValueError, or RecursionError when nested thousands deep), is then json's. An integer
-    past 64 bits reads as the nearest double (validation bounds every integer field far below that)."""
+    past 64 bits reads as the nearest double (the integers the server keeps — seqs, ranks, window sizes — are
+    bounded far below that; a number field may hold one, and means the number)."""
     try:
         return orjson.loads(text)
     except orjson.JSONDecodeError:

@@ -59,12 +59,18 @@ def _finish(p: Participant, study: Study, status: str, code_key: str) -> None:
     log("finish", p, status=status)
 
 
+def _pixels(value) -> int:
+    """A window size the browser reported, in CSS pixels; 0 (unknown) for what is not one."""
+    try:
+        n = int(value)
+    except (TypeError, ValueError):
+        return 0
+    return n if 0 <= n <= 100_000 else 0
+
+
 def check_device(p: Participant, study: Study, info: dict) -> bool:
     """Record the browser's report; screen out phones/tablets and small windows when the study asks to."""
-    try:
-        width, height = int(info.get("width", 0)), int(info.get("height", 0))
-    except (TypeError, ValueError):
-        width = height = 0
+    width, height = _pixels(info.get("width")), _pixels(info.get("height"))
     touch_only = str(info.get("touch_only", "")).lower() in ("1", "true", "yes")
     p.viewport = {"width": width, "height": height, "touch_only": touch_only,
                   "pixel_ratio": str(info.get("pixel_ratio", ""))[:16]}

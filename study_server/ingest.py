@@ -27,7 +27,8 @@ PAGE_ID = re.compile(rf"[A-Za-z0-9_.-]{{1,{PAGE_ID_MAX}}}")
 
 
 def _count_statement(quota: bool):
-    """The one UPDATE of a stored batch: acked seq, event and byte counters, last seen (and the quota check)."""
+    """The one UPDATE of a stored batch: acked seq, event and byte counters, last seen (and the quota check); it
+    returns the row's acked seq and event count as they now are (no row: over quota)."""
     p = Participant.__table__.c
     n, size, acked = bindparam("n", type_=Integer), bindparam("size", type_=BigInteger), bindparam("acked", Integer)
     statement = update(Participant.__table__).where(p.id == bindparam("pid"))
@@ -36,7 +37,7 @@ def _count_statement(quota: bool):
                                     p.bytes_stored + size <= bindparam("max_bytes", type_=BigInteger))
     return statement.values(acked_seq=case((p.acked_seq < acked, acked), else_=p.acked_seq),
                             events_stored=p.events_stored + n, bytes_stored=p.bytes_stored + size,
-                            last_seen_at=bindparam("now"))
+                            last_seen_at=bindparam("now")).returning(p.acked_seq, p.events_stored)
 
 
 _COUNT, _COUNT_WITH_QUOTA = _count_statement(False), _count_statement(True)
@@ -169,18 +170,16 @@ def contiguous_seq(participant_id: int, start: int) -> int:
     return last
 
 
-def _acked(participant: Participant, before: int, batch: list[dict], inserted: int) -> int:
-    """The highest seq up to which every event is stored, once ``batch`` is (``before``: the participant's acked
-    seq as read). The usual batch — the next seqs after ``before``, all new, and no event beyond ``before`` stored
-    when the participant was read — answers without a query: its last seq (every seq up to ``before`` was stored,
-    and this transaction stores the rest). Should a parallel batch of later seqs commit meanwhile, that answer is
-    lower than the highest, never higher: the client keeps those events and sends them again (stored once)."""
+def _next_seqs(before: int, batch: list[dict], inserted: int) -> bool:
+    """The usual batch: all of it new, its seqs the next ones after ``before`` (the participant's acked seq as
+    read). Every seq up to its last is then stored (those up to ``before`` were; this transaction stores the
+    rest), which answers without counting — exactly so when no event beyond it is stored, which the count of
+    the participant's events tells once the batch is counted (:func:`store`)."""
     n = len(batch)
-    if n and inserted == n and participant.events_stored == before + 1:
-        seqs = [e["seq"] for e in batch]  # distinct (validated): n of them from before+1 to before+n are all of them
-        if min(seqs) == before + 1 and max(seqs) == before + n:
-            return before + n
-    return contiguous_seq(participant.id, before + 1)
+    if not n or inserted != n:
+        return False
+    seqs = [e["seq"] for e in batch]  # distinct (validated): n of them from before+1 to before+n are all of them
+    return min(seqs) == before + 1 and max(seqs) == before + n
 
 
 def store(participant: Participant, page_id: str, events: list, quota: tuple[int, int] | None = None,
@@ -204,23 +203,29 @@ def store(participant: Participant, page_id: str, events: list, quota: tuple[int
             if positions:
                 _refuse_conflict(participant, page_id, batch, positions)
         if nbytes is None:
-            nbytes = sum(len(json_text(e["payload"])) for e in batch)
+            nbytes = sum(len(json_text(e["payload"]).encode()) for e in batch)
         size = nbytes * inserted // len(batch)
     else:
         inserted, size = 0, 0
-    acked = _acked(participant, before, batch, inserted)
+    usual = _next_seqs(before, batch, inserted)
+    acked = before + len(batch) if usual else contiguous_seq(pid, before + 1)
     # one statement: acked_seq only ever moves forwards (a slower parallel batch may commit after a faster one);
     # the quota is checked on the row as it is now, so parallel batches cannot each slip under it
     limited = quota is not None and inserted > 0
     values = {"pid": pid, "acked": acked, "n": inserted, "size": size, "now": now}
     if limited:
         values |= {"max_events": quota[0], "max_bytes": quota[1]}
-    counted = db.session.connection().execute(_COUNT_WITH_QUOTA if limited else _COUNT, values)
-    if counted.rowcount != 1:
+    connection = db.session.connection()
+    counted = connection.execute(_COUNT_WITH_QUOTA if limited else _COUNT, values).first()
+    if counted is None:
         db.session.rollback()
         raise OverQuota()
+    acked, stored = counted
+    if usual and stored != acked + 1:  # events beyond it: a batch of later seqs was stored first, then count
+        recount = {"pid": pid, "acked": contiguous_seq(pid, acked + 1), "n": 0, "size": 0, "now": now}
+        acked = connection.execute(_COUNT, recount).first()[0]
     db.session.commit()
-    return max(before, acked)  # at least: a parallel batch may have moved it further
+    return acked  # the row's: a parallel batch may have moved it further
 
 
 def _refuse_conflict(participant: Participant, page_id: str, batch: list[dict], positions: list[int]):

@@ -113,9 +113,15 @@ def test_declining_consent_and_failing_the_device_check_end_with_their_codes(cli
     page = enter(small, query="pid=small")
     small.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "800", "height": "900"})
     assert b"DEMO-SCREENED" in small.get("/study/demo/").data
+    huge = client.application.test_client()  # a size no window has is unknown (0), not a number stored as sent
+    page = enter(huge, query="pid=huge")
+    huge.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "1" + "0" * 30, "height": "-900"})
+    assert b"DEMO-SCREENED" in huge.get("/study/demo/").data
     with app.app_context():
         assert {p.platform_id: p.status for p in db.session.query(Participant)} == {
-            "decliner": "no_consent", "phone": "screened_out", "small": "screened_out"}
+            "decliner": "no_consent", "phone": "screened_out", "small": "screened_out", "huge": "screened_out"}
+        viewport = db.session.query(Participant).filter_by(platform_id="huge").one().viewport
+        assert (viewport["width"], viewport["height"]) == (0, 0)
 
 
 def test_survey_answers_are_checked_and_kept_on_error(client):
