@@ -58,31 +58,6 @@ def test_ingestion_is_idempotent_and_acknowledges_contiguous_seqs(client, app):
         assert sorted(e.seq for e in db.session.query(Event)) == list(range(7))
 
 
-def test_a_batch_racing_a_later_one_is_acknowledged_up_to_everything_stored(client, app):
-    """The usual batch (the next seqs, all new) is acknowledged without counting the stored seqs, unless the
-    participant's event count says more are stored: then they are counted. A batch of later seqs that commits
-    between reading the participant and storing (a race no sequential test can make) leaves neither the answer
-    nor the participant's acked seq short of what is stored."""
-    from study_server import flow, ingest
-
-    b = to_trials(client)
-    post = lambda events: client.post("/api/events", headers=auth(b), json={"page_id": "p1", "events": events})  # noqa: E731
-    assert post([ev(s) for s in range(3)]).json["acked_seq"] == 2  # the usual batch
-    with app.app_context():
-        stale = db.session.query(Participant).filter_by(platform_id="p1").one()  # as read: acked 2, 3 stored
-        db.session.expunge(stale)
-    assert post([ev(s) for s in range(6, 9)]).json["acked_seq"] == 2  # the later batch wins the race: a gap
-    with app.app_context():
-        db.session.add(stale)  # the racing batch, with the participant as it read it (before the later one)
-        assert ingest.store(stale, "p1", [ev(s) for s in range(3, 6)]) == 8
-        p = db.session.query(Participant).filter_by(platform_id="p1").one()
-        assert (p.acked_seq, p.events_stored) == (8, 9) and flow.may_complete(p, 8, attempt=0)
-        assert sorted(e.seq for e in db.session.query(Event)) == list(range(9))
-    assert post([ev(s) for s in range(12, 14)]).json["acked_seq"] == 8  # a gap again: not acknowledged beyond it
-    assert post([ev(s) for s in range(9, 12)]).json["acked_seq"] == 13  # the next seqs, and those beyond
-    assert post([ev(s) for s in range(3, 6)]).json["acked_seq"] == 13  # a resend: stored once
-
-
 def test_parallel_duplicate_batches_store_each_event_once(client, app):
     b = to_trials(client)
     batches = [[ev(s) for s in range(k, k + 50)] for k in range(0, 500, 50)]

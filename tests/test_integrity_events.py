@@ -18,6 +18,32 @@ from study_server.extensions import db
 from study_server.models import Event, Participant, SessionLog, Trial
 
 
+def test_a_batch_racing_a_later_one_is_acknowledged_up_to_everything_stored(app_on):
+    """The usual batch (the next seqs, all new) is acknowledged without counting the stored seqs, unless the
+    participant's event count says more are stored: then they are counted. A batch of later seqs that commits
+    between reading the participant and storing (a race no sequential test can make) leaves neither the answer
+    nor the participant's acked seq short of what is stored."""
+    from study_server import flow, ingest
+
+    c = app_on.test_client()
+    b = to_trials(c)
+    post = lambda seqs: post_events(c, b, [event(s) for s in seqs]).json["acked_seq"]  # noqa: E731
+    assert post(range(3)) == 2  # the usual batch
+    with app_on.app_context():
+        stale = db.session.query(Participant).one()  # as read: acked 2, 3 stored
+        db.session.expunge(stale)
+    assert post(range(6, 9)) == 2  # the later batch wins the race: a gap
+    with app_on.app_context():
+        db.session.add(stale)  # the racing batch, with the participant as it read it (before the later one)
+        assert ingest.store(stale, b["page_id"], [event(s) for s in range(3, 6)]) == 8
+        p = db.session.query(Participant).one()
+        assert (p.acked_seq, p.events_stored) == (8, 9) and flow.may_complete(p, 8, attempt=0)
+        assert sorted(e.seq for e in db.session.query(Event)) == list(range(9))
+    assert post(range(12, 14)) == 8  # a gap again: not acknowledged beyond it
+    assert post(range(9, 12)) == 13  # the next seqs, and those beyond
+    assert post(range(3, 6)) == 13  # a resend: stored once
+
+
 def test_a_seq_held_by_other_content_is_a_conflict_never_a_silent_drop(app_on):
     c = app_on.test_client()
     b = to_trials(c)
