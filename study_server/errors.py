@@ -74,11 +74,15 @@ def _log_participant_failure(status: int, e: BaseException) -> str | None:
 
 def http_error(e):
     """Werkzeug's HTTP errors (unknown URLs, wrong methods, aborts): JSON for the API, a calm page elsewhere."""
-    from flask import jsonify
+    from flask import current_app, jsonify
 
     from .extensions import db
 
     if _is_api():
+        limit = current_app.config.get("MAX_CONTENT_LENGTH")
+        if e.code == 413 and limit:  # the body is over MAX_CONTENT_LENGTH: say which limit
+            return jsonify({"error": f"the request body is larger than the {limit} bytes a request may carry",
+                            "field": "body"}), 413
         return jsonify({"error": e.description or e.name, "field": None}), e.code
     db.session.rollback()
     message = e.description if e.code == 400 else (

@@ -105,7 +105,7 @@ def test_bodies_that_are_not_json_objects_and_oversized_bodies(client, app):
     assert r.status_code == 400 and r.json["field"] == "body"
     huge = {"page_id": "p", "events": [ev(i, kind="search", text="x" * 1900) for i in range(600)]}
     r = client.post("/api/events", headers=auth(b), json=huge)
-    assert r.status_code == 413
+    assert r.status_code == 413 and r.json["field"] == "body" and "1048576 bytes" in r.json["error"]
     r = client.post("/api/events", headers=auth(b), json={"page_id": "", "events": []})
     assert r.status_code == 422 and r.json["field"] == "page_id"
 
