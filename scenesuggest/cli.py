@@ -37,7 +37,7 @@ class _Group(click.Group):
     #: Command groups of other packages, imported only when used: name → (module, attribute). The engine
     #: package imports neither the study server, the simulation nor the analysis.
     lazy = {"analyze": ("analysis.cli", "analyze"), "schedule": ("study_server.cli", "schedule"),
-            "study": ("study_server.cli", "study")}
+            "study": ("study_server.cli", "study"), "engine": ("scenesuggest.engines.cli", "engine")}
     #: Commands that other packages add to those groups: group → [(module, attribute)].
     extra = {"study": [("simulation.cli", "simulate_cmd")]}
 
@@ -199,8 +199,35 @@ def _triple(ctx, param, value):
     return numbers
 
 
+def _engine(name: str, trained: str, **paper_options):
+    """The engine ``name`` answering from ``trained`` (a priors file, or the learned engine's file)."""
+    from .engines import configure, load
+    from .engines.protocol import LoadContext
+
+    if name == "http":
+        raise SceneSuggestError("the http engine answers for a study: name it in a study file's condition",
+                                field="engine")
+    options = {k: v for k, v in paper_options.items() if v} if name == "paper" else {}
+    if name == "learned":
+        options["file"] = trained
+    return load(configure({"name": name, **options}), LoadContext(Path(trained)))
+
+
+def _explanation_lines(explained: list[dict]) -> list[str]:
+    lines = ["", "why (each category's score: the contributions that sum to it from the baseline)"]
+    for e in sorted(explained, key=lambda e: e["rank"]):
+        lines.append(f"{e['rank']:>4}. {e['category']:<22} score {e['score']:8.3f} = baseline {e['baseline']:.3f}"
+                     " + …")
+        for c in e["contributions"]:
+            lines.append(f"        {c['contribution']:+8.3f}  {c['feature']:<34} (value {c['value']:.3g})")
+    return lines
+
+
 @main.command("suggest")
-@click.option("--priors", "priors_file", required=True, type=click.Path(dir_okay=False))
+@click.option("--priors", "priors_file", required=True, type=click.Path(dir_okay=False),
+              help="The engine's trained file: priors (paper, frequency) or the learned engine's file.")
+@click.option("--engine", "engine_name", default="paper", show_default=True,
+              help="A registered engine (scenesuggest engine list).")
 @click.option("--scene", "scene_file", required=True, type=click.Path(dir_okay=False), help="Native scene JSON.")
 @click.option("--parent", "parent_id", required=True, help="Id of the clicked object.")
 @click.option("--point", required=True, callback=_triple, help="Clicked point X,Y,Z (metres, world frame).")
@@ -209,29 +236,39 @@ def _triple(ctx, param, value):
 @click.option("--top", default=10, show_default=True, type=click.IntRange(min=1))
 @click.option("--scene-type", default=None, help="Override the scene's type.")
 @click.option("--infer-scene-type", is_flag=True, help="Infer the scene type from the objects present.")
-@click.option("--collision-aware", is_flag=True, help="Turn or penalise categories that do not fit.")
-@click.option("--refine-anchor", is_flag=True, help="Move each placement to a nearby more typical spot.")
+@click.option("--collision-aware", is_flag=True, help="Turn or penalise categories that do not fit (paper).")
+@click.option("--refine-anchor", is_flag=True, help="Move each placement to a nearby more typical spot (paper).")
+@click.option("--explain", is_flag=True, help="Say why each category got its rank.")
+@click.option("--category", "explain_categories", multiple=True,
+              help="With --explain: also explain this category wherever it ranks (repeatable).")
 @click.option("--json", "as_json", is_flag=True)
-def suggest_cmd(priors_file, scene_file, parent_id, point, normal, mode, top, scene_type, infer_scene_type,
-                collision_aware, refine_anchor, as_json) -> None:
+def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, mode, top, scene_type,
+                infer_scene_type, collision_aware, refine_anchor, explain, explain_categories, as_json) -> None:
     """Rank categories for a click on a surface, each with a placement (column-major 4×4)."""
     from . import scene_json
-    from .priors import Priors
-    from .suggest import ContextQuery, Engine, EngineOptions
+    from .suggest import ContextQuery
 
-    options = EngineOptions(collision_aware=collision_aware, anchor_refinement=refine_anchor,
-                            infer_scene_type=infer_scene_type)
-    engine = Engine(Priors.load(priors_file), options)
+    engine = _engine(engine_name, priors_file, collision_aware=collision_aware, anchor_refinement=refine_anchor,
+                     infer_scene_type=infer_scene_type)
     query = ContextQuery(scene_json.load(scene_file), parent_id, point, normal, scene_type)
     found = engine.suggest(query, mode, top)
     data = {"mode": mode, **found.to_dict()}
-    lines = [f"{found.surface_type} of {found.parent_category} in a {found.scene_type} ({mode} mode)"]
+    lines = [f"{found.surface_type} of {found.parent_category} in a {found.scene_type} ({mode} mode, the "
+             f"{found.engine} engine)"]
     for x in found:
         t = x.placement[:3, 3]
-        lines.append(f"{x.rank:>3}. {x.category:<22} {x.score:7.3f}  occ {x.terms['occurrence']:.2f} "
-                     f"sup {x.terms['surface']:.2f} pos {x.terms['position']:.2f}  {x.attachment_face:<6} "
+        terms = " ".join(f"{k[:3]} {v:.2f}" for k, v in x.terms.items())
+        lines.append(f"{x.rank:>3}. {x.category:<22} {x.score:7.3f}  {terms}  {x.attachment_face:<6} "
                      f"{x.heading_deg:5.0f}°  at ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f})  {x.models[0]}"
                      + (f"  [{'; '.join(x.notes)}]" if x.notes else ""))
+    if explain:
+        if not hasattr(engine, "explain"):
+            raise SceneSuggestError(f"the {engine_name!r} engine gives no explanations", field="explain")
+        unknown = [c for c in explain_categories if c not in engine.categories]
+        if unknown:
+            raise SceneSuggestError(f"the engine has no category {unknown[0]!r}", field="category")
+        data["explanations"] = engine.explain(query, mode, top, explain_categories)
+        lines += _explanation_lines(data["explanations"])
     emit(data, as_json, "\n".join(lines))
 
 
@@ -239,22 +276,30 @@ def suggest_cmd(priors_file, scene_file, parent_id, point, normal, mode, top, sc
 @click.argument("source")
 @click.option("--folds", default=5, show_default=True, type=click.IntRange(min=2))
 @click.option("--seed", default=0, show_default=True)
+@click.option("--engine", "engine_names", multiple=True,
+              help="A registered engine to evaluate (repeat to compare; default: paper). The first is the reference "
+                   "of the paired comparison.")
+@click.option("--resamples", default=1000, show_default=True, type=click.IntRange(min=10),
+              help="Bootstrap resamples of the paired MRR differences.")
 @click.option("--group-similar/--no-group-similar", default=True, show_default=True,
               help="Keep near-copies of a scene in one fold (and report plain k-fold figures beside).")
-@click.option("--by-category", is_flag=True, help="Also print orientation accuracy per category.")
+@click.option("--by-category", is_flag=True, help="Also print orientation and MRR per category.")
 @click.option("--ablations", is_flag=True, help="Also train and measure each orientation ablation (slow).")
 @meshes_option
 @click.option("--json", "as_json", is_flag=True)
-def evaluate_cmd(source: str, folds: int, seed: int, group_similar: bool, by_category: bool, ablations: bool,
-                 meshes: str | None, as_json: bool) -> None:
-    """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines."""
+def evaluate_cmd(source: str, folds: int, seed: int, engine_names: tuple[str, ...], resamples: int,
+                 group_similar: bool, by_category: bool, ablations: bool, meshes: str | None, as_json: bool) -> None:
+    """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines; with several
+    --engine, every engine on the same folds with paired intervals of the MRR differences."""
+    from .engines import configure
     from .evaluate import evaluate, format_evaluation
 
+    specs = [configure({"name": name}) for name in engine_names or ("paper",)]
     c = _load(source, meshes)
     if len(c.scenes) < folds:
         raise SceneSuggestError(f"{len(c.scenes)} scenes cannot make {folds} folds", field="folds")
     result = evaluate(c, folds=folds, seed=seed, progress=progress, group_similar=group_similar,
-                      ablations=ablations)
+                      ablations=ablations, engines=specs, resamples=resamples)
     emit(result, as_json, format_evaluation(result, by_category=by_category))
 
 

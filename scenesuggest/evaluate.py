@@ -24,19 +24,23 @@ full score without back-off (``no_backoff``); the score without the position ter
 from __future__ import annotations
 
 import math
+import time
 from collections import Counter
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import poses
 from .corpora.corpus import Corpus
+from .engines import EngineSpec
 from .errors import SceneSuggestError
 from .folds import folds_of, grouped_folds, similar_groups
 from .pose_error import front_angle_deg, pose_error_deg
 from .priors import Priors
 from .scene import ObjectInstance, Scene
 from .suggest import ContextQuery, Engine, EngineOptions
+from .surfaces import attachment_face
 from .symmetry import ModelPeriods, corpus_periods
 
 BASELINES = ("frequency", "parent_only", "no_backoff", "no_position")
@@ -119,20 +123,81 @@ def _facing_error_deg(placement: np.ndarray, size, target: ObjectInstance, norma
     return abs(math.degrees(float(poses.wrap(front - towards + math.pi)) - math.pi))
 
 
+#: The suggestions a query's timing asks for (what the study server shows).
+TIMED_TOP = 40
+
+
+@dataclass
+class EngineRun:
+    """One engine's answers on the held-out queries: a rank per query (aligned across engines), one
+    orientation record per query whose category it knows, and the time of each suggestion request (seconds)."""
+
+    ranks: list[float] = field(default_factory=list)
+    records: list[dict] = field(default_factory=list)
+    seconds: list[float] = field(default_factory=list)
+
+
+@dataclass
+class Run:
+    """Ranks of the baselines (from the fold's paper priors), each engine's run, the scene group of every query
+    (for the paired bootstrap) and the number of skipped edges."""
+
+    baselines: dict[str, list[float]]
+    engines: dict[str, EngineRun]
+    groups: list[int] = field(default_factory=list)
+    categories: list[str] = field(default_factory=list)
+    skipped: int = 0
+
+
+def _fitted(spec: EngineSpec, priors: Priors, train: list[Scene], corpus: Corpus, seed: int,
+            periods: ModelPeriods, progress):
+    """The engine of ``spec`` trained on one fold: from the fold's priors where the kind answers from them."""
+    kind = spec.kind
+    if hasattr(kind, "from_priors"):
+        return kind.from_priors(spec.config, priors)
+    if not kind.trainable:
+        raise SceneSuggestError(f"the {spec.name!r} engine is not trained by this project, so it cannot be "
+                                "evaluated on held-out folds", field="engine")
+    return kind.fit(spec.config, train, corpus.taxonomy, seed=seed, periods=periods, progress=progress)
+
+
+def _rank_and_poses(engine, query: ContextQuery, category: str):
+    """(rank of ``category``, its full-mode and basic-mode placements or None, the engine's scores or None)
+    for an engine that scores every candidate, else from its answers (the protocol only)."""
+    if hasattr(engine, "score") and hasattr(engine, "choose_poses"):
+        scores = engine.score(query)
+        index = engine.index.get(category)
+        if index is None:
+            return math.inf, None, None, scores
+        prep = scores.prepared
+        placed = []
+        for mode in ("full", "basic"):
+            faces, alphas, _ = engine.choose_poses(scores, mode, [index])
+            placed.append(poses.placement(prep.point, prep.normal, faces[0], engine.size[index], float(alphas[0])))
+        return rank_of(scores.total, index), placed[0], placed[1], scores
+    ranked = [s.category for s in engine.suggest(query, "basic")]
+    rank = ranked.index(category) + 1.0 if category in ranked else math.inf
+    placed = [engine.suggest(query, mode, top=1, only=[category]) for mode in ("full", "basic")]
+    if not placed[0]:
+        return rank, None, None, None
+    return rank, placed[0][0].placement, placed[1][0].placement, None
+
+
 def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
-         progress, fit_options: dict | None = None, rankings: bool = True
-         ) -> tuple[dict[str, list[float]], list[dict], int]:
-    """Ranks per ranking, one orientation record per placed query, and the number of skipped edges
-    (``rankings=False``: the baselines are not ranked, for orientation-only runs)."""
-    ranks: dict[str, list[float]] = {m: [] for m in ("basic", "full", *BASELINES)}
-    records: list[dict] = []
-    skipped = 0
+         progress, fit_options: dict | None = None, rankings: bool = True, specs: list[EngineSpec] | None = None,
+         groups: list[int] | None = None, seed: int = 0) -> Run:
+    """Every engine of ``specs`` (default: the paper's with ``options``) and the baselines on the held-out
+    queries of ``folds`` (``rankings=False``: the baselines are not ranked, for orientation-only runs)."""
+    specs = specs or [EngineSpec("paper", {"name": "paper"}, options)]
+    run = Run({b: [] for b in BASELINES}, {s.name: EngineRun() for s in specs})
     for held in progress(folds, "folds"):
         held_set = set(held.tolist())
         train = [s for i, s in enumerate(corpus.scenes) if i not in held_set]
-        engine = Engine(Priors.fit(train, corpus.taxonomy, **(fit_options or {})), options)
-        plain = engine.with_options(backoff=False)
-        paper = engine.with_options(orientation="paper")
+        priors = Priors.fit(train, corpus.taxonomy, **(fit_options or {}))
+        paper = Engine(priors, options)
+        plain, paper_rule = paper.with_options(backoff=False), paper.with_options(orientation="paper")
+        engines = {s.name: paper if s.name == "paper" and s.config == options else
+                   _fitted(s, priors, train, corpus, seed, periods, progress) for s in specs}
         for i in held:
             scene = corpus.scenes[i]
             for o in scene:
@@ -141,119 +206,215 @@ def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, period
                 query = ContextQuery(scene.without(o.id), o.parent, o.contact_point, o.contact_normal,
                                      scene_type=scene.scene_type)
                 try:
-                    scores = engine.score(query)
+                    scores = paper.score(query)
                 except SceneSuggestError:  # a contact far from its parent's box: bad data, not a query
-                    skipped += 1
+                    run.skipped += 1
                     continue
-                index = engine.index.get(o.category)
-                r = rank_of(scores.total, index)
-                ranks["basic"].append(r)
-                ranks["full"].append(r)
+                run.groups.append(groups[i] if groups is not None else int(i))
+                run.categories.append(o.category)
+                index = paper.index.get(o.category)
                 if rankings:
-                    ranks["frequency"].append(rank_of(engine.base_rate, index))
-                    ranks["parent_only"].append(rank_of(scores.occurrence, index))
-                    ranks["no_position"].append(rank_of(options.lambda1 * scores.occurrence * scores.surface,
-                                                        index))
-                    ranks["no_backoff"].append(rank_of(plain.score(query).total, plain.index.get(o.category)))
-                if index is not None:
-                    records.append(_orientation_record(engine, paper, scores, index, scene, o, corpus, periods))
-    return ranks, records, skipped
+                    b = run.baselines
+                    b["frequency"].append(rank_of(paper.base_rate, index))
+                    b["parent_only"].append(rank_of(scores.occurrence, index))
+                    b["no_position"].append(rank_of(options.lambda1 * scores.occurrence * scores.surface, index))
+                    b["no_backoff"].append(rank_of(plain.score(query).total, plain.index.get(o.category)))
+                for spec in specs:
+                    _measure(run.engines[spec.name], engines[spec.name], paper_rule, query, scene, o, corpus,
+                             periods, rankings)
+    return run
 
 
-def _orientation_record(engine: Engine, paper: Engine, scores, index: int, scene: Scene, o: ObjectInstance,
-                        corpus: Corpus, periods: ModelPeriods) -> dict:
-    prep = scores.prepared
+def _measure(out: EngineRun, engine, paper_rule: Engine, query: ContextQuery, scene: Scene, o: ObjectInstance,
+             corpus: Corpus, periods: ModelPeriods, timed: bool) -> None:
+    """One held-out query asked of one engine: its rank, its orientation record and (``timed``) the time of the
+    study server's request."""
+    if timed:
+        started = time.perf_counter()
+        engine.suggest(query, "full", top=TIMED_TOP)
+        out.seconds.append(time.perf_counter() - started)
+    rank, full, basic, scores = _rank_and_poses(engine, query, o.category)
+    out.ranks.append(rank)
+    if full is None:
+        return
+    placed = {"full": full, "canonical": basic}
+    if isinstance(engine, Engine) and type(engine) is Engine and scores is not None:  # the paper's own rule
+        index = engine.index[o.category]
+        faces, alphas, _ = paper_rule.choose_poses(scores, "full", [index])
+        placed["paper"] = poses.placement(scores.prepared.point, scores.prepared.normal, faces[0],
+                                          engine.size[index], float(alphas[0]))
     period, source = periods.of(o.model_id, o.category, tuple(o.scaled_size()[[0, 2]]))
+    record = _orientation_record(placed, scene, o, corpus, period, source, query.normal)
+    if hasattr(engine, "frame_headings") and scores is not None:  # the ceiling of choosing a frame per query
+        from .engines.learned.training import frame_errors
+
+        index = engine.index[o.category]
+        _, _, proposed = engine.frame_headings(scores, np.array([index]))
+        record["oracle_folded"] = float(min(frame_errors(engine, scores, index, o.transform, proposed[0], period)))
+    out.records.append(record)
+
+
+def _orientation_record(placed: dict[str, np.ndarray], scene: Scene, o: ObjectInstance, corpus: Corpus,
+                        period: float, source: str, normal) -> dict:
+    """How far each placement of ``placed`` (pose name → 4×4) is from the object's true pose."""
     table = _nearest_table(scene, o, corpus)
+    size = np.asarray(o.size, dtype=float)
     record = {"category": o.category, "period": period, "period_source": source, "chair_at_table": table is not None}
-    for pose, by, mode in (("full", engine, "full"), ("paper", paper, "full"), ("canonical", engine, "basic")):
-        faces, alphas, _ = by.choose_poses(scores, mode, [index])
-        placed = poses.placement(prep.point, prep.normal, faces[0], engine.size[index], float(alphas[0]))
-        record[f"{pose}_front"] = front_angle_deg(placed, o.transform)
-        record[f"{pose}_face"] = faces[0] == o.attachment_face
-        record[f"{pose}_folded"] = pose_error_deg(placed, o.transform, period)
+    for pose, placement in placed.items():
+        record[f"{pose}_front"] = front_angle_deg(placement, o.transform)
+        record[f"{pose}_face"] = attachment_face(placement, normal) == o.attachment_face
+        record[f"{pose}_folded"] = pose_error_deg(placement, o.transform, period)
         if table is not None:
-            record[f"{pose}_facing"] = _facing_error_deg(placed, engine.size[index], table, prep.normal)
+            record[f"{pose}_facing"] = _facing_error_deg(placement, size, table, normal)
     return record
 
 
 def _orientation(records: list[dict], pose: str) -> dict:
-    out = orientation_summary([r[f"{pose}_front"] for r in records], [r[f"{pose}_folded"] for r in records])
-    out["face_correct"] = float(np.mean([r[f"{pose}_face"] for r in records])) if records else 0.0
+    rs = [r for r in records if f"{pose}_folded" in r]
+    out = orientation_summary([r[f"{pose}_front"] for r in rs], [r[f"{pose}_folded"] for r in rs])
+    out["face_correct"] = float(np.mean([r[f"{pose}_face"] for r in rs])) if rs else 0.0
     return out
 
 
-def _modes(ranks: dict[str, list[float]], records: list[dict]) -> dict:
-    full = summary(ranks["full"])
+def _block(ranks: list[float], records: list[dict]) -> dict:
+    """An engine's figures: ranking in both modes (the ranking does not depend on the mode), orientation of
+    its full mode with the canonical pose (and the paper's rule, the frame oracle where measured) beside."""
+    full = summary(ranks)
     full.update(_orientation(records, "full"))
-    full["paper"] = _orientation(records, "paper")
     full["canonical"] = _orientation(records, "canonical")
-    return {"modes": {"basic": summary(ranks["basic"]), "full": full},
-            "baselines": {b: summary(ranks[b]) for b in BASELINES}}
+    if records and "paper_folded" in records[0]:
+        full["paper"] = _orientation(records, "paper")
+    oracle = [r["oracle_folded"] for r in records if "oracle_folded" in r]
+    if oracle:
+        full["frame_oracle"] = {"orient_folded_within_15": float(np.mean(np.array(oracle) <= 15)),
+                                "orient_folded_within_45": float(np.mean(np.array(oracle) <= 45)),
+                                "orient_median_deg": float(np.median(oracle)), "orient_n": len(oracle)}
+    return {"modes": {"basic": summary(ranks), "full": full}}
 
 
-def _categories(records: list[dict]) -> dict:
+def _poses_of(records: list[dict]) -> tuple[str, ...]:
+    return tuple(p for p in POSES if records and f"{p}_folded" in records[0])
+
+
+def _categories(records: list[dict], ranks: dict[str, list[float]] | None = None) -> dict:
+    """Per category the engine placed: the orientation of each pose and (given ``ranks``) its MRR and top-1."""
     by: dict[str, list[dict]] = {}
     for r in records:
         by.setdefault(r["category"], []).append(r)
     out = {}
     for category, rs in sorted(by.items(), key=lambda kv: (-len(kv[1]), kv[0])):
         out[category] = {"n": len(rs), "period": float(Counter(r["period"] for r in rs).most_common(1)[0][0])}
-        for pose in POSES:
+        for pose in _poses_of(rs):
             folded = np.array([r[f"{pose}_folded"] for r in rs])
             out[category][f"{pose}_folded_within_45"] = float(np.mean(folded <= 45))
             out[category][f"{pose}_median_deg"] = float(np.median(folded))
+    for category, rs in (ranks or {}).items():  # the ranking of categories the engine could place
+        if category in out:
+            out[category].update({"mrr": summary(rs)["mrr"], "top1": summary(rs)["top1"], "queries": len(rs)})
     return out
 
 
 def _chairs(records: list[dict]) -> dict:
     rs = [r for r in records if r["chair_at_table"]]
     out: dict = {"n": len(rs)}
-    for pose in POSES:
+    for pose in _poses_of(records):
         out[f"{pose}_facing_within_45"] = float(np.mean([r[f"{pose}_facing"] <= 45 for r in rs])) if rs else 0.0
         out[f"{pose}_folded_within_45"] = float(np.mean([r[f"{pose}_folded"] <= 45 for r in rs])) if rs else 0.0
     return out
 
 
+def _by_category(run: Run, name: str) -> dict[str, list[float]]:
+    by: dict[str, list[float]] = {}
+    for category, rank in zip(run.categories, run.engines[name].ranks, strict=True):
+        by.setdefault(category, []).append(rank)
+    return by
+
+
+def paired_difference(first: list[float], other: list[float], groups: list[int], resamples: int = 1000,
+                      seed: int = 0) -> dict:
+    """The difference of MRR (other − first) over the same queries, with a 95% percentile interval from a
+    bootstrap that resamples scene groups (near-copies together: the unit the folds keep apart), both engines'
+    queries of a group at once."""
+    a, b = 1.0 / np.asarray(first, dtype=float), 1.0 / np.asarray(other, dtype=float)
+    ids, cluster = np.unique(np.asarray(groups), return_inverse=True)
+    diff_sum = np.bincount(cluster, weights=b - a, minlength=len(ids))
+    count = np.bincount(cluster, minlength=len(ids)).astype(float)
+    draws = np.random.default_rng(seed).integers(0, len(ids), size=(resamples, len(ids)))
+    boot = diff_sum[draws].sum(axis=1) / np.maximum(count[draws].sum(axis=1), 1.0)
+    return {"mrr_difference": float((b - a).mean()), "low": float(np.percentile(boot, 2.5)),
+            "high": float(np.percentile(boot, 97.5)), "resamples": resamples, "unit": "scene group",
+            "groups": int(len(ids)), "queries": int(len(a))}
+
+
+def _timing(seconds: list[float]) -> dict:
+    if not seconds:
+        return {}
+    ms = 1000 * np.asarray(seconds)
+    return {"query_p50_ms": float(np.percentile(ms, 50)), "query_p95_ms": float(np.percentile(ms, 95))}
+
+
 def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptions | None = None,
              progress: Callable[[Iterable, str], Iterable] | None = None, group_similar: bool = True,
-             periods: ModelPeriods | None = None, ablations: bool = False) -> dict:
+             periods: ModelPeriods | None = None, ablations: bool = False, engines: list[EngineSpec] | None = None,
+             resamples: int = 1000) -> dict:
     """Run the k-fold evaluation; returns the JSON-ready summary (see the CLI's ``evaluate --json``).
 
-    With ``group_similar`` the main figures come from folds that keep near-copies together and the plain
-    k-fold figures are added under ``"ungrouped"``; without it only plain k-fold by scene is run. With
-    ``ablations`` every variant of :data:`ABLATIONS` is trained and measured on the main folds too
-    (``"ablations"``: the full-mode orientation summary and the chairs beside tables of each)."""
+    ``engines`` (default: the paper's, with ``options``) are each trained on every fold's training scenes and
+    asked the same held-out queries; the first engine's figures are the top level, every engine's are under
+    ``"engines"``, each after the first with the paired bootstrap interval of its MRR difference from the first
+    (``"vs_first"``, :func:`paired_difference`). The baselines come from the paper's priors of each fold.
+    With ``group_similar`` the main figures come from folds that keep near-copies together and the plain k-fold
+    figures of the first engine are added under ``"ungrouped"``; without it only plain k-fold by scene is run.
+    With ``ablations`` every variant of :data:`ABLATIONS` is trained and measured on the main folds too
+    (``"ablations"``: the paper engine's full-mode orientation summary and the chairs beside tables of each)."""
     progress = progress or (lambda items, label="": items)
     options = options or EngineOptions()
+    specs = list(engines or [EngineSpec("paper", {"name": "paper"}, options)])
+    if len({s.name for s in specs}) != len(specs):
+        raise SceneSuggestError("each engine may be named once", field="engine")
     if periods is None:
         periods = corpus_periods(corpus.models.values(), progress)
     groups = similar_groups(corpus.scenes) if group_similar else list(range(len(corpus.scenes)))
     plain_folds = folds_of(len(corpus.scenes), folds, seed)
     main_folds = grouped_folds(groups, folds, seed) if group_similar else plain_folds
-    ranks, records, skipped = _run(corpus, main_folds, options, periods, progress)
+    run = _run(corpus, main_folds, options, periods, progress, specs=specs, groups=groups, seed=seed)
+    first = specs[0].name
+    blocks = {}
+    for spec in specs:
+        er = run.engines[spec.name]
+        block = {**_block(er.ranks, er.records), **_timing(er.seconds), "version": spec.kind.version,
+                 "options": {k: v for k, v in spec.raw.items() if k != "name"},
+                 "chairs_at_tables": _chairs(er.records),
+                 "categories": _categories(er.records, _by_category(run, spec.name))}
+        if spec.name != first:
+            block["vs_first"] = {"engine": first, **paired_difference(run.engines[first].ranks, er.ranks, run.groups,
+                                                                      resamples, seed)}
+        blocks[spec.name] = block
+    top = blocks[first]
     result = {
-        "source": corpus.source, "folds": folds, "seed": seed, "queries": len(ranks["full"]),
-        "skipped": skipped,
-        **_modes(ranks, records),
+        "source": corpus.source, "folds": folds, "seed": seed, "queries": len(run.groups), "skipped": run.skipped,
+        "engine": first, "modes": top["modes"], "baselines": {b: summary(r) for b, r in run.baselines.items()},
         "grouping": {"group_similar": group_similar, "groups": len(set(groups)),
                      "scenes_with_near_copies": int(sum(n for n in Counter(groups).values() if n > 1))},
-        "period_sources": dict(Counter(r["period_source"] for r in records)),
-        "categories": _categories(records),
-        "chairs_at_tables": _chairs(records),
+        "period_sources": dict(Counter(r["period_source"] for r in run.engines[first].records)),
+        "categories": top["categories"], "chairs_at_tables": top["chairs_at_tables"], "engines": blocks,
     }
     if ablations:
         result["ablations"] = {}
+        paper_records = run.engines["paper"].records if "paper" in run.engines else None
         for name, fit_options in ABLATIONS.items():
-            if fit_options:
-                _, variant, _ = _run(corpus, main_folds, options, periods, progress, fit_options, rankings=False)
+            if fit_options or paper_records is None:
+                variant = _run(corpus, main_folds, options, periods, progress, fit_options,
+                               rankings=False).engines["paper"].records
             else:
-                variant = records
+                variant = paper_records
             result["ablations"][name] = {**_orientation(variant, "full"), "chairs_at_tables": _chairs(variant)}
     if group_similar:
-        plain_ranks, plain_records, _ = _run(corpus, plain_folds, options, periods, progress)
-        result["ungrouped"] = {"queries": len(plain_ranks["full"]), **_modes(plain_ranks, plain_records),
-                               "chairs_at_tables": _chairs(plain_records)}
+        plain = _run(corpus, plain_folds, options, periods, progress, specs=specs[:1], seed=seed)
+        er = plain.engines[first]
+        result["ungrouped"] = {"queries": len(plain.groups), **_block(er.ranks, er.records),
+                               "baselines": {b: summary(r) for b, r in plain.baselines.items()},
+                               "chairs_at_tables": _chairs(er.records)}
     return result
 
 
@@ -265,21 +426,57 @@ def _ranking_rows(block: dict) -> list[str]:
 
 def _orientation_rows(full: dict) -> list[str]:
     lines = [f"{'orientation':<14}{'≤15°':>8}{'≤45°':>8}{'folded ≤15°':>13}{'≤45°':>8}{'median':>9}"]
-    for name, m in (("full", full), ("paper's rule", full["paper"]), ("canonical", full["canonical"])):
+    rows = [("full", full), ("paper's rule", full.get("paper")), ("canonical", full["canonical"])]
+    for name, m in [(n, m) for n, m in rows if m is not None]:
         lines.append(f"{name:<14}{100 * m['orient_within_15']:>7.1f}%{100 * m['orient_within_45']:>7.1f}%"
                      f"{100 * m['orient_folded_within_15']:>12.1f}%{100 * m['orient_folded_within_45']:>7.1f}%"
                      f"{m['orient_median_deg']:>8.1f}°")
+    if "frame_oracle" in full:
+        m = full["frame_oracle"]
+        lines.append(f"{'frame oracle':<14}{'':>8}{'':>8}{100 * m['orient_folded_within_15']:>12.1f}%"
+                     f"{100 * m['orient_folded_within_45']:>7.1f}%{m['orient_median_deg']:>8.1f}°")
+    return lines
+
+
+def _engine_rows(result: dict) -> list[str]:
+    """The engines side by side: ranking, orientation, query time and the paired difference from the first."""
+    lines = [f"{'engine':<12}{'MRR':>7}{'top-1':>7}{'top-5':>7}{'folded ≤45°':>13}{'canonical':>11}{'oracle':>8}"
+             f"{'p50 ms':>8}{'p95 ms':>8}  MRR − {result['engine']} [95% CI]"]
+    for name, block in result["engines"].items():
+        full = block["modes"]["full"]
+        oracle = full.get("frame_oracle", {}).get("orient_folded_within_45")
+        diff = block.get("vs_first")
+        lines.append(f"{name:<12}{full['mrr']:>7.3f}{full['top1']:>7.3f}{full['top5']:>7.3f}"
+                     f"{100 * full['orient_folded_within_45']:>12.1f}%"
+                     f"{100 * full['canonical']['orient_folded_within_45']:>10.1f}%"
+                     + (f"{100 * oracle:>7.1f}%" if oracle is not None else f"{'–':>8}")
+                     + f"{block.get('query_p50_ms', math.nan):>8.2f}{block.get('query_p95_ms', math.nan):>8.2f}"
+                     + (f"  {diff['mrr_difference']:+.3f} [{diff['low']:+.3f}, {diff['high']:+.3f}]" if diff else ""))
+    return lines
+
+
+def _category_rows(result: dict, top: int) -> list[str]:
+    names = list(result["engines"])
+    first = result["engines"][names[0]]["categories"]
+    order = sorted((c for c in first if "mrr" in first[c]), key=lambda c: (-first[c]["queries"], c))
+    lines = [f"{'MRR by category':<24}{'n':>6}" + "".join(f"{n:>12}" for n in names)]
+    for category in order[:top]:
+        cells = [result["engines"][n]["categories"].get(category, {}).get("mrr", math.nan) for n in names]
+        lines.append(f"{category:<24}{first[category]['queries']:>6}" + "".join(f"{v:>12.3f}" for v in cells))
+    if len(order) > top:
+        lines.append(f"… {len(order) - top} more categories (use --json for all)")
     return lines
 
 
 def format_evaluation(result: dict, by_category: bool = False, top: int = 30) -> str:
-    """A human table of :func:`evaluate`'s result (``by_category``: also the per-category orientation table)."""
+    """A human table of :func:`evaluate`'s result (``by_category``: also the per-category tables)."""
     grouping = result["grouping"]
     how = (f"{result['folds']}-fold by scene, near-copies kept together ({grouping['groups']} groups; "
            f"{grouping['scenes_with_near_copies']} scenes have near-copies)" if grouping["group_similar"]
            else f"{result['folds']}-fold by scene")
     lines = [f"{result['source']}: {result['queries']} queries ({result['skipped']} skipped), {how}, "
-             f"seed {result['seed']}", "", f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]
+             f"seed {result['seed']}", "", f"the {result['engine']} engine",
+             f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]
     lines += _ranking_rows(result)
     full = result["modes"]["full"]
     sources = ", ".join(f"{n} from {s}" for s, n in sorted(result["period_sources"].items()))
@@ -287,10 +484,13 @@ def format_evaluation(result: dict, by_category: bool = False, top: int = 30) ->
     lines += _orientation_rows(full)
     chairs = result["chairs_at_tables"]
     if chairs["n"]:
-        lines += ["", f"chairs beside a table or desk ({chairs['n']}): facing it within 45° — full "
-                      f"{100 * chairs['full_facing_within_45']:.1f}%, paper's rule "
-                      f"{100 * chairs['paper_facing_within_45']:.1f}%, canonical "
-                      f"{100 * chairs['canonical_facing_within_45']:.1f}%"]
+        lines += ["", f"chairs beside a table or desk ({chairs['n']}): facing it within 45° — "
+                  + ", ".join(f"{label} {100 * chairs[f'{pose}_facing_within_45']:.1f}%"
+                              for pose, label in (("full", "full"), ("paper", "paper's rule"),
+                                                  ("canonical", "canonical")) if f"{pose}_facing_within_45" in chairs)]
+    if len(result["engines"]) > 1:
+        lines += ["", "engines on the same folds (MRR difference: paired bootstrap over scene groups)"]
+        lines += _engine_rows(result)
     if "ungrouped" in result:
         plain = result["ungrouped"]
         lines += ["", f"plain {result['folds']}-fold by scene (near-copies may straddle folds; {plain['queries']} "
@@ -300,17 +500,21 @@ def format_evaluation(result: dict, by_category: bool = False, top: int = 30) ->
     if "ablations" in result:
         lines += ["", f"{'orientation ablations':<38}{'folded ≤15°':>12}{'≤45°':>8}{'median':>9}{'chairs facing':>15}"]
         rows = [(name, m, m["chairs_at_tables"]["full_facing_within_45"]) for name, m in result["ablations"].items()]
-        rows += [("the paper's rule", full["paper"], chairs["paper_facing_within_45"]),
-                 ("canonical pose (basic)", full["canonical"], chairs["canonical_facing_within_45"])]
+        if "paper" in full:
+            rows += [("the paper's rule", full["paper"], chairs["paper_facing_within_45"])]
+        rows += [("canonical pose (basic)", full["canonical"], chairs["canonical_facing_within_45"])]
         for name, m, facing in rows:
             lines.append(f"{name:<38}{100 * m['orient_folded_within_15']:>11.1f}%"
                          f"{100 * m['orient_folded_within_45']:>7.1f}%{m['orient_median_deg']:>8.1f}°"
                          f"{100 * facing:>14.1f}%")
     if by_category:
-        lines += ["", f"{'folded ≤45°':<24}{'n':>6}{'period':>8}{'full':>8}{'paper':>8}{'canonical':>11}"]
-        for name, c in list(result["categories"].items())[:top]:
-            lines.append(f"{name:<24}{c['n']:>6}{c['period']:>7.0f}°{100 * c['full_folded_within_45']:>7.1f}%"
-                         f"{100 * c['paper_folded_within_45']:>7.1f}%{100 * c['canonical_folded_within_45']:>10.1f}%")
-        if len(result["categories"]) > top:
-            lines.append(f"… {len(result['categories']) - top} more categories (use --json for all)")
+        poses_shown = [p for p in POSES if any(f"{p}_folded_within_45" in c for c in result["categories"].values())]
+        lines += ["", f"{'folded ≤45°':<24}{'n':>6}{'period':>8}" + "".join(f"{p:>11}" for p in poses_shown)]
+        shown = [(n, c) for n, c in result["categories"].items() if "period" in c]
+        for name, c in shown[:top]:
+            lines.append(f"{name:<24}{c['n']:>6}{c['period']:>7.0f}°"
+                         + "".join(f"{100 * c[f'{p}_folded_within_45']:>10.1f}%" for p in poses_shown))
+        if len(shown) > top:
+            lines.append(f"… {len(shown) - top} more categories (use --json for all)")
+        lines += [""] + _category_rows(result, top)
     return "\n".join(lines)

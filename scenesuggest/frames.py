@@ -126,6 +126,19 @@ def world_bbox(transform: np.ndarray, size) -> tuple[np.ndarray, np.ndarray]:
     return c.min(axis=0), c.max(axis=0)
 
 
+def world_bboxes(transforms, sizes) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`world_bbox` of many boxes at once: transforms (n, 4, 4), sizes (n, 3) → (min, max), each (n, 3)."""
+    t = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)
+    size = np.asarray(sizes, dtype=float).reshape(-1, 3)
+    corners = _UNIT_CORNERS[None] * size[:, None, :]  # (n, 8, 3)
+    world = np.einsum("nij,nkj->nki", t[:, :3, :3], corners) + t[:, None, :3, 3]
+    return world.min(axis=1), world.max(axis=1)
+
+
+#: The corners of the canonical box of size (1, 1, 1), in the order of :func:`box_corners`.
+_UNIT_CORNERS = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (0.0, 1.0) for z in (-0.5, 0.5)])
+
+
 def face_of_direction(direction) -> str:
     """The bbox face whose outward normal is closest to ``direction`` (canonical frame)."""
     d = np.asarray(direction, dtype=float)

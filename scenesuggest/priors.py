@@ -28,7 +28,6 @@ to geometry.
 
 from __future__ import annotations
 
-import io
 import json
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -41,6 +40,7 @@ from .digest import source_digest
 from .errors import SceneSuggestError
 from .folds import similar_groups
 from .learning import ANY, K_MAX, learn_counts, subtree
+from .npz import npz_bytes
 from .observations import POOLED, RELATIONS
 from .orientation import BINS, KINDS, learn_orientation, smooth
 from .scene import SURFACE_TYPES, Scene
@@ -191,11 +191,11 @@ class Priors:
     def save(self, path: str | Path) -> Path:
         """Write one ``.npz`` file, whole or not at all (a running server may read it); saving what was loaded
         reproduces the file byte for byte."""
-        payload = dict(self.arrays)
-        payload["meta"] = np.frombuffer(json.dumps(self.meta, sort_keys=True).encode(), dtype=np.uint8)
-        buffer = io.BytesIO()
-        np.savez_compressed(buffer, **{k: payload[k] for k in sorted(payload)})
-        return write_atomically(path, buffer.getvalue())
+        return write_atomically(path, npz_bytes(self.payload()))
+
+    def payload(self) -> dict[str, np.ndarray]:
+        """What :meth:`save` writes: the arrays and ``meta`` (JSON as bytes)."""
+        return {**self.arrays, "meta": np.frombuffer(json.dumps(self.meta, sort_keys=True).encode(), dtype=np.uint8)}
 
     @classmethod
     def load(cls, path: str | Path) -> Priors:
@@ -203,11 +203,16 @@ class Priors:
         path = Path(path)
         try:
             with np.load(path, allow_pickle=False) as data:
-                meta = _checked_meta(data, path)
-                arrays = {k: data[k] for k in data.files if k != "meta"}
-        except (OSError, ValueError) as e:
+                return cls.from_payload({k: data[k] for k in data.files}, path)
+        except (OSError, ValueError, KeyError) as e:
             raise SceneSuggestError(f"cannot read priors: {e}", file=str(path)) from None
-        return cls(arrays, meta)
+
+    @classmethod
+    def from_payload(cls, payload: dict[str, np.ndarray], path: str | Path) -> Priors:
+        """Priors from what :meth:`payload` gave (read from ``path``, named in errors), checked as :meth:`load`
+        checks a file."""
+        meta = _checked_meta(payload, Path(path))
+        return cls({k: v for k, v in payload.items() if k != "meta"}, meta)
 
     @staticmethod
     def read_meta(path: str | Path) -> dict:
@@ -376,8 +381,9 @@ def peak_normalised(counts: np.ndarray) -> np.ndarray:
 
 
 def _checked_meta(data, path: Path) -> dict:
-    """The metadata entry of an open ``.npz``: present, JSON, this format and this engine's version."""
-    if "meta" not in data.files:
+    """The metadata entry of an open ``.npz`` (or of its arrays by name): present, JSON, this format and this
+    engine's version."""
+    if "meta" not in (data.files if hasattr(data, "files") else data):
         raise SceneSuggestError("not a priors file (no metadata)", file=str(path), field="meta")
     try:
         meta = json.loads(data["meta"].tobytes().decode())

@@ -97,12 +97,16 @@ class Suggestion:
 @dataclass(frozen=True)
 class SuggestionList(Sequence):
     """The answer to one query: its suggestions, best first, and what the engine read from the click — the
-    surface type, the scene type and the clicked parent's category. Behaves as the sequence of suggestions."""
+    surface type, the scene type and the clicked parent's category; which engine answered (its registry name)
+    and, when an engine could not answer and another stood in, why (``fallback``). Behaves as the sequence of
+    suggestions."""
 
     suggestions: tuple[Suggestion, ...]
     surface_type: str
     scene_type: str
     parent_category: str
+    engine: str = "paper"
+    fallback: str | None = None
 
     def __getitem__(self, i):
         return self.suggestions[i]
@@ -112,7 +116,8 @@ class SuggestionList(Sequence):
 
     def to_dict(self) -> dict:
         return {"surface_type": self.surface_type, "scene_type": self.scene_type,
-                "parent_category": self.parent_category, "suggestions": [s.to_dict() for s in self.suggestions]}
+                "parent_category": self.parent_category, "engine": self.engine, "fallback": self.fallback,
+                "suggestions": [s.to_dict() for s in self.suggestions]}
 
 
 @dataclass
@@ -126,10 +131,16 @@ class Scores:
     position: np.ndarray
     total: np.ndarray
     densities: list[np.ndarray] = field(default_factory=list)
+    #: An engine that ranks by more than the paper's score keeps it here (and its own rows in ``features``).
+    paper_total: np.ndarray | None = None
+    features: np.ndarray | None = None
 
 
 class Engine:
-    """Answers context queries from a :class:`Priors`. Pure: answers depend only on priors and query."""
+    """Answers context queries from a :class:`Priors` (the ``paper`` engine of :mod:`scenesuggest.engines`).
+    Pure: answers depend only on priors and query."""
+
+    name = "paper"
 
     def __init__(self, priors: Priors, options: EngineOptions | None = None):
         self.priors = priors
@@ -161,6 +172,11 @@ class Engine:
         self.base_rate = own / max(total, 1.0)
         self.weights = p.orient_weights[self.candidates].astype(float)  # (n, surface types, kinds)
         self._cache: dict[tuple, tuple] = {}
+
+    @property
+    def categories(self) -> dict[str, tuple[str, ...]]:
+        """Every category the engine can suggest → its models, the most used first."""
+        return dict(zip(self.names, self.members, strict=True))
 
     # --- per-category statistics after back-off -------------------------------------------------------------
     def _stat_entity(self, category: str) -> int:
@@ -332,11 +348,38 @@ class Engine:
         for rank, (i, placement) in enumerate(zip(order, placed, strict=True), start=1):
             out.append(Suggestion(
                 rank=rank, category=self.names[i], score=float(total[i]),
-                terms={"occurrence": float(scores.occurrence[i]), "surface": float(scores.surface[i]),
-                       "position": float(scores.position[i])},
+                terms=self.terms(scores, i),
                 placement=placement, attachment_face=faces[rank - 1], heading_deg=float(degrees[rank - 1]),
                 models=self.members[i], notes=tuple(notes[i])))
-        return SuggestionList(tuple(out), prep.surface_type, prep.scene_type, prep.parent_category)
+        return SuggestionList(tuple(out), prep.surface_type, prep.scene_type, prep.parent_category, self.name)
+
+    def explain(self, query: ContextQuery, mode: str = "full", top: int | None = 10,
+                categories: Collection[str] = ()) -> list[dict]:
+        """Why each category got its rank, for the ``top`` suggestions and ``categories`` wherever they rank: its
+        score and the contributions that sum to it — λ1 · occurrence · surface, then λ2 · the position density
+        next to each reference (the parent and the objects on it)."""
+        scores = self.score(query)
+        order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
+        rank = {int(i): r for r, i in enumerate(order, start=1)}
+        wanted = list(dict.fromkeys([int(i) for i in order[: top or len(order)]]
+                                    + [self.index[c] for c in categories if c in self.index]))
+        o = self.options
+        out = []
+        for i in wanted:
+            parts = [{"feature": "occurrence × surface", "value": float(scores.occurrence[i] * scores.surface[i]),
+                      "contribution": float(o.lambda1 * scores.occurrence[i] * scores.surface[i])}]
+            for (ref, relation), density in zip(scores.prepared.references, scores.densities, strict=True):
+                parts.append({"feature": f"position by the {relation} {ref.category} {ref.id!r}",
+                              "value": float(density[i]), "contribution": float(o.lambda2 * density[i])})
+            parts.sort(key=lambda p: -abs(p["contribution"]))
+            out.append({"rank": rank[i], "category": self.names[i], "score": float(scores.total[i]), "baseline": 0.0,
+                        "terms": self.terms(scores, i), "contributions": parts})
+        return out
+
+    def terms(self, scores: Scores, i: int) -> dict[str, float]:
+        """The explanation terms of candidate ``i``: the paper's occurrence, surface and position terms."""
+        return {"occurrence": float(scores.occurrence[i]), "surface": float(scores.surface[i]),
+                "position": float(scores.position[i])}
 
     def _ranking(self, total: np.ndarray, allowed: np.ndarray) -> np.ndarray:
         """Candidate indices best first (ties by name), only the allowed ones."""
@@ -344,7 +387,7 @@ class Engine:
         return order[allowed[order]]
 
     def with_options(self, **changes) -> Engine:
-        return Engine(self.priors, replace(self.options, **changes))
+        return type(self)(self.priors, replace(self.options, **changes))
 
 
 __all__ = ["ANY", "ContextQuery", "Engine", "EngineOptions", "MODES", "ORIENTATIONS", "Suggestion"]

@@ -217,6 +217,19 @@ def _resources(study: Study) -> dict:
             "priors_sha256": sha256(study.priors), "library_index_sha256": sha256(study.library / INDEX_FILE)}
 
 
+def _engines(rt: StudyRuntime) -> dict:
+    """Per condition that suggests: its engine's name, version, options and the SHA-256 of the file it answers
+    from (an HTTP engine: its fallback's file; the URL is left out, as it may carry a secret)."""
+    out = {}
+    for condition, e in rt.engine_files().items():
+        file = e.pop("file")
+        if e["engine"] == "http":
+            e["options"] = {k: v for k, v in e["options"].items() if k != "url"}
+        out[condition] = {**e, "file_sha256": hashlib.sha256(file.read_bytes()).hexdigest()
+                          if file is not None and file.is_file() else None}
+    return out
+
+
 def export_files(rt: StudyRuntime) -> dict[str, str]:
     """File name → content of a complete export of the study ``rt`` runs."""
     from scenesuggest.event_schema import json_schema
@@ -253,6 +266,7 @@ def export_files(rt: StudyRuntime) -> dict[str, str]:
         "design": {"kind": study.design, "blocking": study.blocking, "rows": study.n_rows,
                    "conditions": [c.id for c in study.conditions], "periods": [list(p) for p in study.periods]},
         "resources": _resources(study),
+        "engines": _engines(rt),
     }
     files["manifest.json"] = json.dumps(manifest, indent=1)
     return files

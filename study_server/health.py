@@ -47,9 +47,31 @@ def _study(rt) -> str:
     return "ok" if loaded else "unavailable"
 
 
+def _engines(rt) -> dict[str, dict]:
+    """Per condition that suggests: the engine's name and version and whether it is loaded (an HTTP engine: and
+    how many of its answers this process replaced by its fallback's, without the reasons)."""
+    out = {}
+    for c in rt.study.conditions:
+        if c.id == "none":
+            continue
+        entry = {"engine": c.engine.name, "version": c.engine.kind.version}
+        try:
+            engine = rt.engine(c.id)
+            entry["status"] = "ok"
+            if hasattr(engine, "fallbacks"):
+                entry["fallbacks"] = engine.fallbacks
+        except Exception as e:  # noqa: BLE001 - reported by kind, never raised
+            entry["status"] = f"unavailable ({type(e).__name__})"
+        out[c.id] = entry
+    return out
+
+
 def health() -> tuple[dict, bool]:
     """The checks and whether all passed."""
     database, schema = _database()
-    studies = {sid: _study(rt) for sid, rt in current_app.extensions["studies"].items()}
-    ok = database == "ok" and schema == "ok" and all(v == "ok" for v in studies.values())
-    return {"ok": ok, "database": database, "schema": schema, "studies": studies}, ok
+    runtimes = current_app.extensions["studies"]
+    studies = {sid: _study(rt) for sid, rt in runtimes.items()}
+    engines = {sid: _engines(rt) for sid, rt in runtimes.items()}
+    ok = (database == "ok" and schema == "ok" and all(v == "ok" for v in studies.values())
+          and all(e["status"] == "ok" for per in engines.values() for e in per.values()))
+    return {"ok": ok, "database": database, "schema": schema, "studies": studies, "engines": engines}, ok

@@ -10,7 +10,7 @@ import uuid
 from collections.abc import Callable
 
 from scenesuggest import frames
-from scenesuggest.suggest import ContextQuery
+from scenesuggest.suggest import ContextQuery, SuggestionList
 
 from .extensions import db
 from .models import ShownList
@@ -23,10 +23,11 @@ MODELS_PER_CATEGORY = 12
 
 
 def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
-                 describe: Callable) -> tuple[list[dict], str]:
-    """(items, surface type) for a click on ``parent`` at ``point`` (metres, world frame) with ``normal``: ranked
-    categories that this study's library can place, each with its placement (4×4, column-major, world frame),
-    attachment face, heading and models (as ``describe(model)`` gives them). Raises
+                 describe: Callable) -> tuple[list[dict], SuggestionList]:
+    """(items, the engine's answer) for a click on ``parent`` at ``point`` (metres, world frame) with ``normal``:
+    ranked categories that this study's library can place, each with its placement (4×4, column-major, world
+    frame), attachment face, heading and models (as ``describe(model)`` gives them); the answer says which engine
+    answered and, when the condition's engine could not, why (``fallback``). Raises
     :class:`scenesuggest.errors.SceneSuggestError` for a query the engine cannot answer."""
     engine = rt.engine(condition)
     query = ContextQuery(scene, parent, point, normal)
@@ -43,7 +44,7 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
                       "models": [describe(m) for m in models[:MODELS_PER_CATEGORY]]})
         if len(items) >= SUGGESTIONS_SHOWN:
             break
-    return items, found.surface_type
+    return items, found
 
 
 def record(participant_id: int | None, trial: int | None, source: str, query: dict, items: list[dict]) -> str:

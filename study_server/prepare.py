@@ -41,6 +41,32 @@ def problems(study: Study, current: bool = False) -> dict[str, str]:
             out["library"] = f"the model library at {study.library} was built by other code"
     except (OSError, ValueError, AttributeError):
         out["library"] = f"no model library at {study.library}"
+    out.update(engine_problems(study, current))
+    return out
+
+
+def engine_problems(study: Study, current: bool = False) -> dict[str, str]:
+    """Conditions whose engine answers from a file of its own (the learned engine's) that is missing or unreadable
+    (key: the condition's ``engine`` key), or, with ``current``, was trained by other code."""
+    out = {}
+    for i, c in enumerate(study.conditions):
+        spec = c.engine
+        target = spec.config.fallback if spec.name == "http" else spec
+        if target.name != "learned":
+            continue
+        from scenesuggest.engines.learned import LearnedEngine
+        from scenesuggest.engines.learned.engine import code_digest as learned_digest
+
+        path = target.kind.trained_file(target.config, study.priors)
+        key = f"conditions[{i}].engine" + (".fallback" if target is not spec else "")
+        try:
+            meta = LearnedEngine.read_meta(path)
+            if current and meta.get("code") != learned_digest():
+                out[key] = f"the learned engine's file {path} was trained by other engine code"
+        except SceneSuggestError as e:
+            how = (f"'scenesuggest study prepare {study.path}'" if study.server_resources else
+                   f"'scenesuggest engine train learned {study.corpus} -o {path}'")
+            out[key] = f"no usable learned engine's file at {path} ({e.message}): make it with {how}"
     return out
 
 
@@ -54,7 +80,8 @@ def prepare(study: Study, progress: Progress, say: Callable[[str], None]) -> lis
         return []
     from scenesuggest.corpora import load_corpus
 
-    say(f"{study.id}: building the {' and '.join(todo)} of the corpus {study.corpus!r} (about a minute, once)")
+    what = sorted({"learned engine" if k.startswith("conditions[") else k for k in todo})
+    say(f"{study.id}: building the {' and '.join(what)} of the corpus {study.corpus!r} (about a minute each, once)")
     corpus = load_corpus(study.corpus, progress=progress)
     if "library" in todo:
         from scenesuggest.assets.build import build_library
@@ -65,4 +92,17 @@ def prepare(study: Study, progress: Progress, say: Callable[[str], None]) -> lis
         study.priors.parent.mkdir(parents=True, exist_ok=True)
         Priors.fit(corpus.scenes, corpus.taxonomy, progress=progress).save(study.priors)
         say(f"{study.id}: priors → {study.priors}")
+    built = set()
+    for key in todo:
+        if key.startswith("conditions["):
+            spec = study.condition(study.conditions[int(key[11:key.index("]")])].id).engine
+            spec = spec.config.fallback if spec.name == "http" else spec
+            path = spec.kind.trained_file(spec.config, study.priors)
+            if path not in built:
+                from scenesuggest.symmetry import corpus_periods
+
+                spec.kind.train(spec.config, corpus.scenes, corpus.taxonomy, path, progress=progress,
+                                periods=corpus_periods(corpus.models.values(), progress))
+                built.add(path)
+                say(f"{study.id}: learned engine → {path}")
     return todo

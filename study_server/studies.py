@@ -15,11 +15,11 @@ from pathlib import Path
 
 from flask import abort, current_app
 
-from scenesuggest import scene_json
+from scenesuggest import engines, scene_json
+from scenesuggest.engines.protocol import LoadContext, SuggestionEngine
 from scenesuggest.library import INDEX_FILE, ModelInfo, load_index
 from scenesuggest.priors import Priors
 from scenesuggest.search import SearchIndex
-from scenesuggest.suggest import Engine
 from scenesuggest.symmetry import NONE, corpus_periods
 from scenesuggest.taxonomy import Taxonomy
 
@@ -55,7 +55,7 @@ class StudyRuntime:
     def __init__(self, study: Study):
         self.study = study
         self._lock = threading.RLock()
-        self._engines: dict[str, Engine] = {}
+        self._engines: dict[str, SuggestionEngine] = {}
         self._placeable: dict[str, frozenset[str]] = {}
         self._periods: dict[str, float] = {}
         #: What the API says of each model, by id, its URLs below the app's mount point: made once, as a model's
@@ -70,6 +70,8 @@ class StudyRuntime:
 
         s = self.study
         for key, problem in problems(s).items():
+            if key.startswith("conditions["):
+                raise StudyFileError(problem, file=str(s.path), field=key)
             if s.server_resources:
                 how = f"build it with 'scenesuggest study prepare {s.path}'"
             elif key == "priors":
@@ -100,11 +102,31 @@ class StudyRuntime:
         with self._lock:
             return Priors.load(self.study.priors)
 
-    def engine(self, condition_id: str) -> Engine:
+    def engine(self, condition_id: str) -> SuggestionEngine:
+        """The engine of a condition (:mod:`scenesuggest.engines`), loaded once."""
         with self._lock:
             if condition_id not in self._engines:
-                self._engines[condition_id] = Engine(self.priors, self.study.condition(condition_id).engine)
+                self._engines[condition_id] = self.load_engine(self.study.condition(condition_id).engine)
             return self._engines[condition_id]
+
+    def load_engine(self, spec: engines.EngineSpec) -> SuggestionEngine:
+        """An engine of this study: those that answer from the study's priors file share its one copy."""
+        kind, priors = spec.kind, self.study.priors
+        if hasattr(kind, "from_priors") and kind.trained_file(spec.config, priors) == priors:
+            return kind.from_priors(spec.config, self.priors)
+        return kind.load(spec.config, LoadContext(priors, load=self.load_engine))
+
+    def engine_files(self) -> dict[str, dict]:
+        """Per condition that suggests: its engine's name, version and trained file (the manifest's record)."""
+        out = {}
+        for c in self.study.conditions:
+            if c.id == "none":
+                continue
+            spec = c.engine
+            out[c.id] = {"engine": spec.name, "version": spec.kind.version,
+                         "options": {k: v for k, v in spec.raw.items() if k != "name"},
+                         "file": spec.kind.trained_file(spec.config, self.study.priors)}
+        return out
 
     def placeable(self, condition_id: str) -> frozenset[str]:
         """The engine's categories that this study's library has a model of (the ones worth suggesting)."""
@@ -113,7 +135,7 @@ class StudyRuntime:
             if key not in self._placeable:
                 engine = self.engine(condition_id)
                 self._placeable[key] = frozenset(
-                    name for name, members in zip(engine.names, engine.members, strict=True)
+                    name for name, members in engine.categories.items()
                     if any(m in self.library for m in members) or name in self.by_category)
             return self._placeable[key]
 

@@ -9,8 +9,8 @@ import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
+from scenesuggest import engines
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.suggest import EngineOptions
 
 from . import schedule
 from .config import data_home
@@ -28,16 +28,17 @@ OPTIONAL_CODES = ("returned",)
 #: Where Prolific takes a completion code (its one completion URL, the code as ``cc``).
 PROLIFIC_COMPLETION = "https://app.prolific.com/submissions/complete?cc={code}"
 QUESTION_KINDS = ("likert", "choice", "number", "text")
-ENGINE_OPTIONS = ("lambda1", "lambda2", "backoff", "orientation", "collision_aware", "collision_penalty",
-                  "anchor_refinement", "refine_radius_m", "infer_scene_type")
 
 
 @dataclass(frozen=True)
 class Condition:
+    """A condition: its interface (``id``: none, basic or full), texts, and the engine that suggests in it (a
+    registered engine by name, with its options; see :mod:`scenesuggest.engines`)."""
+
     id: str
     label: str
     instructions: str
-    engine: EngineOptions
+    engine: engines.EngineSpec
 
 
 @dataclass(frozen=True)
@@ -144,17 +145,15 @@ def _questions(r: Reader, items: list[dict], path: str) -> tuple[Question, ...]:
     return tuple(out)
 
 
-def _engine(r: Reader, doc: dict, path: str) -> EngineOptions:
-    r.unknown(doc, ENGINE_OPTIONS, path)
+def _engine(r: Reader, doc: dict, path: str, base: Path) -> engines.EngineSpec:
+    """The condition's engine: ``name`` (default ``paper``) and the options its kind takes (errors name the key)."""
     try:
-        return EngineOptions(**doc)
+        return engines.configure(doc, base)
     except SceneSuggestError as e:
-        raise r.fail(f"{path}.{e.field}", e.message) from None
-    except TypeError as e:
-        raise r.fail(path, str(e)) from None
+        raise r.fail(f"{path}.{e.field}" if e.field else path, e.message) from None
 
 
-def _conditions(r: Reader, doc: dict) -> list[Condition]:
+def _conditions(r: Reader, doc: dict, base: Path) -> list[Condition]:
     conditions: list[Condition] = []
     for i, c in enumerate(r.tables(doc, "conditions", "conditions")):
         p = f"conditions[{i}]"
@@ -163,7 +162,8 @@ def _conditions(r: Reader, doc: dict) -> list[Condition]:
         if any(x.id == cid for x in conditions):
             raise r.fail(f"{p}.id", f"condition {cid!r} given twice")
         conditions.append(Condition(cid, str(c.get("label", cid)), str(c.get("instructions", "")),
-                                    _engine(r, r.table(c, "engine", f"{p}.engine", required=False), f"{p}.engine")))
+                                    _engine(r, r.table(c, "engine", f"{p}.engine", required=False), f"{p}.engine",
+                                            base)))
     return conditions
 
 
@@ -327,7 +327,7 @@ def load_study(path: str | Path) -> Study:
         raise r.fail("id", "use letters, digits, '-' and '_' only")
     design = r.table(doc, "design", "design")
     r.unknown(design, ("kind", "blocking", "participants"), "design")
-    conditions = _conditions(r, doc)
+    conditions = _conditions(r, doc, base)
     scenes = _scenes(r, doc, base)
     periods = _periods(r, doc, scenes)
     study = Study(

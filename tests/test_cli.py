@@ -70,7 +70,7 @@ def test_priors_train_and_suggest(tmp_path):
     assert {"category", "score", "terms", "placement", "attachment_face", "models"} <= set(first)
     assert len(first["placement"]) == 16
     human = run(*args, "--mode", "basic", "--collision-aware").stdout
-    assert "up_exterior of Desk in a Study (basic mode)" in human
+    assert "up_exterior of Desk in a Study (basic mode, the paper engine)" in human
 
 
 def test_suggest_errors_are_clear(tmp_path):

@@ -106,7 +106,21 @@ def progress(study) -> dict:
     for condition, done, status, n in trials:  # not done: open while the session goes on, else never finished
         state = "done" if done else "open" if status == "in_progress" else "unfinished"
         conditions.setdefault(condition, Counter())[state] += n
-    return {"rows": rows, "totals": totals, "conditions": conditions}
+    return {"rows": rows, "totals": totals, "conditions": conditions, "engines": engine_use(study)}
+
+
+def engine_use(study) -> list[dict]:
+    """Per condition that suggests: its engine, and how often another engine stood in for it (and why, the
+    commonest reasons first)."""
+    reasons: dict[str, Counter] = {}
+    for detail in db.session.scalars(select(SessionLog.detail).where(SessionLog.study_id == study.id,
+                                                                     SessionLog.kind == "engine_fallback")):
+        if isinstance(detail, dict):
+            reasons.setdefault(str(detail.get("condition")), Counter())[str(detail.get("reason"))[:120]] += 1
+    return [{"condition": c.id, "engine": c.engine.name, "version": c.engine.kind.version,
+             "fallback": c.engine.config.fallback.name if c.engine.name == "http" else None,
+             "fallbacks": sum(reasons.get(c.id, Counter()).values()),
+             "reasons": reasons.get(c.id, Counter()).most_common(3)} for c in study.conditions if c.id != "none"]
 
 
 @bp.get("/")

@@ -230,22 +230,27 @@ def suggest():
     rt = runtime(who.study_id)
     scene = live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
     try:
-        items, surface = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
-                                            data.get("normal"), lambda m: model_json(rt, m))
+        items, found = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
+                                          data.get("normal"), lambda m: model_json(rt, m))
     except SceneSuggestError as e:
         raise RequestError(400, e.message, e.field) from None
     participant = who.id if isinstance(who, Participant) else None
+    configured = rt.study.condition(condition).engine.name
     list_id = lists.record(participant, index, "context",
                            {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),
-                            "surface_type": surface},
+                            "surface_type": found.surface_type, "engine": found.engine,
+                            **({"fallback": found.fallback} if found.fallback else {})},
                            [{"rank": i["rank"], "category": i["category"], "score": i["score"],
                              "models": [m["id"] for m in i["models"]]} for i in items])
+    if found.fallback and participant is not None:
+        log("engine_fallback", who, condition=condition, trial=index, engine=configured, answered_by=found.engine,
+            reason=found.fallback, list_id=list_id)
     if participant is not None:
         who.last_seen_at = utcnow()
         db.session.commit()
     mode = "full" if condition == "full" else "basic"
-    return jsonify({"list_id": list_id, "condition": condition, "mode": mode, "surface_type": surface,
-                    "suggestions": items})
+    return jsonify({"list_id": list_id, "condition": condition, "mode": mode, "surface_type": found.surface_type,
+                    "engine": found.engine, "suggestions": items})
 
 
 @bp.get("/search")

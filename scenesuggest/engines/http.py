@@ -1,0 +1,366 @@
+"""The ``http`` engine: an engine in any language behind HTTP, with a fallback that always answers.
+
+For each query the server POSTs one JSON document (:func:`query_document`; its JSON Schema is
+:data:`QUERY_SCHEMA`, published in the API's OpenAPI document) to the engine's ``url`` and reads one JSON answer
+(:data:`ANSWER_SCHEMA`), which is validated strictly (:func:`parse_answer`): at most ``max_suggestions``
+suggestions of categories the query allows, each once, finite scores, rigid 4×4 placements (16 numbers,
+column-major, canonical → world, within 100 m of the click), faces and model ids the study knows, and at most
+``max_bytes`` bytes. A timeout (``timeout_ms``, the whole exchange: connecting, sending, waiting and reading), a
+refused connection, a status other than 200, a body that is not JSON or an answer that breaks a rule gives the
+fallback engine's list instead, with the reason (:attr:`~scenesuggest.suggest.SuggestionList.fallback`): the
+participant never waits longer than the timeout for a list and never sees an error because of the engine.
+
+Connections are kept alive (one per thread) and made afresh after any failure.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import http.client
+import json
+import math
+import socket
+import threading
+import time
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+import numpy as np
+
+from .. import frames, poses
+from ..errors import SceneSuggestError
+from ..query import ContextQuery, prepare
+from ..scene_json import scene_to_dict
+from ..suggest import MODES, Suggestion, SuggestionList
+from ..taxonomy import Taxonomy
+from .protocol import EngineKind, LoadContext, SuggestionEngine
+
+PROTOCOL_VERSION = 1
+DEFAULT_TIMEOUT_MS = 300
+MAX_TIMEOUT_MS = 10_000
+DEFAULT_MAX_SUGGESTIONS = 40
+DEFAULT_MAX_BYTES = 1 << 20
+#: A placement's rotation must be orthonormal to this tolerance, and its origin this close to the click (metres).
+RIGID_TOLERANCE = 1e-4
+MAX_DISTANCE_M = 100.0
+MAX_TERMS = 16
+MAX_MODELS = 64
+MAX_TEXT = 200
+OPTIONS = ("url", "timeout_ms", "fallback", "max_suggestions", "max_bytes")
+
+_NUMBER = {"type": "number"}
+_VEC3 = {"type": "array", "items": _NUMBER, "minItems": 3, "maxItems": 3}
+QUERY_SCHEMA = {
+    "type": "object", "title": "EngineQuery",
+    "description": "What the study server POSTs to an HTTP engine for one click (metres, world frame, +Y up).",
+    "required": ["protocol", "scene", "parent", "point", "normal", "surface_type", "scene_type", "mode", "top",
+                 "categories"],
+    "properties": {
+        "protocol": {"const": PROTOCOL_VERSION},
+        "scene": {"type": "object", "description": "the participant's scene in the native scene format "
+                                                   "(scenesuggest-scene, version 1)"},
+        "parent": {"type": "string", "description": "id of the clicked object"},
+        "point": {**_VEC3, "description": "the clicked point"},
+        "normal": {**_VEC3, "description": "the unit surface normal there"},
+        "surface_type": {"type": "string", "enum": ["up_interior", "up_exterior", "down_interior", "down_exterior",
+                                                    "vertical_interior", "vertical_exterior"]},
+        "scene_type": {"type": "string"},
+        "mode": {"type": "string", "enum": list(MODES),
+                 "description": "basic: canonical pose; full: also oriented"},
+        "top": {"type": "integer", "minimum": 1, "description": "at most this many suggestions are read"},
+        "categories": {"type": "array", "items": {"type": "string"},
+                       "description": "the categories the answer may hold (those the study's library can place)"},
+    },
+}
+ANSWER_SCHEMA = {
+    "type": "object", "title": "EngineAnswer", "required": ["suggestions"],
+    "description": "An HTTP engine's answer: suggestions, best first.",
+    "properties": {"suggestions": {"type": "array", "items": {
+        "type": "object", "required": ["category", "score", "placement"],
+        "properties": {
+            "category": {"type": "string", "description": "one of the query's categories, at most once"},
+            "score": {**_NUMBER, "description": "finite; higher is better"},
+            "placement": {"type": "array", "items": _NUMBER, "minItems": 16, "maxItems": 16,
+                          "description": "rigid 4×4 canonical → world transform, column-major"},
+            "attachment_face": {"type": "string", "enum": list(frames.FACES)},
+            "heading_deg": _NUMBER,
+            "models": {"type": "array", "items": {"type": "string"}, "maxItems": MAX_MODELS,
+                       "description": "model ids of the category, best first (default: the category's models)"},
+            "terms": {"type": "object", "additionalProperties": _NUMBER, "maxProperties": MAX_TERMS,
+                      "description": "why the category got its rank (name → number)"},
+        }}}},
+}
+
+
+class EngineUnavailable(Exception):
+    """The external engine gave no usable answer; ``str()`` is the reason, without the URL."""
+
+
+@dataclass(frozen=True)
+class HttpOptions:
+    url: str
+    timeout_ms: int = DEFAULT_TIMEOUT_MS
+    fallback: Any = None  # the fallback's EngineSpec
+    max_suggestions: int = DEFAULT_MAX_SUGGESTIONS
+    max_bytes: int = DEFAULT_MAX_BYTES
+
+
+def _integer(options: Mapping, key: str, default: int, low: int, high: int) -> int:
+    value = options.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise SceneSuggestError(f"expected an integer from {low} to {high}", field=key)
+    return value
+
+
+def _url(value) -> str:
+    if not isinstance(value, str) or not value:
+        raise SceneSuggestError("missing: the engine's http(s) URL", field="url")
+    parts = urlsplit(value)
+    if parts.scheme not in ("http", "https") or not parts.hostname or parts.username or parts.password:
+        raise SceneSuggestError("expected an http:// or https:// URL with a host and no credentials", field="url")
+    try:
+        _ = parts.port
+    except ValueError:
+        raise SceneSuggestError("the URL's port is not a number from 0 to 65535", field="url") from None
+    return value
+
+
+class HttpKind(EngineKind):
+    name = "http"
+    version = "1"
+    summary = "an engine in any language behind HTTP (JSON), with a fallback engine for timeouts and bad answers"
+
+    def configure(self, options: Mapping[str, Any], base: Path | None = None) -> HttpOptions:
+        from . import configure
+
+        for key in options:
+            if key not in OPTIONS:
+                raise SceneSuggestError(f"unknown key: this engine takes name, {', '.join(OPTIONS)}", field=key)
+        fallback = options.get("fallback", "paper")
+        table = {"name": fallback} if isinstance(fallback, str) else fallback
+        if not isinstance(table, Mapping) or table.get("name", "paper") == self.name:
+            raise SceneSuggestError("expected the name (or table) of an engine other than http", field="fallback")
+        try:
+            spec = configure(table, base)
+        except SceneSuggestError as e:
+            raise SceneSuggestError(e.message, field="fallback" + (f".{e.field}" if e.field else "")) from None
+        return HttpOptions(_url(options.get("url")), _integer(options, "timeout_ms", DEFAULT_TIMEOUT_MS, 1,
+                                                              MAX_TIMEOUT_MS), spec,
+                           _integer(options, "max_suggestions", DEFAULT_MAX_SUGGESTIONS, 1, 1000),
+                           _integer(options, "max_bytes", DEFAULT_MAX_BYTES, 1024, 64 << 20))
+
+    def trained_file(self, config: HttpOptions, priors: Path) -> Path | None:
+        return config.fallback.kind.trained_file(config.fallback.config, priors)
+
+    def load(self, config: HttpOptions, context: LoadContext) -> HttpEngine:
+        from . import load
+
+        fallback = context.load(config.fallback) if context.load is not None else load(config.fallback, context)
+        return HttpEngine(config, fallback)
+
+
+def query_document(prep, mode: str, top: int, categories: Collection[str]) -> dict:
+    """The JSON document POSTed for a prepared query (:data:`QUERY_SCHEMA`)."""
+    return {"protocol": PROTOCOL_VERSION, "scene": scene_to_dict(prep.query.scene), "parent": prep.query.parent_id,
+            "point": [float(x) for x in prep.point], "normal": [float(x) for x in prep.normal],
+            "surface_type": prep.surface_type, "scene_type": prep.scene_type, "mode": mode, "top": int(top),
+            "categories": sorted(categories)}
+
+
+def _finite(value) -> bool:
+    return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
+
+
+def _placement(value, point: np.ndarray, where: str) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != 16 or not all(_finite(v) for v in value):
+        raise EngineUnavailable(f"invalid answer: {where}.placement is not 16 finite numbers")
+    m = frames.from_column_major(value)
+    r = m[:3, :3]
+    if (np.abs(m[3] - [0, 0, 0, 1]).max() > RIGID_TOLERANCE or np.abs(r.T @ r - np.eye(3)).max() > RIGID_TOLERANCE
+            or np.linalg.det(r) <= 0):
+        raise EngineUnavailable(f"invalid answer: {where}.placement is not a rigid transform")
+    if np.linalg.norm(m[:3, 3] - point) > MAX_DISTANCE_M:
+        raise EngineUnavailable(f"invalid answer: {where}.placement is more than {MAX_DISTANCE_M:g} m from the click")
+    return m
+
+
+def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, ...]], point, normal,
+                 max_suggestions: int) -> list[Suggestion]:
+    """The suggestions of an answer document, checked by the rules of the module docstring; raises
+    :class:`EngineUnavailable` naming the first broken rule (``suggestions[3].placement: …``)."""
+    if not isinstance(doc, dict) or not isinstance(doc.get("suggestions"), list):
+        raise EngineUnavailable("invalid answer: expected {\"suggestions\": [...]}")
+    items = doc["suggestions"]
+    if len(items) > max_suggestions:
+        raise EngineUnavailable(f"invalid answer: {len(items)} suggestions, at most {max_suggestions}")
+    point = np.asarray(point, dtype=float)
+    out, seen = [], set()
+    for i, item in enumerate(items):
+        where = f"suggestions[{i}]"
+        if not isinstance(item, dict):
+            raise EngineUnavailable(f"invalid answer: {where} is not an object")
+        category = item.get("category")
+        if not isinstance(category, str) or category not in allowed:
+            raise EngineUnavailable(f"invalid answer: {where}.category is not one the query allows")
+        if category in seen:
+            raise EngineUnavailable(f"invalid answer: {where}.category appears twice")
+        seen.add(category)
+        if not _finite(item.get("score")):
+            raise EngineUnavailable(f"invalid answer: {where}.score is not a finite number")
+        placement = _placement(item.get("placement"), point, where)
+        face = item.get("attachment_face")
+        if face is None:
+            face = frames.face_of_direction(frames.apply_direction(np.linalg.inv(placement),
+                                                                   -np.asarray(normal, dtype=float)[None])[0])
+        elif face not in frames.FACES:
+            raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not one of {', '.join(frames.FACES)}")
+        heading = item.get("heading_deg")
+        if heading is None:
+            heading = math.degrees(float(poses.wrap(poses.object_heading(placement, face, normal))))
+        elif not _finite(heading):
+            raise EngineUnavailable(f"invalid answer: {where}.heading_deg is not a finite number")
+        known = models.get(category, ())
+        chosen = item.get("models", list(known))
+        if (not isinstance(chosen, list) or len(chosen) > MAX_MODELS
+                or not all(isinstance(m, str) and m in known for m in chosen)):
+            raise EngineUnavailable(f"invalid answer: {where}.models are not models of {category!r}")
+        terms = item.get("terms", {})
+        if (not isinstance(terms, dict) or len(terms) > MAX_TERMS
+                or not all(isinstance(k, str) and len(k) <= MAX_TEXT and _finite(v) for k, v in terms.items())):
+            raise EngineUnavailable(f"invalid answer: {where}.terms must map at most {MAX_TERMS} names to numbers")
+        out.append(Suggestion(rank=i + 1, category=category, score=float(item["score"]),
+                              terms={k: float(v) for k, v in terms.items()}, placement=placement,
+                              attachment_face=face, heading_deg=float(heading), models=tuple(chosen) or known))
+    return out
+
+
+class _Connection(threading.local):
+    conn: http.client.HTTPConnection | None = None
+
+
+class HttpEngine:
+    """Posts each query to the external engine; answers with the fallback engine's list (and the reason) when
+    the external one fails (see the module docstring)."""
+
+    name = "http"
+
+    def __init__(self, options: HttpOptions, fallback: SuggestionEngine, taxonomy: Taxonomy | None = None):
+        self.options = options
+        self.fallback = fallback
+        self.taxonomy = taxonomy or getattr(getattr(fallback, "priors", None), "taxonomy", None) or Taxonomy()
+        parts = urlsplit(options.url)
+        self._https = parts.scheme == "https"
+        self._host, self._port = parts.hostname, parts.port
+        self._path = (parts.path or "/") + (f"?{parts.query}" if parts.query else "")
+        self._local = _Connection()
+        #: Answers replaced by the fallback's in this process (what /healthz reports).
+        self.fallbacks = 0
+        self._count = threading.Lock()
+
+    @property
+    def categories(self) -> Mapping[str, tuple[str, ...]]:
+        return self.fallback.categories
+
+    def suggest(self, query: ContextQuery, mode: str = "full", top: int | None = None,
+                only: Collection[str] | None = None) -> SuggestionList:
+        if mode not in MODES:
+            raise SceneSuggestError(f"mode must be one of {', '.join(MODES)}", field="mode")
+        prep = prepare(query, self.taxonomy)  # a query the engine cannot be asked is the participant's 400
+        allowed = set(self.categories) if only is None else set(only) & set(self.categories)
+        limit = min(top or self.options.max_suggestions, self.options.max_suggestions)
+        try:
+            body = json.dumps(query_document(prep, mode, limit, allowed), allow_nan=False).encode()
+            try:
+                doc = json.loads(self._exchange(body))
+            except (ValueError, UnicodeDecodeError, RecursionError):
+                raise EngineUnavailable("invalid answer: not JSON") from None
+            found = parse_answer(doc, allowed, self.categories, prep.point, prep.normal, self.options.max_suggestions)
+        except EngineUnavailable as e:
+            with self._count:
+                self.fallbacks += 1
+            return replace(self.fallback.suggest(query, mode, top, only), fallback=str(e))
+        return SuggestionList(tuple(found[:top] if top else found), prep.surface_type, prep.scene_type,
+                              prep.parent_category, engine=self.name)
+
+    # --- the exchange ----------------------------------------------------------------------------------------
+    def _connect(self, timeout: float) -> http.client.HTTPConnection:
+        if self._local.conn is None:
+            cls = http.client.HTTPSConnection if self._https else http.client.HTTPConnection
+            self._local.conn = cls(self._host, self._port, timeout=timeout)
+        return self._local.conn
+
+    def close(self) -> None:
+        if self._local.conn is not None:
+            self._local.conn.close()
+            self._local.conn = None
+
+    def _exchange(self, body: bytes) -> bytes:
+        """POST ``body``; the answer's bytes. Everything within the timeout, or :class:`EngineUnavailable`."""
+        timeout = self.options.timeout_ms / 1000
+        deadline = time.monotonic() + timeout
+        conn = self._connect(timeout)
+        # A watchdog ends the exchange at the deadline however the engine dribbles its bytes.
+        watchdog = threading.Timer(timeout, self._abort, args=(conn,))
+        watchdog.daemon = True
+        watchdog.start()
+        try:
+            return self._post(conn, body, deadline)
+        except EngineUnavailable:
+            self.close()
+            raise
+        except (OSError, http.client.HTTPException) as e:
+            self.close()
+            if time.monotonic() >= deadline - 1e-3:
+                raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms") from None
+            raise EngineUnavailable(f"connection failed ({type(e).__name__})") from None
+        finally:
+            watchdog.cancel()
+
+    @staticmethod
+    def _abort(conn: http.client.HTTPConnection) -> None:
+        sock = conn.sock
+        if sock is not None:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+
+    def _post(self, conn: http.client.HTTPConnection, body: bytes, deadline: float) -> bytes:
+        def remaining() -> float:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms")
+            return left
+
+        if conn.sock is None:
+            conn.timeout = remaining()
+            conn.connect()
+            conn.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        conn.sock.settimeout(remaining())
+        conn.request("POST", self._path, body, {"Content-Type": "application/json", "Accept": "application/json"})
+        response = conn.getresponse()
+        if response.status != 200:
+            response.close()
+            raise EngineUnavailable(f"HTTP {response.status}")
+        cap = self.options.max_bytes
+        length = response.getheader("Content-Length")
+        if length is not None and (not length.isdigit() or int(length) > cap):
+            raise EngineUnavailable(f"answer larger than {cap} bytes")
+        chunks, size = [], 0
+        while True:
+            conn.sock.settimeout(remaining())
+            chunk = response.read1(min(65536, cap + 1 - size)) if size <= cap else b""
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+            if size > cap:
+                raise EngineUnavailable(f"answer larger than {cap} bytes")
+        remaining()
+        if response.will_close:
+            self.close()
+        return b"".join(chunks)
+
+
+KIND = HttpKind()

@@ -1,0 +1,68 @@
+"""The ``learned`` engine: the paper's factors and the context the paper ignores, ranked by a learned model, and
+the reference frame of each heading chosen per query (beyond the paper).
+
+:mod:`.context` counts the context, :mod:`.features` turns a click into rows, :mod:`.training` learns the
+ranker and the frame classifier out of fold, :mod:`.engine` answers queries and reads and writes the file.
+
+Options of a study condition: ``file``, the trained file (relative to the study file; default: the study's priors
+file with ``.learned.npz`` for ``.npz``, which ``scenesuggest study prepare`` builds for the corpora the server
+prepares itself, and ``scenesuggest engine train learned SOURCE -o FILE`` for any).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ...errors import SceneSuggestError
+from ..protocol import EngineKind, LoadContext
+from .engine import LearnedEngine
+
+OPTIONS = ("file",)
+SUFFIX = ".learned.npz"
+
+
+def default_file(priors: Path) -> Path:
+    """The learned engine's file beside a study's priors file."""
+    return priors.with_name(priors.name.removesuffix(".npz") + SUFFIX)
+
+
+class LearnedKind(EngineKind):
+    name = "learned"
+    version = "1"
+    summary = ("learning to rank (LightGBM lambdarank) over the paper's factors and the scene's context; the "
+               "reference frame of each heading chosen per query")
+    trainable = True
+
+    def configure(self, options: Mapping[str, Any], base: Path | None = None) -> Path | None:
+        for key in options:
+            if key not in OPTIONS:
+                raise SceneSuggestError(f"unknown key: this engine takes name, {', '.join(OPTIONS)}", field=key)
+        file = options.get("file")
+        if file is None:
+            return None
+        if not isinstance(file, str) or not file.strip():
+            raise SceneSuggestError("expected the path of a learned engine's file", field="file")
+        return (base / file) if base is not None else Path(file)
+
+    def trained_file(self, config: Path | None, priors: Path) -> Path:
+        return config if config is not None else default_file(priors)
+
+    def load(self, config: Path | None, context: LoadContext) -> LearnedEngine:
+        return LearnedEngine.load(self.trained_file(config, context.priors))
+
+    def fit(self, config, scenes, taxonomy, *, seed: int = 0, progress=None, periods=None) -> LearnedEngine:
+        from .training import fit
+
+        return fit(scenes, taxonomy, seed=seed, periods=periods, progress=progress)
+
+    def train(self, config, scenes, taxonomy, out: Path, *, seed: int = 0, progress=None, periods=None) -> dict:
+        engine = self.fit(config, scenes, taxonomy, seed=seed, progress=progress, periods=periods)
+        path = engine.save(out)
+        return {"out": str(path), "bytes": path.stat().st_size, **engine.meta}
+
+
+KIND = LearnedKind()
+
+__all__ = ["KIND", "LearnedEngine", "default_file"]

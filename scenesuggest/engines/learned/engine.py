@@ -1,0 +1,206 @@
+"""The learned engine at query time, and its file.
+
+A click is scored by the paper's engine (the priors in the file), its context counted (:mod:`.context`), and
+every candidate's ranking row (:func:`.features.ranking_features`) scored by the ranker, a LightGBM lambdarank
+model: the higher, the better. In ``full`` mode, each of the suggestions returned gets the heading of the
+reference frame the frame classifier trusts most for it (:func:`.features.frame_proposals`; ``basic`` keeps the
+canonical pose, as the paper's engine does). Attachment faces and placements are the paper engine's.
+
+The file is one ``.npz`` (written by :mod:`scenesuggest.npz`, so the same training gives the same bytes): the
+priors' arrays and metadata under ``priors.``, the context counts under ``context.``, the two models as text
+(``ranker``, ``frames``) and ``meta`` (JSON: format, version, the feature and frame names, the training's seed
+and size).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import lightgbm as lgb
+import numpy as np
+
+from ... import poses
+from ...atomic import write_atomically
+from ...digest import source_digest
+from ...errors import SceneSuggestError
+from ...frames import FACES
+from ...npz import npz_bytes
+from ...priors import Priors
+from ...suggest import Engine, EngineOptions, Scores
+from .context import ContextStats
+from .features import FRAMES, ORIENTATION, RANKING, frame_proposals, ranking_features
+
+FORMAT = "scenesuggest-learned"
+VERSION = 1
+#: Contributions of the ranker's features listed per suggestion by :meth:`LearnedEngine.explain`.
+EXPLAIN_TOP = 6
+
+
+def code_digest() -> str:
+    """A short hash of the code that decides what a learned engine's file holds (the priors' code and this
+    package's): files the server prepared for itself are trained again when it changes."""
+    return source_digest("*.py", "corpora/*.py", "engines/learned/*.py")
+
+
+def _text(array: np.ndarray) -> str:
+    return array.tobytes().decode()
+
+
+def _bytes(text: str) -> np.ndarray:
+    return np.frombuffer(text.encode(), dtype=np.uint8)
+
+
+class LearnedEngine(Engine):
+    """Answers context queries with the learned ranker and frame classifier (see the module docstring).
+
+    Attributes
+    ----------
+    priors : Priors
+        The paper's priors, trained on the same scenes as the models (the paper's terms are features).
+    stats : ContextStats
+        Context counts over the candidate categories.
+    ranker : lightgbm.Booster
+        Scores ranking rows (columns in the order of ``features.RANKING``).
+    frames : lightgbm.Booster or None
+        Probability that a frame's heading is within 45° of the truth (rows in the order of
+        ``features.ORIENTATION``); None: the product of the evidence (the paper engine's ``full``).
+    meta : dict
+        The file's metadata.
+    """
+
+    name = "learned"
+
+    def __init__(self, priors: Priors, stats: ContextStats, ranker: lgb.Booster, frames: lgb.Booster | None,
+                 meta: dict, options: EngineOptions | None = None):
+        super().__init__(priors, options)
+        if list(stats.names) != list(self.names):
+            raise SceneSuggestError("the context counts and the priors name different categories", field="context")
+        self.stats, self.ranker, self.frames, self.meta = stats, ranker, frames, meta
+
+    # --- ranking -------------------------------------------------------------------------------------------
+    def score(self, query) -> Scores:
+        """The paper's terms of every candidate, with ``total`` the ranker's score and ``features`` its rows."""
+        scores = super().score(query)
+        scores.features = ranking_features(self, self.stats, scores)
+        scores.paper_total = scores.total
+        scores.total = self.ranker.predict(scores.features, num_threads=1)
+        return scores
+
+    def terms(self, scores: Scores, i: int) -> dict[str, float]:
+        return {**super().terms(scores, i), "paper_score": float(scores.paper_total[i]),
+                "learned_score": float(scores.total[i])}
+
+    # --- orientation ---------------------------------------------------------------------------------------
+    def choose_poses(self, scores: Scores, mode: str, idx: np.ndarray | None = None
+                     ) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """(face, α, heading) of candidates ``idx``: the paper engine's faces; in ``full`` mode the heading of the
+        frame the classifier trusts most for each (the product of the evidence when there is no classifier)."""
+        if mode != "full" or self.frames is None:
+            return super().choose_poses(scores, mode, idx)
+        idx = np.arange(len(self.candidates)) if idx is None else np.asarray(idx, dtype=np.int64)
+        face_index = self.face_indices(scores.prepared, mode, idx)
+        zero = poses.zero_headings(scores.prepared.normal)[face_index]
+        heading = self.frame_headings(scores, idx, face_index)[1]
+        return [FACES[i] for i in face_index], heading - zero, heading
+
+    def frame_headings(self, scores: Scores, idx: np.ndarray, face_index: np.ndarray | None = None
+                       ) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """(the frame chosen for each of candidates ``idx``, its heading (radians), every frame's heading
+        (len(idx), len(FRAMES)))."""
+        idx = np.asarray(idx, dtype=np.int64)
+        face_index = self.face_indices(scores.prepared, "full", idx) if face_index is None else face_index
+        proposed, rows = frame_proposals(self, scores, idx, face_index)
+        trust = self.frames.predict(rows.reshape(-1, rows.shape[-1]), num_threads=1).reshape(len(idx), len(FRAMES))
+        best = np.argmax(trust, axis=1)
+        return [FRAMES[k] for k in best], proposed[np.arange(len(idx)), best], proposed
+
+    # --- explanation ---------------------------------------------------------------------------------------
+    def explain(self, query, mode: str = "full", top: int | None = 10, categories=()) -> list[dict]:
+        """Why each category got its rank: the ranker's score, and the largest contributions of its features
+        (SHAP values, in the ranker's score units) with the features' values; for the ``top`` suggestions and
+        for ``categories`` wherever they rank."""
+        scores = self.score(query)
+        order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
+        rank = {int(i): r for r, i in enumerate(order, start=1)}
+        wanted = list(order[: top or len(order)]) + [self.index[c] for c in categories if c in self.index]
+        wanted = list(dict.fromkeys(int(i) for i in wanted))
+        contrib = self.ranker.predict(scores.features[wanted], pred_contrib=True, num_threads=1)
+        out = []
+        for row, i in zip(contrib, wanted, strict=True):
+            largest = np.argsort(-np.abs(row[:-1]), kind="stable")[:EXPLAIN_TOP]
+            out.append({"rank": rank[i], "category": self.names[i], "score": float(scores.total[i]),
+                        "baseline": float(row[-1]), "terms": self.terms(scores, i),
+                        "contributions": [{"feature": RANKING[k], "value": float(scores.features[i, k]),
+                                           "contribution": float(row[k])} for k in largest]})
+        return out
+
+    def with_options(self, **changes) -> LearnedEngine:
+        return LearnedEngine(self.priors, self.stats, self.ranker, self.frames, self.meta,
+                             replace(self.options, **changes))
+
+    # --- the file ------------------------------------------------------------------------------------------
+    def payload(self) -> dict[str, np.ndarray]:
+        out = {f"priors.{k}": v for k, v in self.priors.payload().items()}
+        out.update({f"context.{k}": v for k, v in self.stats.arrays.items()})
+        out["ranker"] = _bytes(self.ranker.model_to_string())
+        if self.frames is not None:
+            out["frames"] = _bytes(self.frames.model_to_string())
+        meta = {"code": code_digest(), **self.meta, "format": FORMAT, "version": VERSION,
+                "ranking_features": list(RANKING),
+                "frames": list(FRAMES), "orientation_features": list(ORIENTATION),
+                "context": {"names": self.stats.names, "scene_types": self.stats.scene_types}}
+        out["meta"] = _bytes(json.dumps(meta, sort_keys=True))
+        return out
+
+    def save(self, path: str | Path) -> Path:
+        """Write the engine's file, whole or not at all; the same engine gives the same bytes."""
+        return write_atomically(path, npz_bytes(self.payload()))
+
+    @staticmethod
+    def read_meta(path: str | Path) -> dict:
+        """The metadata of a learned engine's file, checked as :meth:`load` checks it, without reading the rest."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                return _checked_meta(data["meta"] if "meta" in data.files else None, path)
+        except (OSError, ValueError) as e:
+            raise SceneSuggestError(f"cannot read the learned engine: {e}", file=str(path)) from None
+
+    @classmethod
+    def load(cls, path: str | Path, options: EngineOptions | None = None) -> LearnedEngine:
+        """Read a learned engine's file; one that is not one, or of another version, is an error naming it."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                payload = {k: data[k] for k in data.files}
+        except (OSError, ValueError) as e:
+            raise SceneSuggestError(f"cannot read the learned engine: {e}", file=str(path)) from None
+        meta = _checked_meta(payload.get("meta"), path)
+        priors = Priors.from_payload({k[7:]: v for k, v in payload.items() if k.startswith("priors.")}, path)
+        context = meta["context"]
+        try:
+            stats = ContextStats(context["names"], context["scene_types"],
+                                 {k[8:]: v for k, v in payload.items() if k.startswith("context.")})
+            ranker = lgb.Booster(model_str=_text(payload["ranker"]))
+            frames = lgb.Booster(model_str=_text(payload["frames"])) if "frames" in payload else None
+        except (KeyError, TypeError, lgb.basic.LightGBMError, UnicodeDecodeError) as e:
+            raise SceneSuggestError(f"the learned engine's file is incomplete or damaged ({type(e).__name__}: {e})",
+                                    file=str(path), field="ranker") from None
+        return cls(priors, stats, ranker, frames, meta, options)
+
+
+def _checked_meta(raw: np.ndarray | None, path: Path) -> dict:
+    """The file's metadata: present, JSON, this format and this version of the features."""
+    try:
+        meta = json.loads(_text(raw)) if raw is not None else None
+    except (UnicodeDecodeError, ValueError):
+        meta = None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise SceneSuggestError("not a learned engine's file", file=str(path), field="format")
+    if (meta.get("version") != VERSION or meta.get("ranking_features") != list(RANKING)
+            or meta.get("orientation_features") != list(ORIENTATION)):
+        raise SceneSuggestError(f"a learned engine of another version ({meta.get('version')!r}): train it again "
+                                "with 'scenesuggest engine train learned'", file=str(path), field="version")
+    return meta
