@@ -5,8 +5,15 @@ Queries: held-out support edges of Stanford scenes with 10–60 objects (the obj
 is asked at its contact point), like the offline evaluation. A query is what the study server asks: full mode,
 every category ranked, the best TOP placed and oriented (``p*_ms``); ``p95_all_placed_ms`` places every category.
 The naive scorer computes the same: every category's score, and the orientation of the same TOP.
-Budgets (2 cores): p95 ≤ 5 ms, training ≤ 30 s, priors file ≤ 50 MB, speed-up ≥ 20×.
+The top level is the paper's engine; ``engines`` has every engine asked (``--engine``, default paper, frequency and
+learned: trained on the corpus, its training time and file size beside) the same queries in the same way, and
+``http`` the overhead of the http engine over a local external engine — the paper engine served by ``scenesuggest
+engine serve`` in a process of its own on loopback: per query, the http engine's time minus the time the external
+engine says (Server-Timing) it took from reading the query to writing its answer.
+Budgets (2 cores): p95 ≤ 5 ms per engine, http overhead p95 ≤ 3 ms, training ≤ 30 s (paper) and ≤ 120 s
+(learned), priors file ≤ 50 MB, speed-up ≥ 20×.
 Usage: .venv/bin/python benchmarks/bench_suggest.py [--data ../shared/data] [--queries 600] [--naive 25]
+       [--engine NAME …] [--no-http]
 """
 
 from __future__ import annotations
@@ -49,6 +56,9 @@ def main() -> int:
     parser.add_argument("--queries", type=int, default=600)
     parser.add_argument("--naive", type=int, default=25, help="queries timed with the naive scorer")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--engine", action="append", dest="engines",
+                        help="an engine to time besides the paper's (default: frequency and learned)")
+    parser.add_argument("--no-http", action="store_true", help="leave out the http engine's overhead")
     args = parser.parse_args()
     stanford_dir = Path(args.data) / "stanford_scene_db"
     if not stanford_dir.is_dir():
@@ -104,6 +114,11 @@ def main() -> int:
         engine.suggest(q, "full", top=TOP)
         fast_ms.append((time.perf_counter() - t) * 1000)
 
+    others = {}
+    for name in args.engines or ["frequency", "learned"]:
+        others[name] = time_engine(name, corpus, priors, queries, Path(tempfile.mkdtemp()))
+    http = {} if args.no_http else http_overhead(priors, queries)
+
     print(json.dumps({
         "benchmark": "suggest",
         "queries": len(latencies),
@@ -120,8 +135,71 @@ def main() -> int:
         "naive_query_mean_ms": round(float(np.mean(naive_ms)), 2),
         "engine_query_mean_ms": round(float(np.mean(fast_ms)), 3),
         "speedup_vs_naive": round(float(np.mean(naive_ms) / np.mean(fast_ms)), 1) if naive_ms else math.nan,
+        "engines": {"paper": {**percentiles(latencies), "train_s": round(train_s, 2), "file_mb": round(priors_mb, 2)},
+                    **others},
+        "http": http,
     }, indent=1))
     return 0
+
+
+def time_engine(name: str, corpus, priors, queries, tmp: Path) -> dict:
+    """An engine trained on the corpus (or answering from its priors) asked every query as the server asks."""
+    from scenesuggest import engines
+    from scenesuggest.engines.protocol import LoadContext
+    from scenesuggest.symmetry import corpus_periods
+
+    spec = engines.configure({"name": name})
+    kind = spec.kind
+    out: dict = {}
+    if hasattr(kind, "from_priors"):
+        engine = kind.from_priors(spec.config, priors)
+    else:
+        periods = corpus_periods(corpus.models.values())
+        t = time.perf_counter()
+        info = kind.train(spec.config, corpus.scenes, corpus.taxonomy, tmp / f"{name}.npz", periods=periods)
+        out["train_s"] = round(time.perf_counter() - t, 2)
+        out["file_mb"] = round(info["bytes"] / 2**20, 2)
+        t = time.perf_counter()
+        engine = kind.load(kind.configure({"file": info["out"]}), LoadContext(tmp / "priors.npz"))
+        out["load_s"] = round(time.perf_counter() - t, 3)
+    engine.suggest(queries[0], "full", top=TOP)
+    latencies = []
+    for q in queries:
+        t = time.perf_counter()
+        engine.suggest(q, "full", top=TOP)
+        latencies.append((time.perf_counter() - t) * 1000)
+    return {**percentiles(latencies), **out}
+
+
+def http_overhead(priors, queries) -> dict:
+    """The http engine's time over the paper engine's own for the same query (module docstring)."""
+    import subprocess
+
+    from scenesuggest import engines
+    from scenesuggest.engines.protocol import LoadContext
+    from serverproc import free_port, wait_for_port
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = priors.save(Path(tmp) / "priors.npz")
+        port = free_port()
+        server = subprocess.Popen([sys.executable, "-m", "scenesuggest.cli", "engine", "serve", "paper", "--priors",
+                                   str(path), "--port", str(port)], stderr=subprocess.DEVNULL)
+        try:
+            wait_for_port(port)
+            http = engines.load(engines.configure({"name": "http", "url": f"http://127.0.0.1:{port}/",
+                                                   "timeout_ms": 5000}), LoadContext(path))
+            http.suggest(queries[0], "full", top=TOP)
+            overhead, fallbacks = [], 0
+            for q in queries:
+                t = time.perf_counter()
+                found = http.suggest(q, "full", top=TOP)
+                total = (time.perf_counter() - t) * 1000
+                fallbacks += found.fallback is not None
+                overhead.append(total - http.last_server_ms())
+        finally:
+            server.kill()
+            server.wait()
+    return {"overhead_" + k: v for k, v in percentiles(overhead).items()} | {"fallbacks": fallbacks}
 
 
 if __name__ == "__main__":

@@ -46,6 +46,18 @@ def free_port() -> int:
     return port
 
 
+def wait_for_port(port: int, timeout_s: float = 30.0) -> None:
+    """Until something accepts connections on the loopback ``port``."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return
+        except OSError:
+            time.sleep(0.05)
+    raise RuntimeError(f"nothing listens on port {port}")
+
+
 class StudyServer:
     """gunicorn on a fixed free port over one database; can be killed and started again on the same port.
     ``migrate`` brings the schema up to date first (skip it when the caller already did)."""

@@ -217,7 +217,8 @@ def _explanation_lines(explained: list[dict]) -> list[str]:
     lines = ["", "why (each category's score: the contributions that sum to it from the baseline)"]
     for e in sorted(explained, key=lambda e: e["rank"]):
         lines.append(f"{e['rank']:>4}. {e['category']:<22} score {e['score']:8.3f} = baseline {e['baseline']:.3f}"
-                     " + …")
+                     " + …" + ("" if e.get("shortlisted", True) else "  (left out of the shortlist by the first "
+                               "trees: their score)"))
         for c in e["contributions"]:
             lines.append(f"        {c['contribution']:+8.3f}  {c['feature']:<34} (value {c['value']:.3g})")
     return lines

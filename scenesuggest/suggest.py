@@ -172,11 +172,14 @@ class Engine:
         self.base_rate = own / max(total, 1.0)
         self.weights = p.orient_weights[self.candidates].astype(float)  # (n, surface types, kinds)
         self._cache: dict[tuple, tuple] = {}
+        self._categories: dict[str, tuple[str, ...]] | None = None
 
     @property
     def categories(self) -> dict[str, tuple[str, ...]]:
         """Every category the engine can suggest → its models, the most used first."""
-        return dict(zip(self.names, self.members, strict=True))
+        if self._categories is None:
+            self._categories = dict(zip(self.names, self.members, strict=True))
+        return self._categories
 
     # --- per-category statistics after back-off -------------------------------------------------------------
     def _stat_entity(self, category: str) -> int:
@@ -334,6 +337,8 @@ class Engine:
             for i in np.flatnonzero(moved > 0):
                 notes[i].append(f"moved {moved[i]:.2f} m to a more typical spot")
         allowed = np.ones(n, dtype=bool) if only is None else np.isin(self.names, list(only))
+        if not allowed.any():  # nothing the caller allows
+            return SuggestionList((), prep.surface_type, prep.scene_type, prep.parent_category, self.name)
         if self.options.collision_aware:  # every candidate needs its pose before the ranking is known
             faces, alphas, headings = self.choose_poses(scores, mode)
             total = check_fit(self, scores, faces, alphas, headings, points, total.copy(), notes, mode)

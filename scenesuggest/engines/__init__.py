@@ -58,6 +58,10 @@ def kind(name: str) -> EngineKind:
         raise SceneSuggestError(f"unknown engine {name!r}: one of {', '.join(names())}", field="name")
     if name in BUILT_IN:
         module, attribute = BUILT_IN[name]
+        other = _plugins().get(name)
+        if other is not None and other.value.replace(" ", "") != f"{module}:{attribute}":
+            raise SceneSuggestError(f"the engine name {name!r} is taken by another package ({other.value}): rename "
+                                    "that package's engine", field="name")
         found = getattr(import_module(module), attribute)
     else:
         ep = _plugins()[name]

@@ -9,6 +9,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..priors import Priors
 from ..suggest import Engine, EngineOptions, Scores
 from .paper import engine_options
@@ -24,18 +26,27 @@ class FrequencyEngine(Engine):
     name = "frequency"
 
     def score(self, query) -> Scores:
-        scores = super().score(query)
-        scores.total = self.base_rate.copy()
-        return scores
+        """The base rate of every candidate (the paper's terms are not computed: only the paper's orientation
+        rule needs its position densities)."""
+        prep = self.prepare(query)
+        n = len(self.candidates)
+        densities = self._reference_densities(prep) if self.options.orientation == "paper" else []
+        zeros = np.zeros(n)
+        return Scores(prep, zeros, np.ones(n), zeros, self.base_rate.copy(), densities)
 
     def terms(self, scores: Scores, i: int) -> dict[str, float]:
         return {"frequency": float(self.base_rate[i])}
 
     def explain(self, query, mode: str = "full", top: int | None = 10, categories=()) -> list[dict]:
-        out = super().explain(query, mode, top, categories)
-        for e in out:
-            e["contributions"] = [{"feature": "frequency", "value": e["score"], "contribution": e["score"]}]
-        return out
+        scores = self.score(query)
+        order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
+        rank = {int(i): r for r, i in enumerate(order, start=1)}
+        wanted = dict.fromkeys([int(i) for i in order[: top or len(order)]]
+                               + [self.index[c] for c in categories if c in self.index])
+        return [{"rank": rank[i], "category": self.names[i], "score": float(self.base_rate[i]), "baseline": 0.0,
+                 "terms": self.terms(scores, i), "contributions": [
+                     {"feature": "frequency", "value": float(self.base_rate[i]),
+                      "contribution": float(self.base_rate[i])}]} for i in wanted]
 
 
 class FrequencyKind(EngineKind):

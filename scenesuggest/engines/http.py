@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import http.client
-import json
 import math
 import socket
 import threading
@@ -29,6 +28,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 import numpy as np
+import orjson
 
 from .. import frames, poses
 from ..errors import SceneSuggestError
@@ -174,16 +174,30 @@ def _finite(value) -> bool:
     return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
 
 
-def _placement(value, point: np.ndarray, where: str) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != 16 or not all(_finite(v) for v in value):
-        raise EngineUnavailable(f"invalid answer: {where}.placement is not 16 finite numbers")
-    m = frames.from_column_major(value)
-    r = m[:3, :3]
-    if (np.abs(m[3] - [0, 0, 0, 1]).max() > RIGID_TOLERANCE or np.abs(r.T @ r - np.eye(3)).max() > RIGID_TOLERANCE
-            or np.linalg.det(r) <= 0):
-        raise EngineUnavailable(f"invalid answer: {where}.placement is not a rigid transform")
-    if np.linalg.norm(m[:3, 3] - point) > MAX_DISTANCE_M:
-        raise EngineUnavailable(f"invalid answer: {where}.placement is more than {MAX_DISTANCE_M:g} m from the click")
+def _placements(items: list, point: np.ndarray) -> np.ndarray:
+    """(n, 4, 4) placements of the answer's items, checked: 16 finite numbers each, rigid, near the click."""
+    numbers = (int, float)  # JSON numbers as the parser gives them (not booleans, strings or nulls)
+    for i, item in enumerate(items):
+        value = item.get("placement")
+        if not isinstance(value, list) or len(value) != 16 or not all(type(v) in numbers for v in value):
+            raise EngineUnavailable(f"invalid answer: suggestions[{i}].placement is not 16 finite numbers")
+    try:
+        m = np.array([item["placement"] for item in items], dtype=float).reshape(-1, 4, 4).transpose(0, 2, 1)
+    except OverflowError:  # an integer too large for a float
+        raise EngineUnavailable("invalid answer: a placement is not 16 finite numbers") from None
+    if not np.isfinite(m).all():
+        raise EngineUnavailable("invalid answer: a placement is not 16 finite numbers")
+    r = m[:, :3, :3]
+    bad = ((np.abs(m[:, 3] - [0, 0, 0, 1]).max(axis=1) > RIGID_TOLERANCE)
+           | (np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max(axis=(1, 2)) > RIGID_TOLERANCE)
+           | (np.linalg.det(r) <= 0)) if len(m) else np.zeros(0, dtype=bool)
+    if bad.any():
+        raise EngineUnavailable(f"invalid answer: suggestions[{int(np.argmax(bad))}].placement is not a rigid "
+                                "transform")
+    far = np.linalg.norm(m[:, :3, 3] - point, axis=1) > MAX_DISTANCE_M if len(m) else np.zeros(0, dtype=bool)
+    if far.any():
+        raise EngineUnavailable(f"invalid answer: suggestions[{int(np.argmax(far))}].placement is more than "
+                                f"{MAX_DISTANCE_M:g} m from the click")
     return m
 
 
@@ -196,12 +210,13 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
     items = doc["suggestions"]
     if len(items) > max_suggestions:
         raise EngineUnavailable(f"invalid answer: {len(items)} suggestions, at most {max_suggestions}")
-    point = np.asarray(point, dtype=float)
-    out, seen = [], set()
     for i, item in enumerate(items):
-        where = f"suggestions[{i}]"
         if not isinstance(item, dict):
-            raise EngineUnavailable(f"invalid answer: {where} is not an object")
+            raise EngineUnavailable(f"invalid answer: suggestions[{i}] is not an object")
+    placements = _placements(items, np.asarray(point, dtype=float))
+    out, seen = [], set()
+    for i, (item, placement) in enumerate(zip(items, placements, strict=True)):
+        where = f"suggestions[{i}]"
         category = item.get("category")
         if not isinstance(category, str) or category not in allowed:
             raise EngineUnavailable(f"invalid answer: {where}.category is not one the query allows")
@@ -210,11 +225,9 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
         seen.add(category)
         if not _finite(item.get("score")):
             raise EngineUnavailable(f"invalid answer: {where}.score is not a finite number")
-        placement = _placement(item.get("placement"), point, where)
         face = item.get("attachment_face")
         if face is None:
-            face = frames.face_of_direction(frames.apply_direction(np.linalg.inv(placement),
-                                                                   -np.asarray(normal, dtype=float)[None])[0])
+            face = frames.face_of_direction(placement[:3, :3].T @ -np.asarray(normal, dtype=float))
         elif face not in frames.FACES:
             raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not one of {', '.join(frames.FACES)}")
         heading = item.get("heading_deg")
@@ -223,9 +236,10 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
         elif not _finite(heading):
             raise EngineUnavailable(f"invalid answer: {where}.heading_deg is not a finite number")
         known = models.get(category, ())
-        chosen = item.get("models", list(known))
-        if (not isinstance(chosen, list) or len(chosen) > MAX_MODELS
-                or not all(isinstance(m, str) and m in known for m in chosen)):
+        chosen = item.get("models", list(known[:MAX_MODELS]))
+        if not isinstance(chosen, list) or len(chosen) > MAX_MODELS:
+            raise EngineUnavailable(f"invalid answer: {where}.models is not a list of at most {MAX_MODELS} ids")
+        if not all(isinstance(m, str) for m in chosen) or not set(chosen) <= set(known):
             raise EngineUnavailable(f"invalid answer: {where}.models are not models of {category!r}")
         terms = item.get("terms", {})
         if (not isinstance(terms, dict) or len(terms) > MAX_TERMS
@@ -237,8 +251,57 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
     return out
 
 
+class _Watchdog:
+    """Ends exchanges that pass their deadline, however the engine dribbles its bytes: one thread per engine
+    sleeps until the nearest deadline and shuts that exchange's socket (a timer thread per request cost 1 ms)."""
+
+    def __init__(self):
+        self._due: dict[int, tuple[float, socket.socket]] = {}
+        self._wake = threading.Condition()
+        self._thread: threading.Thread | None = None
+
+    def arm(self, key: int, deadline: float, sock: socket.socket) -> None:
+        with self._wake:
+            self._due[key] = (deadline, sock)
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name="http-engine-watchdog", daemon=True)
+                self._thread.start()
+            self._wake.notify()
+
+    def disarm(self, key: int) -> bool:
+        """Whether the exchange was still armed (False: its socket was shut, or it never was armed)."""
+        with self._wake:
+            return self._due.pop(key, None) is not None
+
+    def _run(self) -> None:
+        with self._wake:
+            while True:
+                now = time.monotonic()
+                for key, (deadline, sock) in list(self._due.items()):
+                    if deadline <= now:
+                        del self._due[key]
+                        with contextlib.suppress(OSError):
+                            sock.shutdown(socket.SHUT_RDWR)
+                nearest = min((d for d, _ in self._due.values()), default=None)
+                self._wake.wait(None if nearest is None else max(nearest - now, 0.001))
+
+
 class _Connection(threading.local):
     conn: http.client.HTTPConnection | None = None
+    #: The engine's own time for the last answer on this thread (its Server-Timing header), None if unsaid.
+    server_ms: float | None = None
+
+
+def _server_ms(header: str | None) -> float | None:
+    """The sum of the ``dur`` (milliseconds) of a Server-Timing header's metrics, None without any."""
+    durations = []
+    for metric in (header or "").split(","):
+        for param in metric.split(";")[1:]:
+            key, _, value = param.strip().partition("=")
+            if key == "dur":
+                with contextlib.suppress(ValueError):
+                    durations.append(float(value))
+    return sum(durations) if durations else None
 
 
 class HttpEngine:
@@ -256,6 +319,7 @@ class HttpEngine:
         self._host, self._port = parts.hostname, parts.port
         self._path = (parts.path or "/") + (f"?{parts.query}" if parts.query else "")
         self._local = _Connection()
+        self._watchdog = _Watchdog()
         #: Answers replaced by the fallback's in this process (what /healthz reports).
         self.fallbacks = 0
         self._count = threading.Lock()
@@ -272,10 +336,10 @@ class HttpEngine:
         allowed = set(self.categories) if only is None else set(only) & set(self.categories)
         limit = min(top or self.options.max_suggestions, self.options.max_suggestions)
         try:
-            body = json.dumps(query_document(prep, mode, limit, allowed), allow_nan=False).encode()
+            body = orjson.dumps(query_document(prep, mode, limit, allowed), option=orjson.OPT_SERIALIZE_NUMPY)
             try:
-                doc = json.loads(self._exchange(body))
-            except (ValueError, UnicodeDecodeError, RecursionError):
+                doc = orjson.loads(self._exchange(body))
+            except orjson.JSONDecodeError:  # NaN and Infinity are not JSON either
                 raise EngineUnavailable("invalid answer: not JSON") from None
             found = parse_answer(doc, allowed, self.categories, prep.point, prep.normal, self.options.max_suggestions)
         except EngineUnavailable as e:
@@ -292,6 +356,10 @@ class HttpEngine:
             self._local.conn = cls(self._host, self._port, timeout=timeout)
         return self._local.conn
 
+    def last_server_ms(self) -> float | None:
+        """What the engine said (Server-Timing) its last answer on this thread took, in milliseconds."""
+        return self._local.server_ms
+
     def close(self) -> None:
         if self._local.conn is not None:
             self._local.conn.close()
@@ -302,12 +370,9 @@ class HttpEngine:
         timeout = self.options.timeout_ms / 1000
         deadline = time.monotonic() + timeout
         conn = self._connect(timeout)
-        # A watchdog ends the exchange at the deadline however the engine dribbles its bytes.
-        watchdog = threading.Timer(timeout, self._abort, args=(conn,))
-        watchdog.daemon = True
-        watchdog.start()
+        key = threading.get_ident()
         try:
-            return self._post(conn, body, deadline)
+            return self._post(conn, body, deadline, key)
         except EngineUnavailable:
             self.close()
             raise
@@ -317,16 +382,10 @@ class HttpEngine:
                 raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms") from None
             raise EngineUnavailable(f"connection failed ({type(e).__name__})") from None
         finally:
-            watchdog.cancel()
+            if not self._watchdog.disarm(key):  # shut at the deadline (or never armed): not to be used again
+                self.close()
 
-    @staticmethod
-    def _abort(conn: http.client.HTTPConnection) -> None:
-        sock = conn.sock
-        if sock is not None:
-            with contextlib.suppress(OSError):
-                sock.shutdown(socket.SHUT_RDWR)
-
-    def _post(self, conn: http.client.HTTPConnection, body: bytes, deadline: float) -> bytes:
+    def _post(self, conn: http.client.HTTPConnection, body: bytes, deadline: float, key: int) -> bytes:
         def remaining() -> float:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -337,9 +396,11 @@ class HttpEngine:
             conn.timeout = remaining()
             conn.connect()
             conn.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._watchdog.arm(key, deadline, conn.sock)
         conn.sock.settimeout(remaining())
         conn.request("POST", self._path, body, {"Content-Type": "application/json", "Accept": "application/json"})
         response = conn.getresponse()
+        self._local.server_ms = _server_ms(response.getheader("Server-Timing"))
         if response.status != 200:
             response.close()
             raise EngineUnavailable(f"HTTP {response.status}")
@@ -350,7 +411,7 @@ class HttpEngine:
         chunks, size = [], 0
         while True:
             conn.sock.settimeout(remaining())
-            chunk = response.read1(min(65536, cap + 1 - size)) if size <= cap else b""
+            chunk = response.read(min(65536, cap + 1 - size))  # read, not read1: it ends the response
             if not chunk:
                 break
             chunks.append(chunk)

@@ -192,9 +192,10 @@ class ContextStats:
     def features(self, scene: Scene, parent, point, normal, scene_type: str) -> tuple[dict[str, np.ndarray], dict]:
         """({feature: value per candidate}, the click's descriptors) for a click (see the module docstring)."""
         n = len(self.names)
-        known = [o for o in scene if o.parent is not None and o.category in self.index]
-        boxes = Boxes(known)
-        d = describe_click(scene, parent, point, normal, boxes=Boxes([o for o in scene if o.parent is not None]))
+        everything = Boxes([o for o in scene if o.parent is not None])
+        d = describe_click(scene, parent, point, normal, boxes=everything)
+        is_known = np.array([o.category in self.index for o in everything.objects], dtype=bool)
+        known = [o for o, k in zip(everything.objects, is_known, strict=True) if k]
         out: dict[str, np.ndarray] = {}
         for k, name in enumerate(DESCRIPTORS):
             b = int(np.searchsorted(EDGES[name], d[name]))
@@ -203,7 +204,7 @@ class ContextStats:
                                            / (h.sum(axis=1) + HIST_PRIOR))
         in_scene = np.array([self.index[o.category] for o in known], dtype=np.int64)
         on_parent = in_scene[np.array([o.parent == parent.id for o in known], dtype=bool)] if known else in_scene
-        near = _near(in_scene, boxes.distances(point))
+        near = _near(in_scene, everything.distances(point)[is_known])
         for key, present, pairs, counts, base in (
                 ("scene", np.unique(in_scene), self.scene_pairs, self.scenes, self.base_scene),
                 ("parent", np.unique(on_parent), self.parent_pairs, self.parents, self.base_parent),

@@ -36,6 +36,11 @@ FORMAT = "scenesuggest-learned"
 VERSION = 1
 #: Contributions of the ranker's features listed per suggestion by :meth:`LearnedEngine.explain`.
 EXPLAIN_TOP = 6
+#: The ranker's first SHORTLIST_TREES trees pick the SHORTLIST candidates that all its trees then rank; the others
+#: follow in the order of the first trees' score. On grouped 5-fold Stanford this changed no rank that matters
+#: (MRR 0.3392 with and without) and cut the ranker's time by half.
+SHORTLIST_TREES = 30
+SHORTLIST = 80
 
 
 def code_digest() -> str:
@@ -85,8 +90,29 @@ class LearnedEngine(Engine):
         scores = super().score(query)
         scores.features = ranking_features(self, self.stats, scores)
         scores.paper_total = scores.total
-        scores.total = self.ranker.predict(scores.features, num_threads=1)
+        scores.total = self._rank(scores.features)
         return scores
+
+    def _shortlist(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """(the first trees' score of every row, the shortlisted rows), None when every row is ranked whole."""
+        if len(rows) <= SHORTLIST or self.ranker.num_trees() <= SHORTLIST_TREES:
+            return None
+        first = self.ranker.predict(rows, num_iteration=SHORTLIST_TREES, num_threads=1)
+        return first, np.argpartition(-first, SHORTLIST)[:SHORTLIST]
+
+    def _rank(self, rows: np.ndarray) -> np.ndarray:
+        """The ranker's score of every row: all its trees for the shortlist (see SHORTLIST), and below every
+        shortlisted score, in their order, the first trees' score for the rest."""
+        found = self._shortlist(rows)
+        if found is None:
+            return self.ranker.predict(rows, num_threads=1)
+        first, short = found
+        full = self.ranker.predict(rows[short], num_threads=1)
+        rest = np.ones(len(rows), dtype=bool)
+        rest[short] = False
+        total = first - (first[rest].max() - full.min()) - 1.0
+        total[short] = full
+        return total
 
     def terms(self, scores: Scores, i: int) -> dict[str, float]:
         return {**super().terms(scores, i), "paper_score": float(scores.paper_total[i]),
@@ -120,18 +146,23 @@ class LearnedEngine(Engine):
     def explain(self, query, mode: str = "full", top: int | None = 10, categories=()) -> list[dict]:
         """Why each category got its rank: the ranker's score, and the largest contributions of its features
         (SHAP values, in the ranker's score units) with the features' values; for the ``top`` suggestions and
-        for ``categories`` wherever they rank."""
+        for ``categories`` wherever they rank. A category left out of the shortlist is explained by the first
+        trees, which left it out (``shortlisted``: false)."""
         scores = self.score(query)
         order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
         rank = {int(i): r for r, i in enumerate(order, start=1)}
         wanted = list(order[: top or len(order)]) + [self.index[c] for c in categories if c in self.index]
         wanted = list(dict.fromkeys(int(i) for i in wanted))
-        contrib = self.ranker.predict(scores.features[wanted], pred_contrib=True, num_threads=1)
+        found = self._shortlist(scores.features)
+        short = set(range(len(self.candidates))) if found is None else set(found[1].tolist())
         out = []
-        for row, i in zip(contrib, wanted, strict=True):
+        for i in wanted:
+            iterations = None if i in short else SHORTLIST_TREES
+            row = self.ranker.predict(scores.features[[i]], pred_contrib=True, num_iteration=iterations,
+                                      num_threads=1)[0]
             largest = np.argsort(-np.abs(row[:-1]), kind="stable")[:EXPLAIN_TOP]
-            out.append({"rank": rank[i], "category": self.names[i], "score": float(scores.total[i]),
-                        "baseline": float(row[-1]), "terms": self.terms(scores, i),
+            out.append({"rank": rank[i], "category": self.names[i], "score": float(row.sum()),
+                        "baseline": float(row[-1]), "shortlisted": i in short, "terms": self.terms(scores, i),
                         "contributions": [{"feature": RANKING[k], "value": float(scores.features[i, k]),
                                            "contribution": float(row[k])} for k in largest]})
         return out

@@ -72,7 +72,10 @@ def ranking_features(engine: Engine, stats: ContextStats, scores: Scores) -> np.
         "scene_type": np.full(n, stats.type_index.get(prep.scene_type, -1)),
         **context,
     }
-    return np.column_stack([np.broadcast_to(columns[name], (n,)) for name in RANKING]).astype(np.float32)
+    rows = np.empty((n, len(RANKING)), dtype=np.float32)
+    for k, name in enumerate(RANKING):
+        rows[:, k] = columns[name]
+    return rows
 
 
 def _wrapped(a: np.ndarray) -> np.ndarray:
