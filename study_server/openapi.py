@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from scenesuggest.engines.http import ANSWER_SCHEMA, QUERY_SCHEMA
 from scenesuggest.event_schema import json_schema
 from scenesuggest.events import MAX_BATCH, MAX_SEQ, VERSIONS
 
@@ -35,7 +36,10 @@ def openapi_document() -> dict:
         "info": {"title": "SceneSuggest Studio participant API", "version": "1"},
         "components": {"securitySchemes": {"session": {"type": "http", "scheme": "bearer",
                                                        "description": "the participant's session token"}},
-                       "schemas": {"Event": json_schema(), "Error": ERROR}},
+                       "schemas": {"Event": json_schema(), "Error": ERROR,
+                                   # what the server POSTs to a condition's http engine, and what it must answer
+                                   # (scenesuggest.engines.http; not endpoints of this API)
+                                   "EngineQuery": QUERY_SCHEMA, "EngineAnswer": ANSWER_SCHEMA}},
         "paths": {
             "/api/session": {"get": {"summary": "Session state", "security": auth,
                                      "responses": {**_ok({"type": "object"}), **_errors(401)}}},
@@ -65,6 +69,8 @@ def openapi_document() -> dict:
                                                      "point": VEC3, "normal": VEC3, "scene": SCENE}}),
                 "responses": {**_ok({"type": "object", "properties": {
                     "list_id": {"type": "string"}, "surface_type": {"type": "string"},
+                    "engine": {"type": "string", "description": "the engine that answered: the condition's, or its "
+                                                                "fallback's when an http engine could not"},
                     "suggestions": {"type": "array", "items": {"type": "object"}}}}),
                     **_errors(400, 401, 403, 409)}}},
             "/api/search": {"get": {

@@ -317,7 +317,7 @@ def load_study(path: str | Path) -> Study:
     """Read and validate a study file; every problem names its key."""
     path = Path(path).resolve()
     data, doc = parse(path)
-    r = Reader(path)
+    r = Reader(path, data.decode("utf-8"))
     base = path.parent
     r.unknown(doc, ("id", "title", "description", "resources", "design", "conditions", "scenes", "periods",
                     "practice", "platform", "consent", "instructions", "demographics", "exit_survey", "limits",

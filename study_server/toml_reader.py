@@ -16,13 +16,16 @@ class StudyFileError(SceneSuggestError):
 
 
 class Reader:
-    """Typed look-ups in a parsed TOML document; each failure is a :class:`StudyFileError` naming the key."""
+    """Typed look-ups in a parsed TOML document; each failure is a :class:`StudyFileError` naming the key and,
+    given the file's ``text``, the line it is on (or the line of the table it is missing from)."""
 
-    def __init__(self, file: Path):
+    def __init__(self, file: Path, text: str | None = None):
         self.file = str(file)
+        self.text = text
 
     def fail(self, key: str, message: str) -> StudyFileError:
-        return StudyFileError(message, file=self.file, field=key)
+        line = locate(self.text, key) if self.text is not None else None
+        return StudyFileError(message, file=self.file, field=key, line=line)
 
     def table(self, doc: dict, key: str, path: str, required: bool = True) -> dict:
         v = doc.get(key)
@@ -69,6 +72,64 @@ class Reader:
             if key not in allowed:
                 raise self.fail(f"{path}.{key}" if path else key, "unknown key")
 
+
+
+_HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
+_KEY = re.compile(r"^\s*([A-Za-z0-9_-]+|\"[^\"]*\")\s*=\s*(.*)$")
+_INLINE_KEY = re.compile(r"(?:^|[{,])\s*([A-Za-z0-9_-]+)\s*=")
+_PART = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
+
+
+def _parts(key: str) -> list:
+    """``conditions[2].engine.name`` → ["conditions", 2, "engine", "name"]."""
+    return [int(index) if index else name for name, index in _PART.findall(key)]
+
+
+def locate(text: str, key: str) -> int | None:
+    """The line (1-based) of a dotted key in a TOML document (``conditions[2].engine.lambda9``: in the third
+    ``[[conditions]]``, the key ``engine``'s inline table), or of its deepest table or key that is there; None when
+    nothing of it is. Dotted and quoted keys inside tables are matched by their first part only (best effort:
+    the key in the message is what counts)."""
+    want = _parts(key)
+    counts: dict[tuple, int] = {}
+    table: list = []
+    best, best_depth = None, 0
+
+    def consider(path: list, line: int) -> None:
+        nonlocal best, best_depth
+        depth = 0
+        for a, b in zip(path, want, strict=False):
+            if a != b:
+                break
+            depth += 1
+        if depth == len(path) and depth > best_depth:
+            best, best_depth = line, depth
+
+    for number, line in enumerate(text.splitlines(), start=1):
+        header = _HEADER.match(line)
+        if header:
+            names = [n.strip().strip('"') for n in header.group(2).split(".")]
+            path: list = []
+            for name in names[:-1]:  # a sub-table belongs to the last element of any array of tables above it
+                path.append(name)
+                if tuple(path) in counts:
+                    path.append(counts[tuple(path)] - 1)
+            path.append(names[-1])
+            if header.group(1) == "[[":
+                counts[tuple(path)] = counts.get(tuple(path), 0) + 1
+                path.append(counts[tuple(path)] - 1)
+            table = path
+            consider(table, number)
+            continue
+        found = _KEY.match(line)
+        if found:
+            name = found.group(1).strip('"')
+            consider([*table, name], number)
+            value = found.group(2).lstrip()
+            if value.startswith("{"):
+                for inner in _INLINE_KEY.findall(value):
+                    consider([*table, name, inner], number)
+    return best
 
 
 def parse(path: Path) -> tuple[bytes, dict]:

@@ -287,3 +287,25 @@ def test_a_missing_learned_file_stops_the_server_naming_the_condition(tmp_path, 
     with pytest.raises(SceneSuggestError) as info:
         load_studies([path])
     assert info.value.field == "conditions[2].engine" and "scenesuggest" in info.value.message
+
+
+@pytest.mark.parametrize(("engine", "key", "words"), [
+    ('{ name = "psychic" }', "conditions[2].engine.name", "unknown engine 'psychic': one of paper, learned"),
+    ('{ name = "learned", lambda2 = 1 }', "conditions[2].engine.lambda2", "unknown key: this engine takes name, file"),
+    ('{ name = "http", url = "ftp://x" }', "conditions[2].engine.url", "http:// or https://"),
+    ('{ name = "frequency", orientation = "sideways" }', "conditions[2].engine.orientation", "one of learned, paper"),
+])
+def test_a_study_files_engine_mistakes_name_file_line_and_key(tmp_path, engine, key, words):
+    import shutil
+
+    folder = tmp_path / "demo"
+    shutil.copytree(DEMO_STUDY.parent, folder)
+    path = folder / "study.toml"
+    text = path.read_text()
+    path.write_text(text.replace('engine = { orientation = "learned" }', f"engine = {engine}", 1))
+    line = next(n for n, t in enumerate(path.read_text().splitlines(), start=1) if t.startswith("engine = "))
+    proc = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "validate", str(path)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and f"{path}:{line}: field '{key}': " in proc.stderr and words in proc.stderr, \
+        proc.stderr
+    assert "Traceback" not in proc.stderr

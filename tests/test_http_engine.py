@@ -225,3 +225,46 @@ def test_a_condition_served_by_a_hostile_engine_still_suggests_and_logs_why(tmp_
     health = client.get("/healthz").json
     assert health["engines"]["demo"]["full"] == {"engine": "http", "version": "1", "status": "ok", "fallbacks": 1}
     assert external not in client.get("/healthz").get_data(as_text=True)  # no URL in the public answer
+
+
+def test_the_reference_engine_server_and_the_http_engine_keep_the_published_schemas(demo_priors, tmp_path):
+    """`scenesuggest engine serve` in its own process answers the http engine; the query sent and the answer
+    given validate against the schemas the API's OpenAPI document publishes, and the answer is the served
+    engine's own."""
+    import socket
+    import urllib.request
+
+    import jsonschema
+    import orjson
+
+    from study_server.openapi import openapi_document
+
+    schemas = openapi_document()["components"]["schemas"]
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = subprocess.Popen([sys.executable, "-m", "scenesuggest.cli", "engine", "serve", "paper", "--priors",
+                               str(demo_priors), "--port", str(port)], stderr=subprocess.PIPE, text=True)
+    try:
+        assert "serving the paper engine" in server.stderr.readline()
+        engine = http_engine(f"http://127.0.0.1:{port}/", demo_priors)
+        sent: list[bytes] = []
+        exchange = engine._exchange
+        engine._exchange = lambda body: (sent.append(body), exchange(body))[1]
+        query = a_query()
+        found = engine.suggest(query, "full", top=8)
+        assert found.engine == "http" and found.fallback is None and engine.last_server_ms() > 0
+        local = engines.load(engines.configure({}), LoadContext(demo_priors)).suggest(query, "full", top=8)
+        assert [s.category for s in found] == [s.category for s in local]
+        jsonschema.validate(orjson.loads(sent[0]), schemas["EngineQuery"])
+        request = urllib.request.Request(f"http://127.0.0.1:{port}/", data=sent[0], method="POST")
+        with urllib.request.urlopen(request) as r:
+            jsonschema.validate(orjson.loads(r.read()), schemas["EngineAnswer"])
+        for body, words in ((b"[1,", "not JSON"), (b'{"mode": "sideways"}', "expected one of basic, full")):
+            request = urllib.request.Request(f"http://127.0.0.1:{port}/", data=body, method="POST")
+            with pytest.raises(urllib.error.HTTPError) as info:
+                urllib.request.urlopen(request)
+            assert info.value.code == 400 and words in info.value.read().decode()
+    finally:
+        server.kill()
+        server.wait()

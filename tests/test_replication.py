@@ -102,6 +102,32 @@ def test_prepare_builds_library_priors_and_targets(replication, targets):
         assert {o.model_id for o in scene if o.parent is not None} <= built
 
 
+@pytest.mark.slow
+def test_engines_on_the_targets_trained_two_ways(replication, tmp_path):
+    """The comparison's per-engine table: each engine trained without the targets' sources and on all 133 scenes
+    (files kept and trained again only when what they come from changed), asked the same queries."""
+    import shutil
+
+    compare = replication_module("compare")
+    prepared = tmp_path / "prepared"
+    shutil.copytree(PREPARED, prepared, ignore=shutil.ignore_patterns("library"))
+    (prepared / "library").symlink_to(PREPARED / "library")
+    said: list[str] = []
+    trained = compare.trained_engines(prepared, ("paper", "frequency"), log=said.append)
+    assert set(trained) == {"held_out", "all"} and said == [f"training the paper engine on 133 scenes → "
+                                                           f"{prepared / 'priors-all.npz'} …"]
+    assert Priors.load(prepared / "priors-all.npz").meta["scenes"] == 133
+    compare.trained_engines(prepared, ("paper", "frequency"), log=said.append)
+    assert len(said) == 1  # kept
+    rows = compare.engines_on_targets(prepared, trained)
+    assert len(rows) == 45 and all(r["held_out.paper.rank"] for r in rows)
+    held = [r["held_out.paper.rank"] for r in rows]
+    assert held == [r["rank"] for r in compare.engine_on_targets(prepared)]  # the study's own engine, as before
+    assert np.mean([1 / r["all.paper.rank"] for r in rows]) > np.mean([1 / r for r in held])  # the sources help
+    text = "\n".join(compare.engine_lines(rows, trained))
+    assert "Trained on all 133 scenes" in text and "| paper MRR | rank 1 | worst | turn | frequency MRR" in text
+
+
 def test_extra_models_join_the_library_only_with_a_mesh(stanford):
     prepare = replication_module("prepare")
     reps = read_representatives(REPRESENTATIVES)
