@@ -175,9 +175,10 @@ def http_overhead(priors, queries) -> dict:
     """The http engine's time over the paper engine's own for the same query (module docstring)."""
     import subprocess
 
+    from serverproc import free_port, wait_for_port
+
     from scenesuggest import engines
     from scenesuggest.engines.protocol import LoadContext
-    from serverproc import free_port, wait_for_port
 
     with tempfile.TemporaryDirectory() as tmp:
         path = priors.save(Path(tmp) / "priors.npz")

@@ -45,28 +45,27 @@ def problems(study: Study, current: bool = False) -> dict[str, str]:
     return out
 
 
-def engine_problems(study: Study, current: bool = False) -> dict[str, str]:
-    """Conditions whose engine answers from a file of its own (the learned engine's) that is missing or unreadable
-    (key: the condition's ``engine`` key), or, with ``current``, was trained by other code."""
-    out = {}
+def condition_engines(study: Study):
+    """(key, engine spec) of every engine a condition uses: its own and, for an http engine, its fallback."""
     for i, c in enumerate(study.conditions):
-        spec = c.engine
-        target = spec.config.fallback if spec.name == "http" else spec
-        if target.name != "learned":
-            continue
-        from scenesuggest.engines.learned import LearnedEngine
-        from scenesuggest.engines.learned.engine import code_digest as learned_digest
+        key, spec = f"conditions[{i}].engine", c.engine
+        yield key, spec
+        fallback = getattr(spec.config, "fallback", None)
+        if fallback is not None:
+            yield f"{key}.fallback", fallback
 
-        path = target.kind.trained_file(target.config, study.priors)
-        key = f"conditions[{i}].engine" + (".fallback" if target is not spec else "")
-        try:
-            meta = LearnedEngine.read_meta(path)
-            if current and meta.get("code") != learned_digest():
-                out[key] = f"the learned engine's file {path} was trained by other engine code"
-        except SceneSuggestError as e:
+
+def engine_problems(study: Study, current: bool = False) -> dict[str, str]:
+    """Engines that answer from a file of their own (the learned engine's) that is missing or unreadable (key: the
+    condition's ``engine`` key), or, with ``current``, was trained by other code."""
+    out = {}
+    for key, spec in condition_engines(study):
+        problem = spec.kind.problem(spec.config, study.priors, current)
+        if problem:
+            path = spec.kind.trained_file(spec.config, study.priors)
             how = (f"'scenesuggest study prepare {study.path}'" if study.server_resources else
-                   f"'scenesuggest engine train learned {study.corpus} -o {path}'")
-            out[key] = f"no usable learned engine's file at {path} ({e.message}): make it with {how}"
+                   f"'scenesuggest engine train {spec.name} {study.corpus} -o {path}'")
+            out[key] = f"{problem}: make it with {how}"
     return out
 
 
@@ -80,7 +79,7 @@ def prepare(study: Study, progress: Progress, say: Callable[[str], None]) -> lis
         return []
     from scenesuggest.corpora import load_corpus
 
-    what = sorted({"learned engine" if k.startswith("conditions[") else k for k in todo})
+    what = sorted({"engines' files" if k.startswith("conditions[") else k for k in todo})
     say(f"{study.id}: building the {' and '.join(what)} of the corpus {study.corpus!r} (about a minute each, once)")
     corpus = load_corpus(study.corpus, progress=progress)
     if "library" in todo:
@@ -93,16 +92,13 @@ def prepare(study: Study, progress: Progress, say: Callable[[str], None]) -> lis
         Priors.fit(corpus.scenes, corpus.taxonomy, progress=progress).save(study.priors)
         say(f"{study.id}: priors → {study.priors}")
     built = set()
-    for key in todo:
-        if key.startswith("conditions["):
-            spec = study.condition(study.conditions[int(key[11:key.index("]")])].id).engine
-            spec = spec.config.fallback if spec.name == "http" else spec
-            path = spec.kind.trained_file(spec.config, study.priors)
-            if path not in built:
-                from scenesuggest.symmetry import corpus_periods
+    for key, spec in condition_engines(study):
+        path = spec.kind.trained_file(spec.config, study.priors)
+        if key in todo and path not in built:
+            from scenesuggest.symmetry import corpus_periods
 
-                spec.kind.train(spec.config, corpus.scenes, corpus.taxonomy, path, progress=progress,
-                                periods=corpus_periods(corpus.models.values(), progress))
-                built.add(path)
-                say(f"{study.id}: learned engine → {path}")
+            spec.kind.train(spec.config, corpus.scenes, corpus.taxonomy, path, progress=progress,
+                            periods=corpus_periods(corpus.models.values(), progress))
+            built.add(path)
+            say(f"{study.id}: {spec.name} engine → {path}")
     return todo

@@ -82,6 +82,11 @@ class EngineKind:
     def load(self, config: Any, context: LoadContext) -> SuggestionEngine:
         raise NotImplementedError
 
+    def problem(self, config: Any, priors: Path, current: bool = False) -> str | None:
+        """What is wrong with the file this engine would answer from, if it has one of its own (missing,
+        unreadable; with ``current``, made by other code), else None. Cheap: read at a server's start-up."""
+        return None
+
     def fit(self, config: Any, scenes: list[Scene], taxonomy: Taxonomy, *, seed: int = 0,
             progress: Progress | None = None, periods: Any = None) -> SuggestionEngine:
         """An engine trained on ``scenes`` only (what ``evaluate`` asks for each fold); ``periods``: the models'

@@ -52,6 +52,18 @@ class LearnedKind(EngineKind):
     def load(self, config: Path | None, context: LoadContext) -> LearnedEngine:
         return LearnedEngine.load(self.trained_file(config, context.priors))
 
+    def problem(self, config: Path | None, priors: Path, current: bool = False) -> str | None:
+        from .engine import code_digest
+
+        path = self.trained_file(config, priors)
+        try:
+            meta = LearnedEngine.read_meta(path)
+        except SceneSuggestError as e:
+            return f"no usable learned engine's file at {path} ({e.message})"
+        if current and meta.get("code") != code_digest():
+            return f"the learned engine's file {path} was trained by other engine code"
+        return None
+
     def fit(self, config, scenes, taxonomy, *, seed: int = 0, progress=None, periods=None) -> LearnedEngine:
         from .training import fit
 
