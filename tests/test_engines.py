@@ -68,6 +68,9 @@ def test_every_built_in_engine_keeps_the_protocol(corpus, learned_file, tmp_path
             r = s.placement[:3, :3]
             assert np.allclose(r.T @ r, np.eye(3), atol=1e-9) and s.models == engine.categories[s.category]
         explained = engine.explain(query, "full", top=2, categories=["Bed"])
+        totals = engine.score(query).total
+        for e in explained:  # the explanation is of the score that ranks (SHAP values sum to it)
+            assert e["score"] == pytest.approx(totals[engine.index[e["category"]]], rel=1e-6, abs=1e-9)
         assert [e["category"] for e in explained][:2] == [s.category for s in engine.suggest(query, "full", top=2)]
         assert explained[-1]["category"] == "Bed" and explained[-1]["contributions"]
 
@@ -309,3 +312,51 @@ def test_a_study_files_engine_mistakes_name_file_line_and_key(tmp_path, engine, 
     assert proc.returncode == 2 and f"{path}:{line}: field '{key}': " in proc.stderr and words in proc.stderr, \
         proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_suggest_explains_why_each_category_got_its_rank(corpus, learned_file, tmp_path):
+    from scenesuggest import scene_json
+
+    scene = corpus.scenes[0]
+    keyboard = next(o for o in scene if o.category == "Keyboard")
+    scene_file = tmp_path / "scene.json"
+    scene_json.save(scene.without(keyboard.id), scene_file)
+    point = ",".join(str(v) for v in keyboard.contact_point)
+    priors_file = Priors.fit(corpus.scenes, corpus.taxonomy).save(tmp_path / "p.npz")
+    for engine, trained in (("paper", priors_file), ("learned", learned_file)):
+        args = [sys.executable, "-m", "scenesuggest.cli", "suggest", "--engine", engine, "--priors", str(trained),
+                "--scene", str(scene_file), "--parent", keyboard.parent, "--point", point, "--normal", "0,1,0",
+                "--top", "2", "--explain", "--category", "Bed"]
+        proc = subprocess.run([*args, "--json"], capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+        out = json.loads(proc.stdout)
+        explained = {e["category"]: e for e in out["explanations"]}
+        assert out["engine"] == engine and "Bed" in explained and len(explained) == 3
+        for e in explained.values():  # the largest first; the paper's terms are all there and sum to the score
+            sizes = [abs(c["contribution"]) for c in e["contributions"]]
+            assert sizes and sizes == sorted(sizes, reverse=True)
+            if engine == "paper":
+                assert sum(c["contribution"] for c in e["contributions"]) == pytest.approx(e["score"])
+        human = subprocess.run(args, capture_output=True, text=True).stdout
+        assert "why (each category's score" in human and "Bed" in human
+    proc = subprocess.run([*args[:-1], "Unicorn"], capture_output=True, text=True)
+    assert proc.returncode == 2 and "field 'category': the engine has no category 'Unicorn'" in proc.stderr
+
+
+def test_the_learned_engine_ranks_a_shortlist_with_every_tree(learned_file, monkeypatch):
+    """The first trees pick the shortlist; it is ranked by every tree and placed above the rest, which keep the
+    first trees' order (tested with a shortlist of 4 of the synthetic corpus' categories)."""
+    from scenesuggest.engines.learned import engine as module
+
+    engine = LearnedEngine.load(learned_file)
+    monkeypatch.setattr(module, "SHORTLIST", 4)
+    rows = np.random.default_rng(0).normal(size=(len(engine.candidates), len(module.RANKING))).astype(np.float32)
+    rows[:, module.RANKING.index("surface_type")] = 0
+    rows[:, module.RANKING.index("scene_type")] = 0
+    total = engine._rank(rows)
+    first = engine.ranker.predict(rows, num_iteration=module.SHORTLIST_TREES)
+    full = engine.ranker.predict(rows)
+    short = np.argsort(-first, kind="stable")[:4]
+    rest = np.setdiff1d(np.arange(len(rows)), short)
+    assert np.allclose(total[short], full[short]) and total[rest].max() < total[short].min()
+    assert list(np.argsort(-total[rest], kind="stable")) == list(np.argsort(-first[rest], kind="stable"))

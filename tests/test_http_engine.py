@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from conftest import DEMO_STUDY, make_app
-from flowhelp import auth, to_trials
+from flowhelp import auth, csrf, to_trials
 
 from scenesuggest import engines, scene_json
 from scenesuggest.engines.http import HttpEngine, parse_answer
@@ -205,7 +205,10 @@ def test_a_condition_served_by_a_hostile_engine_still_suggests_and_logs_why(tmp_
     from study_server.extensions import db
     from study_server.models import SessionLog, ShownList
 
-    app = make_app(tmp_path, studies=[http_study(tmp_path, f"{external}/slow")])
+    from werkzeug.security import generate_password_hash
+
+    app = make_app(tmp_path, studies=[http_study(tmp_path, f"{external}/slow")],
+                   ADMIN_PASSWORD_HASH=generate_password_hash("admin-password"))
     client = app.test_client()
     b = to_trials(client)  # the practice trial, in the 'full' condition that the external engine serves
     assert b["trial"]["condition"] == "full"
@@ -225,6 +228,14 @@ def test_a_condition_served_by_a_hostile_engine_still_suggests_and_logs_why(tmp_
     health = client.get("/healthz").json
     assert health["engines"]["demo"]["full"] == {"engine": "http", "version": "1", "status": "ok", "fallbacks": 1}
     assert external not in client.get("/healthz").get_data(as_text=True)  # no URL in the public answer
+    admin = app.test_client()
+    page = admin.get("/admin/login")
+    admin.post("/admin/login", data={"csrf_token": csrf(page), "password": "admin-password"})
+    dashboard = admin.get("/admin/").get_data(as_text=True)
+    table = dashboard[dashboard.index('<table id="engines">'):]
+    table = table[:table.index("</table>")]
+    assert "<td>full</td><td>http" in table and "falls back to paper" in table
+    assert "<td>1</td><td>no answer within 300 ms (1)</td>" in table and external not in table
 
 
 def test_the_reference_engine_server_and_the_http_engine_keep_the_published_schemas(demo_priors, tmp_path):
