@@ -201,11 +201,10 @@ def http_study(tmp_path: Path, url: str) -> Path:
 
 def test_a_condition_served_by_a_hostile_engine_still_suggests_and_logs_why(tmp_path, external, demo_resources):
     from sqlalchemy import select
+    from werkzeug.security import generate_password_hash
 
     from study_server.extensions import db
     from study_server.models import SessionLog, ShownList
-
-    from werkzeug.security import generate_password_hash
 
     app = make_app(tmp_path, studies=[http_study(tmp_path, f"{external}/slow")],
                    ADMIN_PASSWORD_HASH=generate_password_hash("admin-password"))
