@@ -195,7 +195,9 @@ def http_overhead(priors, queries) -> dict:
                 t = time.perf_counter()
                 found = http.suggest(q, "full", top=TOP)
                 total = (time.perf_counter() - t) * 1000
-                fallbacks += found.fallback is not None
+                if found.fallback is not None or http.last_server_ms() is None:
+                    fallbacks += 1
+                    continue
                 overhead.append(total - http.last_server_ms())
         finally:
             server.kill()

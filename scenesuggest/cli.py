@@ -207,9 +207,12 @@ def _engine(name: str, trained: str, **paper_options):
     if name == "http":
         raise SceneSuggestError("the http engine answers for a study: name it in a study file's condition",
                                 field="engine")
-    options = {k: v for k, v in paper_options.items() if v} if name == "paper" else {}
+    options = {k: v for k, v in paper_options.items() if v}
+    if options and name != "paper":
+        raise SceneSuggestError(f"--{next(iter(options)).replace('_', '-')} is an option of the paper engine",
+                                field="engine")
     if name == "learned":
-        options["file"] = trained
+        options = {"file": trained}
     return load(configure({"name": name, **options}), LoadContext(Path(trained)))
 
 
@@ -217,10 +220,10 @@ def _explanation_lines(explained: list[dict]) -> list[str]:
     lines = ["", "why (each category's score: the contributions that sum to it from the baseline)"]
     for e in sorted(explained, key=lambda e: e["rank"]):
         lines.append(f"{e['rank']:>4}. {e['category']:<22} score {e['score']:8.3f} = baseline {e['baseline']:.3f}"
-                     " + …" + ("" if e.get("shortlisted", True) else "  (left out of the shortlist by the first "
-                               "trees: their score)"))
+                     " + …")
         for c in e["contributions"]:
-            lines.append(f"        {c['contribution']:+8.3f}  {c['feature']:<34} (value {c['value']:.3g})")
+            value = f"(value {c['value']:.3g})" if c["value"] is not None else ""
+            lines.append(f"        {c['contribution']:+8.3f}  {c['feature']:<34} {value}")
     return lines
 
 
@@ -263,6 +266,9 @@ def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, 
                      f"{x.heading_deg:5.0f}°  at ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f})  {x.models[0]}"
                      + (f"  [{'; '.join(x.notes)}]" if x.notes else ""))
     if explain:
+        if collision_aware or refine_anchor:
+            raise SceneSuggestError("explanations are of the engine's own ranking, without --collision-aware or "
+                                    "--refine-anchor", field="explain")
         if not hasattr(engine, "explain"):
             raise SceneSuggestError(f"the {engine_name!r} engine gives no explanations", field="explain")
         unknown = [c for c in explain_categories if c not in engine.categories]
@@ -284,23 +290,32 @@ def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, 
               help="Bootstrap resamples of the paired MRR differences.")
 @click.option("--group-similar/--no-group-similar", default=True, show_default=True,
               help="Keep near-copies of a scene in one fold (and report plain k-fold figures beside).")
+@click.option("--scene-type", "scene_type", type=click.Choice(["given", "inferred"]), default="given",
+              show_default=True, help="A query's room type: its scene's own, or inferred from the objects left "
+                                      "once the queried one is removed.")
 @click.option("--by-category", is_flag=True, help="Also print orientation and MRR per category.")
 @click.option("--ablations", is_flag=True, help="Also train and measure each orientation ablation (slow).")
 @meshes_option
 @click.option("--json", "as_json", is_flag=True)
 def evaluate_cmd(source: str, folds: int, seed: int, engine_names: tuple[str, ...], resamples: int,
-                 group_similar: bool, by_category: bool, ablations: bool, meshes: str | None, as_json: bool) -> None:
+                 group_similar: bool, scene_type: str, by_category: bool, ablations: bool, meshes: str | None,
+                 as_json: bool) -> None:
     """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines; with several
     --engine, every engine on the same folds with paired intervals of the MRR differences."""
-    from .engines import configure
-    from .evaluate import evaluate, format_evaluation
+    from .engines import configure, kind
+    from .evaluate import check_evaluable, evaluate, format_evaluation
 
+    for name in engine_names:  # before the options: an engine that needs some (http) is not evaluable anyway
+        if not (kind(name).trainable or hasattr(kind(name), "from_priors")):
+            raise SceneSuggestError(f"the {name!r} engine is not trained by this project, so it cannot be "
+                                    "evaluated on held-out folds", field="engine")
     specs = [configure({"name": name}) for name in engine_names or ("paper",)]
+    check_evaluable(specs)
     c = _load(source, meshes)
     if len(c.scenes) < folds:
         raise SceneSuggestError(f"{len(c.scenes)} scenes cannot make {folds} folds", field="folds")
     result = evaluate(c, folds=folds, seed=seed, progress=progress, group_similar=group_similar,
-                      ablations=ablations, engines=specs, resamples=resamples)
+                      ablations=ablations, engines=specs, resamples=resamples, scene_type=scene_type)
     emit(result, as_json, format_evaluation(result, by_category=by_category))
 
 

@@ -39,6 +39,7 @@ from .folds import folds_of, grouped_folds, similar_groups
 from .pose_error import front_angle_deg, pose_error_deg
 from .priors import Priors
 from .scene import ObjectInstance, Scene
+from .scene_types import infer_scene_type
 from .suggest import ContextQuery, Engine, EngineOptions
 from .surfaces import attachment_face
 from .symmetry import ModelPeriods, corpus_periods
@@ -60,6 +61,8 @@ ABLATIONS = {
 #: the canonical pose of basic mode.
 POSES = ("full", "paper", "canonical")
 TOLERANCES_DEG = (15, 45)
+#: What a held-out query says of its room (see :func:`evaluate`).
+SCENE_TYPES = ("given", "inferred")
 
 __all__ = ["evaluate", "format_evaluation", "folds_of", "rank_of", "summary", "orientation_summary"]
 
@@ -149,15 +152,20 @@ class Run:
     skipped: int = 0
 
 
+def check_evaluable(specs: list[EngineSpec]) -> None:
+    """Every engine must be one the project can train per fold (or answers from the fold's priors)."""
+    for spec in specs:
+        if not (spec.kind.trainable or hasattr(spec.kind, "from_priors")):
+            raise SceneSuggestError(f"the {spec.name!r} engine is not trained by this project, so it cannot be "
+                                    "evaluated on held-out folds", field="engine")
+
+
 def _fitted(spec: EngineSpec, priors: Priors, train: list[Scene], corpus: Corpus, seed: int,
             periods: ModelPeriods, progress):
     """The engine of ``spec`` trained on one fold: from the fold's priors where the kind answers from them."""
     kind = spec.kind
     if hasattr(kind, "from_priors"):
         return kind.from_priors(spec.config, priors)
-    if not kind.trainable:
-        raise SceneSuggestError(f"the {spec.name!r} engine is not trained by this project, so it cannot be "
-                                "evaluated on held-out folds", field="engine")
     return kind.fit(spec.config, train, corpus.taxonomy, seed=seed, periods=periods, progress=progress)
 
 
@@ -185,9 +193,10 @@ def _rank_and_poses(engine, query: ContextQuery, category: str):
 
 def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
          progress, fit_options: dict | None = None, rankings: bool = True, specs: list[EngineSpec] | None = None,
-         groups: list[int] | None = None, seed: int = 0) -> Run:
+         groups: list[int] | None = None, seed: int = 0, scene_type: str = "given") -> Run:
     """Every engine of ``specs`` (default: the paper's with ``options``) and the baselines on the held-out
-    queries of ``folds`` (``rankings=False``: the baselines are not ranked, for orientation-only runs)."""
+    queries of ``folds`` (``rankings=False``: the baselines are not ranked, for orientation-only runs); each query
+    has its scene's type (``given``) or the type inferred from the scene without the object (``inferred``)."""
     specs = specs or [EngineSpec("paper", {"name": "paper"}, options)]
     run = Run({b: [] for b in BASELINES}, {s.name: EngineRun() for s in specs})
     for held in progress(folds, "folds"):
@@ -203,8 +212,10 @@ def _run(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, period
             for o in scene:
                 if o.parent is None or o.contact_point is None or o.contact_normal is None:
                     continue
-                query = ContextQuery(scene.without(o.id), o.parent, o.contact_point, o.contact_normal,
-                                     scene_type=scene.scene_type)
+                rest = scene.without(o.id)
+                query = ContextQuery(rest, o.parent, o.contact_point, o.contact_normal,
+                                     scene_type=scene.scene_type if scene_type == "given" else
+                                     infer_scene_type((x.category for x in rest), corpus.taxonomy))
                 try:
                     scores = paper.score(query)
                 except SceneSuggestError:  # a contact far from its parent's box: bad data, not a query
@@ -238,7 +249,7 @@ def _measure(out: EngineRun, engine, paper_rule: Engine, query: ContextQuery, sc
     if full is None:
         return
     placed = {"full": full, "canonical": basic}
-    if isinstance(engine, Engine) and type(engine) is Engine and scores is not None:  # the paper's own rule
+    if type(engine) is Engine and scores is not None:  # the paper's engine: its own rule too
         index = engine.index[o.category]
         faces, alphas, _ = paper_rule.choose_poses(scores, "full", [index])
         placed["paper"] = poses.placement(scores.prepared.point, scores.prepared.normal, faces[0],
@@ -310,7 +321,8 @@ def _categories(records: list[dict], ranks: dict[str, list[float]] | None = None
             out[category][f"{pose}_median_deg"] = float(np.median(folded))
     for category, rs in (ranks or {}).items():  # the ranking of categories the engine could place
         if category in out:
-            out[category].update({"mrr": summary(rs)["mrr"], "top1": summary(rs)["top1"], "queries": len(rs)})
+            m = summary(rs)
+            out[category].update({"mrr": m["mrr"], "top1": m["top1"], "queries": len(rs)})
     return out
 
 
@@ -356,7 +368,7 @@ def _timing(seconds: list[float]) -> dict:
 def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptions | None = None,
              progress: Callable[[Iterable, str], Iterable] | None = None, group_similar: bool = True,
              periods: ModelPeriods | None = None, ablations: bool = False, engines: list[EngineSpec] | None = None,
-             resamples: int = 1000) -> dict:
+             resamples: int = 1000, scene_type: str = "given") -> dict:
     """Run the k-fold evaluation; returns the JSON-ready summary (see the CLI's ``evaluate --json``).
 
     ``engines`` (default: the paper's, with ``options``) are each trained on every fold's training scenes and
@@ -366,18 +378,27 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
     With ``group_similar`` the main figures come from folds that keep near-copies together and the plain k-fold
     figures of the first engine are added under ``"ungrouped"``; without it only plain k-fold by scene is run.
     With ``ablations`` every variant of :data:`ABLATIONS` is trained and measured on the main folds too
-    (``"ablations"``: the paper engine's full-mode orientation summary and the chairs beside tables of each)."""
+    (``"ablations"``: the paper engine's full-mode orientation summary and the chairs beside tables of each).
+
+    ``scene_type``: what a query says of its room — ``given``, the scene's own type (what a study's target scene
+    says, and how the paper queried), or ``inferred`` from the objects left once the queried one is removed (a
+    corpus whose types were themselves inferred from its furniture otherwise tells, say, that a Study has a desk
+    when the desk is the object asked about)."""
+    if scene_type not in SCENE_TYPES:
+        raise SceneSuggestError(f"expected one of {', '.join(SCENE_TYPES)}", field="scene_type")
     progress = progress or (lambda items, label="": items)
     options = options or EngineOptions()
     specs = list(engines or [EngineSpec("paper", {"name": "paper"}, options)])
     if len({s.name for s in specs}) != len(specs):
         raise SceneSuggestError("each engine may be named once", field="engine")
+    check_evaluable(specs)
     if periods is None:
         periods = corpus_periods(corpus.models.values(), progress)
     groups = similar_groups(corpus.scenes) if group_similar else list(range(len(corpus.scenes)))
     plain_folds = folds_of(len(corpus.scenes), folds, seed)
     main_folds = grouped_folds(groups, folds, seed) if group_similar else plain_folds
-    run = _run(corpus, main_folds, options, periods, progress, specs=specs, groups=groups, seed=seed)
+    run = _run(corpus, main_folds, options, periods, progress, specs=specs, groups=groups, seed=seed,
+               scene_type=scene_type)
     first = specs[0].name
     blocks = {}
     for spec in specs:
@@ -392,7 +413,8 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
         blocks[spec.name] = block
     top = blocks[first]
     result = {
-        "source": corpus.source, "folds": folds, "seed": seed, "queries": len(run.groups), "skipped": run.skipped,
+        "source": corpus.source, "folds": folds, "seed": seed, "scene_type": scene_type, "queries": len(run.groups),
+        "skipped": run.skipped,
         "engine": first, "modes": top["modes"], "baselines": {b: summary(r) for b, r in run.baselines.items()},
         "grouping": {"group_similar": group_similar, "groups": len(set(groups)),
                      "scenes_with_near_copies": int(sum(n for n in Counter(groups).values() if n > 1))},
@@ -401,7 +423,8 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
     }
     if ablations:
         result["ablations"] = {}
-        paper_records = run.engines["paper"].records if "paper" in run.engines else None
+        same = [sp for sp in specs if sp.name == "paper" and sp.config == options]
+        paper_records = run.engines["paper"].records if same else None
         for name, fit_options in ABLATIONS.items():
             if fit_options or paper_records is None:
                 variant = _run(corpus, main_folds, options, periods, progress, fit_options,
@@ -410,7 +433,7 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
                 variant = paper_records
             result["ablations"][name] = {**_orientation(variant, "full"), "chairs_at_tables": _chairs(variant)}
     if group_similar:
-        plain = _run(corpus, plain_folds, options, periods, progress, specs=specs[:1], seed=seed)
+        plain = _run(corpus, plain_folds, options, periods, progress, specs=specs[:1], seed=seed, scene_type=scene_type)
         er = plain.engines[first]
         result["ungrouped"] = {"queries": len(plain.groups), **_block(er.ranks, er.records),
                                "baselines": {b: summary(r) for b, r in plain.baselines.items()},
@@ -474,8 +497,9 @@ def format_evaluation(result: dict, by_category: bool = False, top: int = 30) ->
     how = (f"{result['folds']}-fold by scene, near-copies kept together ({grouping['groups']} groups; "
            f"{grouping['scenes_with_near_copies']} scenes have near-copies)" if grouping["group_similar"]
            else f"{result['folds']}-fold by scene")
+    types = "" if result.get("scene_type", "given") == "given" else ", room types inferred without the object"
     lines = [f"{result['source']}: {result['queries']} queries ({result['skipped']} skipped), {how}, "
-             f"seed {result['seed']}", "", f"the {result['engine']} engine",
+             f"seed {result['seed']}{types}", "", f"the {result['engine']} engine",
              f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]
     lines += _ranking_rows(result)
     full = result["modes"]["full"]

@@ -202,7 +202,12 @@ class Engine:
         """Validate a query (errors name the field) and derive surface type, scene type and references."""
         return prepare(query, self.priors.taxonomy, self.options.infer_scene_type)
 
-    def score(self, query: ContextQuery) -> Scores:
+    def score(self, query: ContextQuery, allowed: np.ndarray | None = None) -> Scores:
+        """Every candidate's terms and score for ``query``; ``allowed`` (a mask over the candidates: those that
+        may be suggested) lets an engine spend its effort on them — this one scores all alike."""
+        return self._score(query)
+
+    def _score(self, query: ContextQuery) -> Scores:
         prep = self.prepare(query)
         occ = self._occurrence(prep)
         sup = self.surface_prob[:, SURFACE_TYPES.index(prep.surface_type)]
@@ -326,9 +331,10 @@ class Engine:
                                     "the engine)", field="mode")
         if top is not None and (not isinstance(top, int) or top < 1):
             raise SceneSuggestError("top must be a positive integer", field="top")
-        scores = self.score(query)
-        prep = scores.prepared
         n = len(self.candidates)
+        allowed = np.ones(n, dtype=bool) if only is None else np.isin(self.names, list(only))
+        scores = self.score(query, allowed)
+        prep = scores.prepared
         points = np.tile(prep.point, (n, 1))
         notes: list[list[str]] = [[] for _ in range(n)]
         total = scores.total
@@ -336,7 +342,6 @@ class Engine:
             points, moved = refine_anchors(self, scores, self.options.refine_radius_m)
             for i in np.flatnonzero(moved > 0):
                 notes[i].append(f"moved {moved[i]:.2f} m to a more typical spot")
-        allowed = np.ones(n, dtype=bool) if only is None else np.isin(self.names, list(only))
         if not allowed.any():  # nothing the caller allows
             return SuggestionList((), prep.surface_type, prep.scene_type, prep.parent_category, self.name)
         if self.options.collision_aware:  # every candidate needs its pose before the ranking is known
@@ -360,14 +365,12 @@ class Engine:
 
     def explain(self, query: ContextQuery, mode: str = "full", top: int | None = 10,
                 categories: Collection[str] = ()) -> list[dict]:
-        """Why each category got its rank, for the ``top`` suggestions and ``categories`` wherever they rank: its
+        """Why each category got its rank among every category (whatever the study allows; the extras of
+        EngineOptions are not applied), for the ``top`` suggestions and ``categories`` wherever they rank: its
         score and the contributions that sum to it — λ1 · occurrence · surface, then λ2 · the position density
         next to each reference (the parent and the objects on it)."""
         scores = self.score(query)
-        order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
-        rank = {int(i): r for r, i in enumerate(order, start=1)}
-        wanted = list(dict.fromkeys([int(i) for i in order[: top or len(order)]]
-                                    + [self.index[c] for c in categories if c in self.index]))
+        rank, wanted = self.explained(scores, top, categories)
         o = self.options
         out = []
         for i in wanted:
@@ -380,6 +383,14 @@ class Engine:
             out.append({"rank": rank[i], "category": self.names[i], "score": float(scores.total[i]), "baseline": 0.0,
                         "terms": self.terms(scores, i), "contributions": parts})
         return out
+
+    def explained(self, scores: Scores, top: int | None, categories: Collection[str]) -> tuple[dict, list[int]]:
+        """(candidate → its rank among every candidate, the candidates to explain: the ``top`` and ``categories``
+        wherever they rank) — what every engine's ``explain`` lists."""
+        order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
+        rank = {int(i): r for r, i in enumerate(order, start=1)}
+        wanted = [int(i) for i in order[: top or len(order)]] + [self.index[c] for c in categories if c in self.index]
+        return rank, list(dict.fromkeys(wanted))
 
     def terms(self, scores: Scores, i: int) -> dict[str, float]:
         """The explanation terms of candidate ``i``: the paper's occurrence, surface and position terms."""

@@ -48,21 +48,22 @@ def _study(rt) -> str:
 
 
 def _engines(rt) -> dict[str, dict]:
-    """Per condition that suggests: the engine's name and version and whether it is loaded (an HTTP engine: and
-    how many of its answers this process replaced by its fallback's, without the reasons)."""
-    out = {}
+    """The study's engines by name (not by condition: which condition runs which engine is the experimenter's
+    business): version and status — ``ok`` once loaded (an HTTP engine: with how many of its answers this process
+    replaced by its fallback's), ``not loaded yet`` before first use, or what kind of failure stopped its
+    loading. Nothing is loaded by asking."""
+    loaded = rt.loaded_engines()
+    out: dict[str, dict] = {}
     for c in rt.study.conditions:
         if c.id == "none":
             continue
-        entry = {"engine": c.engine.name, "version": c.engine.kind.version}
-        try:
-            engine = rt.engine(c.id)
+        entry = out.setdefault(c.engine.name, {"version": c.engine.kind.version, "status": "not loaded yet"})
+        if c.id in rt.engine_failures:
+            entry["status"] = f"unavailable ({rt.engine_failures[c.id].split(':')[0]})"
+        elif c.id in loaded and not entry["status"].startswith("unavailable"):
             entry["status"] = "ok"
-            if hasattr(engine, "fallbacks"):
-                entry["fallbacks"] = engine.fallbacks
-        except Exception as e:  # noqa: BLE001 - reported by kind, never raised
-            entry["status"] = f"unavailable ({type(e).__name__})"
-        out[c.id] = entry
+            if hasattr(loaded[c.id], "fallbacks"):
+                entry["fallbacks"] = entry.get("fallbacks", 0) + loaded[c.id].fallbacks
     return out
 
 
@@ -73,5 +74,5 @@ def health() -> tuple[dict, bool]:
     studies = {sid: _study(rt) for sid, rt in runtimes.items()}
     engines = {sid: _engines(rt) for sid, rt in runtimes.items()}
     ok = (database == "ok" and schema == "ok" and all(v == "ok" for v in studies.values())
-          and all(e["status"] == "ok" for per in engines.values() for e in per.values()))
+          and not any(e["status"].startswith("unavailable") for per in engines.values() for e in per.values()))
     return {"ok": ok, "database": database, "schema": schema, "studies": studies, "engines": engines}, ok

@@ -63,18 +63,20 @@ def engine_problems(study: Study, current: bool = False) -> dict[str, str]:
         problem = spec.kind.problem(spec.config, study.priors, current)
         if problem:
             path = spec.kind.trained_file(spec.config, study.priors)
-            how = (f"'scenesuggest study prepare {study.path}'" if study.server_resources else
-                   f"'scenesuggest engine train {spec.name} {study.corpus} -o {path}'")
+            how = (f"'scenesuggest study prepare {study.path}'" if study.server_resources and _default_file(spec, study)
+                   else f"'scenesuggest engine train {spec.name} {study.corpus} -o {path}'")
             out[key] = f"{problem}: make it with {how}"
     return out
 
 
 def prepare(study: Study, progress: Progress, say: Callable[[str], None]) -> list[str]:
-    """Build the server's own priors and library for the study's corpus where :func:`problems` finds them
-    missing or stale; returns what was built (nothing for a study that names its own)."""
+    """Build the server's own priors, library and engine files (a learned engine's, when a condition names no
+    file of its own) for the study's corpus where :func:`problems` finds them missing or stale; returns what was
+    built (nothing for a study that names its own, and never a file a study file names)."""
     if not study.server_resources:
         return []
-    todo = sorted(problems(study, current=True))
+    own = {key for key, spec in condition_engines(study) if _default_file(spec, study)}
+    todo = sorted(k for k in problems(study, current=True) if not k.startswith("conditions[") or k in own)
     if not todo:
         return []
     from scenesuggest.corpora import load_corpus
@@ -91,14 +93,27 @@ def prepare(study: Study, progress: Progress, say: Callable[[str], None]) -> lis
         study.priors.parent.mkdir(parents=True, exist_ok=True)
         Priors.fit(corpus.scenes, corpus.taxonomy, progress=progress).save(study.priors)
         say(f"{study.id}: priors → {study.priors}")
-    built = set()
+    built: set = set()
+    periods = None
     for key, spec in condition_engines(study):
         path = spec.kind.trained_file(spec.config, study.priors)
         if key in todo and path not in built:
             from scenesuggest.symmetry import corpus_periods
 
-            spec.kind.train(spec.config, corpus.scenes, corpus.taxonomy, path, progress=progress,
-                            periods=corpus_periods(corpus.models.values(), progress))
+            periods = periods or corpus_periods(corpus.models.values(), progress)
+            spec.kind.train(spec.config, corpus.scenes, corpus.taxonomy, path, progress=progress, periods=periods)
             built.add(path)
             say(f"{study.id}: {spec.name} engine → {path}")
     return todo
+
+
+def _default_file(spec, study: Study) -> bool:
+    """Whether an engine answers from the server's own file for it (its kind's default beside the server's
+    priors), which the server may build — never a file the study file names."""
+    path = spec.kind.trained_file(spec.config, study.priors)
+    if path is None or path == study.priors:
+        return False
+    try:
+        return path == spec.kind.trained_file(spec.kind.configure({}), study.priors)
+    except SceneSuggestError:  # a kind that needs options (http) has no file of its own
+        return False

@@ -26,6 +26,10 @@ from scenesuggest.taxonomy import Taxonomy
 from .study_file import Study, StudyFileError, load_study
 
 
+class EngineUnavailable(Exception):
+    """A condition's engine cannot be loaded (its file is damaged, say): the server's fault, not the caller's."""
+
+
 def load_studies(files: list[Path], check: bool = True) -> dict[str, StudyRuntime]:
     """Validate every study file (and, with ``check``, its scenes, priors and library): a bad study stops
     the server at start-up with an error naming the key, never a participant's request."""
@@ -56,6 +60,8 @@ class StudyRuntime:
         self.study = study
         self._lock = threading.RLock()
         self._engines: dict[str, SuggestionEngine] = {}
+        #: Why a condition's engine could not be loaded, by condition (until it loads).
+        self.engine_failures: dict[str, str] = {}
         self._placeable: dict[str, frozenset[str]] = {}
         self._periods: dict[str, float] = {}
         #: What the API says of each model, by id, its URLs below the app's mount point: made once, as a model's
@@ -93,9 +99,13 @@ class StudyRuntime:
                 raise StudyFileError(f"cannot be loaded ({type(e).__name__}: {e})", file=str(s.path),
                                      field=f"resources.{key}") from None
         _ = self.taxonomy  # a cached property: loaded on first read
-        for c in s.conditions:
+        for i, c in enumerate(s.conditions):
             if c.id != "none":
-                self.placeable(c.id)
+                try:
+                    self.placeable(c.id)
+                except EngineUnavailable as e:
+                    raise StudyFileError(str(e.__cause__ or e), file=str(s.path),
+                                         field=f"conditions[{i}].engine") from None
 
     @cached_property
     def priors(self) -> Priors:
@@ -103,11 +113,25 @@ class StudyRuntime:
             return Priors.load(self.study.priors)
 
     def engine(self, condition_id: str) -> SuggestionEngine:
-        """The engine of a condition (:mod:`scenesuggest.engines`), loaded once."""
+        """The engine of a condition (:mod:`scenesuggest.engines`), loaded once. An engine that cannot be loaded
+        raises :class:`EngineUnavailable` (and is tried again at the next request); why is kept for /healthz and
+        the server's log, never told to a participant."""
         with self._lock:
             if condition_id not in self._engines:
-                self._engines[condition_id] = self.load_engine(self.study.condition(condition_id).engine)
+                spec = self.study.condition(condition_id).engine
+                try:
+                    self._engines[condition_id] = self.load_engine(spec)
+                except Exception as e:  # noqa: BLE001 - any failure to read or build it
+                    self.engine_failures[condition_id] = f"{type(e).__name__}: {e}"
+                    raise EngineUnavailable(f"the {spec.name} engine of the condition {condition_id!r} cannot be "
+                                            f"loaded: {type(e).__name__}: {e}") from e
+                self.engine_failures.pop(condition_id, None)
             return self._engines[condition_id]
+
+    def loaded_engines(self) -> dict[str, SuggestionEngine]:
+        """The engines loaded so far, by condition (nothing is loaded by asking)."""
+        with self._lock:
+            return dict(self._engines)
 
     def load_engine(self, spec: engines.EngineSpec) -> SuggestionEngine:
         """An engine of this study: those that answer from the study's priors file share its one copy."""

@@ -17,6 +17,10 @@ binds a free loopback port, writes it to PORT_FILE and serves until killed. Path
 /hang        headers and 10 of the 1,000 bytes promised, then nothing until the client goes
 /drip        the status line one byte every 50 ms
 /error       500 with a short message
+/stream      200 with no length, the connection to close at the end, and bytes until the client goes
+/upside      a placement standing on the object's back, said to stand on its bottom
+/idle-close  the good answer, then the connection closed 0.2 s later (as servers close idle connections)
+/flaky?k=K   for each K: 500 on the first query, the good answer on the next, and so on
 /count       200 {"connections": n}: connections accepted so far (for keep-alive checks; GET or POST)
 """
 
@@ -31,6 +35,7 @@ from pathlib import Path
 
 CONNECTIONS = 0
 LOCK = threading.Lock()
+FLAKY: dict[str, int] = {}
 
 
 def good_answer(query: dict, top: int | None = None) -> dict:
@@ -72,8 +77,8 @@ def serve(conn: socket.socket) -> None:
             request = read_request(f)
             if request is None:
                 return
-            _, path, body = request
-            path = path.split("?")[0]
+            _, target, body = request
+            path, _, key = target.partition("?")
             if path == "/count":
                 send(conn, "200 OK", json.dumps({"connections": CONNECTIONS}).encode())
                 continue
@@ -119,6 +124,28 @@ def serve(conn: socket.socket) -> None:
                 return
             elif path == "/error":
                 send(conn, "500 Internal Server Error", b'{"error": "boom"}')
+            elif path == "/stream":
+                conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Type: application/json\r\nConnection: close\r\n\r\n")
+                while True:
+                    conn.sendall(b" " * 65536)
+            elif path == "/upside":
+                answer = good_answer(query)
+                x, y, z = query["point"]
+                answer["suggestions"][0].update(attachment_face="bottom", placement=[
+                    1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, x, y, z, 1.0])  # front up
+                send(conn, "200 OK", json.dumps(answer).encode())
+            elif path == "/idle-close":
+                send(conn, "200 OK", json.dumps(good_answer(query)).encode())
+                time.sleep(0.2)
+                return
+            elif path == "/flaky":
+                with LOCK:
+                    FLAKY[key] = FLAKY.get(key, 0) + 1
+                    n = FLAKY[key]
+                if n % 2:
+                    send(conn, "500 Internal Server Error", b'{"error": "flaky"}')
+                else:
+                    send(conn, "200 OK", json.dumps(good_answer(query)).encode())
             else:
                 send(conn, "404 Not Found", b"{}")
     except (OSError, ValueError):

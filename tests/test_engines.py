@@ -271,10 +271,9 @@ def test_a_condition_served_by_the_learned_engine(tmp_path, learned_file, demo_r
                                                            "point": [0.0, 0.0, 0.5], "normal": [0, 1, 0]})
     assert r.status_code == 200 and r.json["engine"] == "learned" and r.json["suggestions"], r.json
     assert all(s["models"] for s in r.json["suggestions"])
-    health = client.get("/healthz").json
-    assert health["ok"] and health["engines"]["demo"] == {
-        "basic": {"engine": "paper", "version": "1", "status": "ok"},
-        "full": {"engine": "learned", "version": "1", "status": "ok"}}
+    health = client.get("/healthz").json  # by engine, not by condition; nothing loaded by asking
+    assert health["ok"] and health["engines"]["demo"] == {"paper": {"version": "1", "status": "not loaded yet"},
+                                                          "learned": {"version": "1", "status": "ok"}}
     with app.app_context():
         manifest = json.loads(export_files(app.extensions["studies"]["demo"])["manifest.json"])
     assert manifest["engines"]["full"] == {"engine": "learned", "version": "1", "options": {"file": str(learned_file)},
@@ -284,12 +283,41 @@ def test_a_condition_served_by_the_learned_engine(tmp_path, learned_file, demo_r
 
 
 def test_a_missing_learned_file_stops_the_server_naming_the_condition(tmp_path, demo_resources):
+    from study_server.prepare import prepare
     from study_server.studies import load_studies
+    from study_server.study_file import load_study
 
     path = learned_study(tmp_path, tmp_path / "nowhere.npz")
+    assert prepare(load_study(path), lambda items, label="": items, print) == []  # a file it names is not built
+    assert not (tmp_path / "nowhere.npz").exists()
     with pytest.raises(SceneSuggestError) as info:
         load_studies([path])
-    assert info.value.field == "conditions[2].engine" and "scenesuggest" in info.value.message
+    assert info.value.field == "conditions[2].engine" and "scenesuggest engine train learned" in info.value.message
+
+
+def test_a_damaged_engine_file_is_a_503_without_its_path_and_healthz_says_so(tmp_path, learned_file,
+                                                                             demo_resources):
+    import shutil
+
+    damaged = tmp_path / "damaged.learned.npz"
+    shutil.copy(learned_file, damaged)
+    app = make_app(tmp_path, studies=[learned_study(tmp_path, damaged)])
+    import zipfile
+
+    with zipfile.ZipFile(learned_file) as src, zipfile.ZipFile(damaged, "w") as dst:
+        for item in src.infolist():  # every entry but the ranker: the metadata still reads
+            if item.filename != "ranker.npy":
+                dst.writestr(item, src.read(item.filename))
+    client = app.test_client()
+    b = to_trials(client)
+    start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")
+    r = client.post("/api/suggest", headers=auth(b), json={"trial": b["trial"]["index"], "parent": "room",
+                                                           "scene": {"objects": start["objects"]},
+                                                           "point": [0.0, 0.0, 0.5], "normal": [0, 1, 0]})
+    assert r.status_code == 503 and r.json["field"] == "engine" and str(tmp_path) not in r.get_data(as_text=True)
+    health = client.get("/healthz")
+    assert health.status_code == 503 and health.json["engines"]["demo"]["learned"]["status"] == \
+        "unavailable (SceneSuggestError)" and str(tmp_path) not in health.get_data(as_text=True)
 
 
 @pytest.mark.parametrize(("engine", "key", "words"), [
@@ -332,11 +360,11 @@ def test_suggest_explains_why_each_category_got_its_rank(corpus, learned_file, t
         out = json.loads(proc.stdout)
         explained = {e["category"]: e for e in out["explanations"]}
         assert out["engine"] == engine and "Bed" in explained and len(explained) == 3
-        for e in explained.values():  # the largest first; the paper's terms are all there and sum to the score
-            sizes = [abs(c["contribution"]) for c in e["contributions"]]
+        for e in explained.values():  # the largest first, and with the baseline they sum to the score
+            sizes = [abs(c["contribution"]) for c in e["contributions"] if c["value"] is not None]
             assert sizes and sizes == sorted(sizes, reverse=True)
-            if engine == "paper":
-                assert sum(c["contribution"] for c in e["contributions"]) == pytest.approx(e["score"])
+            total = e["baseline"] + sum(c["contribution"] for c in e["contributions"])
+            assert total == pytest.approx(e["score"], rel=1e-6, abs=1e-9)
         human = subprocess.run(args, capture_output=True, text=True).stdout
         assert "why (each category's score" in human and "Bed" in human
     proc = subprocess.run([*args[:-1], "Unicorn"], capture_output=True, text=True)
@@ -360,3 +388,37 @@ def test_the_learned_engine_ranks_a_shortlist_with_every_tree(learned_file, monk
     rest = np.setdiff1d(np.arange(len(rows)), short)
     assert np.allclose(total[short], full[short]) and total[rest].max() < total[short].min()
     assert list(np.argsort(-total[rest], kind="stable")) == list(np.argsort(-first[rest], kind="stable"))
+
+
+def test_explanations_sum_to_the_score_inside_and_outside_the_shortlist(corpus, learned_file, monkeypatch):
+    from scenesuggest.engines.learned import engine as module
+
+    engine = LearnedEngine.load(learned_file)
+    monkeypatch.setattr(module, "SHORTLIST", 4)
+    scene = corpus.scenes[0]
+    query = synthetic_query(scene, next(o for o in scene if o.category == "Desk"))
+    last = engine.suggest(query, "basic")[-1].category  # ranked last: outside a shortlist of 4
+    explained = {e["category"]: e for e in engine.explain(query, top=2, categories=[last])}
+    assert [e["shortlisted"] for e in explained.values()] == [True, True, False]
+    assert explained[last]["contributions"][-1]["feature"] == "below the shortlist"
+    for e in explained.values():
+        total = e["baseline"] + sum(c["contribution"] for c in e["contributions"])
+        assert total == pytest.approx(e["score"], rel=1e-6, abs=1e-9)
+
+
+def test_every_fold_numbers_the_scene_types_alike(corpus, monkeypatch):
+    from scenesuggest.engines.learned.context import ContextStats
+
+    seen = []
+    real = ContextStats.fit.__func__
+
+    def recording(cls, scenes, names, scene_types=None):
+        stats = real(cls, scenes, names, scene_types)
+        seen.append(stats.scene_types)
+        return stats
+
+    monkeypatch.setattr(ContextStats, "fit", classmethod(recording))
+    few = [s for s in corpus.scenes if s.scene_type == "Study"][:5] + [s for s in corpus.scenes
+                                                                        if s.scene_type == "Bedroom"][:1]
+    learned_training.fit(few, corpus.taxonomy, seed=0)
+    assert len(seen) >= 3 and all(types == ["Bedroom", "Study"] for types in seen)

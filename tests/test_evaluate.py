@@ -10,6 +10,7 @@ import pytest
 import synthetic
 
 from scenesuggest.corpora.corpus import Corpus
+from scenesuggest.errors import SceneSuggestError
 from scenesuggest.evaluate import evaluate, folds_of, format_evaluation, rank_of, summary
 
 
@@ -51,6 +52,12 @@ def test_evaluation_on_a_synthetic_corpus():
     assert "MRR" in text and "OfficeChair" in text and "near-copies kept together" in text
     plain = evaluate(synthetic.corpus(), folds=4, seed=0, group_similar=False)
     assert "ungrouped" not in plain and plain["grouping"]["group_similar"] is False
+    # the room type inferred from what is left (a study whose only desk is asked about is a plain Room then)
+    inferred = evaluate(synthetic.corpus(), folds=4, seed=0, group_similar=False, scene_type="inferred")
+    assert inferred["scene_type"] == "inferred" and inferred["queries"] == plain["queries"]
+    assert "room types inferred without the object" in format_evaluation(inferred)
+    with pytest.raises(SceneSuggestError, match="one of given, inferred"):
+        evaluate(synthetic.corpus(), folds=4, scene_type="guessed")
 
 
 @pytest.mark.slow

@@ -32,6 +32,7 @@ from targets import PERIODS  # noqa: E402
 
 from analysis.bootstrap import bootstrap_by  # noqa: E402
 from scenesuggest import engines, scene_json  # noqa: E402
+from scenesuggest.atomic import write_atomically  # noqa: E402
 from scenesuggest.engines.learned.engine import code_digest as learned_digest  # noqa: E402
 from scenesuggest.engines.protocol import LoadContext  # noqa: E402
 from scenesuggest.library import load_index  # noqa: E402
@@ -135,7 +136,7 @@ def trained_engines(prepared: Path, names=ENGINES, log=print) -> dict[str, dict]
         log(f"training the {kind.name} engine on {len(scenes)} scenes → {file} …")
         kind.train(config, scenes, corpus.taxonomy, file, periods=corpus_periods(corpus.models.values()))
         record[file.name] = key
-        record_path.write_text(json.dumps(record, indent=1) + "\n")
+        write_atomically(record_path, (json.dumps(record, indent=1) + "\n").encode())
 
     out: dict[str, dict] = {}
     for row_set in ROW_SETS:

@@ -43,9 +43,9 @@ def train_cmd(name: str, source: str, out: str, seed: int, meshes: str | None, a
     """Train the engine NAME on SOURCE (""" + SOURCE_HELP + """) and write its file."""
     from ..symmetry import corpus_periods
 
-    spec = configure({"name": name})
-    if not spec.kind.trainable:
+    if not kind(name).trainable:  # before its options: an engine that needs some (http) is not trained here
         raise SceneSuggestError(f"the {name!r} engine is not trained by this project", field="name")
+    spec = configure({"name": name})
     corpus = _load(source, meshes)
     periods = corpus_periods(corpus.models.values(), progress)
     started = time.perf_counter()

@@ -25,7 +25,7 @@ class FrequencyEngine(Engine):
 
     name = "frequency"
 
-    def score(self, query) -> Scores:
+    def score(self, query, allowed=None) -> Scores:
         """The base rate of every candidate (the paper's terms are not computed: only the paper's orientation
         rule needs its position densities)."""
         prep = self.prepare(query)
@@ -39,10 +39,7 @@ class FrequencyEngine(Engine):
 
     def explain(self, query, mode: str = "full", top: int | None = 10, categories=()) -> list[dict]:
         scores = self.score(query)
-        order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
-        rank = {int(i): r for r, i in enumerate(order, start=1)}
-        wanted = dict.fromkeys([int(i) for i in order[: top or len(order)]]
-                               + [self.index[c] for c in categories if c in self.index])
+        rank, wanted = self.explained(scores, top, categories)
         return [{"rank": rank[i], "category": self.names[i], "score": float(self.base_rate[i]), "baseline": 0.0,
                  "terms": self.terms(scores, i), "contributions": [
                      {"feature": "frequency", "value": float(self.base_rate[i]),

@@ -17,8 +17,11 @@ from __future__ import annotations
 
 import contextlib
 import http.client
+import ipaddress
 import math
+import select
 import socket
+import ssl
 import threading
 import time
 from collections.abc import Collection, Mapping
@@ -33,14 +36,15 @@ import orjson
 from .. import frames, poses
 from ..errors import SceneSuggestError
 from ..query import ContextQuery, prepare
-from ..scene_json import scene_to_dict
+from ..scene_json import finite, scene_to_dict
 from ..suggest import MODES, Suggestion, SuggestionList
 from ..taxonomy import Taxonomy
 from .protocol import EngineKind, LoadContext, SuggestionEngine
 
 PROTOCOL_VERSION = 1
 DEFAULT_TIMEOUT_MS = 300
-MAX_TIMEOUT_MS = 10_000
+#: The longest a participant may wait for the engine (each sync server worker waits as long).
+MAX_TIMEOUT_MS = 2_000
 DEFAULT_MAX_SUGGESTIONS = 40
 DEFAULT_MAX_BYTES = 1 << 20
 #: A placement's rotation must be orthonormal to this tolerance, and its origin this close to the click (metres).
@@ -118,6 +122,8 @@ def _integer(options: Mapping, key: str, default: int, low: int, high: int) -> i
 def _url(value) -> str:
     if not isinstance(value, str) or not value:
         raise SceneSuggestError("missing: the engine's http(s) URL", field="url")
+    if any(ord(c) <= 32 or ord(c) == 127 for c in value):
+        raise SceneSuggestError("expected a URL without spaces or control characters", field="url")
     parts = urlsplit(value)
     if parts.scheme not in ("http", "https") or not parts.hostname or parts.username or parts.password:
         raise SceneSuggestError("expected an http:// or https:// URL with a host and no credentials", field="url")
@@ -170,10 +176,6 @@ def query_document(prep, mode: str, top: int, categories: Collection[str]) -> di
             "categories": sorted(categories)}
 
 
-def _finite(value) -> bool:
-    return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value)
-
-
 def _placements(items: list, point: np.ndarray) -> np.ndarray:
     """(n, 4, 4) placements of the answer's items, checked: 16 finite numbers each, rigid, near the click."""
     numbers = (int, float)  # JSON numbers as the parser gives them (not booleans, strings or nulls)
@@ -181,10 +183,7 @@ def _placements(items: list, point: np.ndarray) -> np.ndarray:
         value = item.get("placement")
         if not isinstance(value, list) or len(value) != 16 or not all(type(v) in numbers for v in value):
             raise EngineUnavailable(f"invalid answer: suggestions[{i}].placement is not 16 finite numbers")
-    try:
-        m = np.array([item["placement"] for item in items], dtype=float).reshape(-1, 4, 4).transpose(0, 2, 1)
-    except OverflowError:  # an integer too large for a float
-        raise EngineUnavailable("invalid answer: a placement is not 16 finite numbers") from None
+    m = np.array([item["placement"] for item in items], dtype=float).reshape(-1, 4, 4).transpose(0, 2, 1)
     if not np.isfinite(m).all():
         raise EngineUnavailable("invalid answer: a placement is not 16 finite numbers")
     r = m[:, :3, :3]
@@ -223,18 +222,21 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
         if category in seen:
             raise EngineUnavailable(f"invalid answer: {where}.category appears twice")
         seen.add(category)
-        if not _finite(item.get("score")):
+        if not finite(item.get("score")):
             raise EngineUnavailable(f"invalid answer: {where}.score is not a finite number")
-        face = item.get("attachment_face")
-        if face is None:
-            face = frames.face_of_direction(placement[:3, :3].T @ -np.asarray(normal, dtype=float))
-        elif face not in frames.FACES:
+        touching = frames.face_of_direction(placement[:3, :3].T @ -np.asarray(normal, dtype=float))
+        face = item.get("attachment_face", touching)
+        if face not in frames.FACES:
             raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not one of {', '.join(frames.FACES)}")
+        if face != touching:
+            raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not the face its placement turns to "
+                                    "the clicked surface")
         heading = item.get("heading_deg")
         if heading is None:
             heading = math.degrees(float(poses.wrap(poses.object_heading(placement, face, normal))))
-        elif not _finite(heading):
-            raise EngineUnavailable(f"invalid answer: {where}.heading_deg is not a finite number")
+        if not finite(heading):
+            raise EngineUnavailable(f"invalid answer: {where}.heading_deg is not a finite number (nor follows from "
+                                    "the placement)")
         known = models.get(category, ())
         chosen = item.get("models", list(known[:MAX_MODELS]))
         if not isinstance(chosen, list) or len(chosen) > MAX_MODELS:
@@ -243,7 +245,7 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
             raise EngineUnavailable(f"invalid answer: {where}.models are not models of {category!r}")
         terms = item.get("terms", {})
         if (not isinstance(terms, dict) or len(terms) > MAX_TERMS
-                or not all(isinstance(k, str) and len(k) <= MAX_TEXT and _finite(v) for k, v in terms.items())):
+                or not all(isinstance(k, str) and len(k) <= MAX_TEXT and finite(v) for k, v in terms.items())):
             raise EngineUnavailable(f"invalid answer: {where}.terms must map at most {MAX_TERMS} names to numbers")
         out.append(Suggestion(rank=i + 1, category=category, score=float(item["score"]),
                               terms={k: float(v) for k, v in terms.items()}, placement=placement,
@@ -253,7 +255,10 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
 
 class _Watchdog:
     """Ends exchanges that pass their deadline, however the engine dribbles its bytes: one thread per engine
-    sleeps until the nearest deadline and shuts that exchange's socket (a timer thread per request cost 1 ms)."""
+    sleeps until the nearest deadline and shuts that exchange's socket (a timer thread per request cost 1 ms);
+    it ends after a minute with nothing to watch and starts again when needed."""
+
+    IDLE_S = 60.0
 
     def __init__(self):
         self._due: dict[int, tuple[float, socket.socket]] = {}
@@ -280,10 +285,15 @@ class _Watchdog:
                 for key, (deadline, sock) in list(self._due.items()):
                     if deadline <= now:
                         del self._due[key]
-                        with contextlib.suppress(OSError):
-                            sock.shutdown(socket.SHUT_RDWR)
-                nearest = min((d for d, _ in self._due.values()), default=None)
-                self._wake.wait(None if nearest is None else max(nearest - now, 0.001))
+                        with contextlib.suppress(OSError):  # the plain socket's: a TLS socket's own would unwrap it
+                            socket.socket.shutdown(sock, socket.SHUT_RDWR)
+                if not self._due:
+                    self._wake.wait(self.IDLE_S)
+                    if not self._due:
+                        self._thread = None
+                        return
+                    continue
+                self._wake.wait(max(min(d for d, _ in self._due.values()) - now, 0.001))
 
 
 class _Connection(threading.local):
@@ -310,13 +320,13 @@ class HttpEngine:
 
     name = "http"
 
-    def __init__(self, options: HttpOptions, fallback: SuggestionEngine, taxonomy: Taxonomy | None = None):
+    def __init__(self, options: HttpOptions, fallback: SuggestionEngine):
         self.options = options
         self.fallback = fallback
-        self.taxonomy = taxonomy or getattr(getattr(fallback, "priors", None), "taxonomy", None) or Taxonomy()
+        self.taxonomy = getattr(getattr(fallback, "priors", None), "taxonomy", None) or Taxonomy()
         parts = urlsplit(options.url)
-        self._https = parts.scheme == "https"
-        self._host, self._port = parts.hostname, parts.port
+        self._tls = ssl.create_default_context() if parts.scheme == "https" else None
+        self._host, self._port = parts.hostname, parts.port or (443 if self._tls else 80)
         self._path = (parts.path or "/") + (f"?{parts.query}" if parts.query else "")
         self._local = _Connection()
         self._watchdog = _Watchdog()
@@ -332,6 +342,8 @@ class HttpEngine:
                 only: Collection[str] | None = None) -> SuggestionList:
         if mode not in MODES:
             raise SceneSuggestError(f"mode must be one of {', '.join(MODES)}", field="mode")
+        if top is not None and (isinstance(top, bool) or not isinstance(top, int) or top < 1):
+            raise SceneSuggestError("top must be a positive integer", field="top")
         prep = prepare(query, self.taxonomy)  # a query the engine cannot be asked is the participant's 400
         allowed = set(self.categories) if only is None else set(only) & set(self.categories)
         limit = min(top or self.options.max_suggestions, self.options.max_suggestions)
@@ -339,7 +351,7 @@ class HttpEngine:
             body = orjson.dumps(query_document(prep, mode, limit, allowed), option=orjson.OPT_SERIALIZE_NUMPY)
             try:
                 doc = orjson.loads(self._exchange(body))
-            except orjson.JSONDecodeError:  # NaN and Infinity are not JSON either
+            except orjson.JSONDecodeError:  # NaN, Infinity and 1e999 are not JSON either
                 raise EngineUnavailable("invalid answer: not JSON") from None
             found = parse_answer(doc, allowed, self.categories, prep.point, prep.normal, self.options.max_suggestions)
         except EngineUnavailable as e:
@@ -349,68 +361,114 @@ class HttpEngine:
         return SuggestionList(tuple(found[:top] if top else found), prep.surface_type, prep.scene_type,
                               prep.parent_category, engine=self.name)
 
-    # --- the exchange ----------------------------------------------------------------------------------------
-    def _connect(self, timeout: float) -> http.client.HTTPConnection:
-        if self._local.conn is None:
-            cls = http.client.HTTPSConnection if self._https else http.client.HTTPConnection
-            self._local.conn = cls(self._host, self._port, timeout=timeout)
-        return self._local.conn
-
     def last_server_ms(self) -> float | None:
-        """What the engine said (Server-Timing) its last answer on this thread took, in milliseconds."""
+        """What the engine said (Server-Timing) its last answer on this thread took, in milliseconds (None: it
+        said nothing, or there was no answer)."""
         return self._local.server_ms
 
     def close(self) -> None:
+        """Close this thread's connection (the next query opens a new one)."""
         if self._local.conn is not None:
             self._local.conn.close()
             self._local.conn = None
 
+    # --- the exchange ----------------------------------------------------------------------------------------
     def _exchange(self, body: bytes) -> bytes:
-        """POST ``body``; the answer's bytes. Everything within the timeout, or :class:`EngineUnavailable`."""
-        timeout = self.options.timeout_ms / 1000
-        deadline = time.monotonic() + timeout
-        conn = self._connect(timeout)
+        """POST ``body``; the answer's bytes. Everything within the timeout, or :class:`EngineUnavailable`.
+
+        A kept-alive connection that the engine closed while it was idle (servers do after a few seconds) is
+        noticed before it is used, or when it fails before the first byte of an answer, and the query is sent
+        once more on a new connection if time remains."""
+        deadline = time.monotonic() + self.options.timeout_ms / 1000
+        self._local.server_ms = None
         key = threading.get_ident()
         try:
-            return self._post(conn, body, deadline, key)
+            try:
+                return self._post(body, deadline, key)
+            except _Stale:
+                self.close()
+                return self._post(body, deadline, key)
         except EngineUnavailable:
             self.close()
             raise
-        except (OSError, http.client.HTTPException) as e:
+        except Exception as e:  # noqa: BLE001 - whatever the engine does, the participant gets the fallback's list
             self.close()
             if time.monotonic() >= deadline - 1e-3:
                 raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms") from None
-            raise EngineUnavailable(f"connection failed ({type(e).__name__})") from None
+            cause = e.__cause__ if isinstance(e, _Stale) and e.__cause__ else e
+            raise EngineUnavailable(f"connection failed ({type(cause).__name__})") from None
         finally:
             if not self._watchdog.disarm(key):  # shut at the deadline (or never armed): not to be used again
                 self.close()
 
-    def _post(self, conn: http.client.HTTPConnection, body: bytes, deadline: float, key: int) -> bytes:
-        def remaining() -> float:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms")
-            return left
+    def _remaining(self, deadline: float) -> float:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms")
+        return left
 
-        if conn.sock is None:
-            conn.timeout = remaining()
-            conn.connect()
-            conn.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self._watchdog.arm(key, deadline, conn.sock)
-        conn.sock.settimeout(remaining())
-        conn.request("POST", self._path, body, {"Content-Type": "application/json", "Accept": "application/json"})
-        response = conn.getresponse()
+    def _open(self, deadline: float, key: int) -> http.client.HTTPConnection:
+        """A new connection, made within the deadline: the name resolved, connected, TLS shaken hands — each
+        step watched, so that no step can outlast the timeout."""
+        last: Exception | None = None
+        for family, kind, proto, _, address in _resolve(self._host, self._port, self._remaining(deadline)):
+            sock = socket.socket(family, kind, proto)
+            self._watchdog.arm(key, deadline, sock)
+            try:
+                sock.settimeout(self._remaining(deadline))
+                sock.connect(address)
+                break
+            except OSError as e:
+                last = e
+                sock.close()
+        else:
+            raise last or OSError("the engine's host has no address")
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        if self._tls is not None:
+            sock = self._tls.wrap_socket(sock, server_hostname=self._host, do_handshake_on_connect=False)
+            self._watchdog.arm(key, deadline, sock)
+            sock.settimeout(self._remaining(deadline))
+            sock.do_handshake()
+        conn = http.client.HTTPConnection(self._host, self._port)
+        conn.sock = sock
+        return conn
+
+    def _post(self, body: bytes, deadline: float, key: int) -> bytes:
+        conn = self._local.conn
+        if conn is not None and _closed_by_peer(conn.sock):
+            self.close()
+            conn = None
+        reused = conn is not None
+        if conn is None:
+            conn = self._local.conn = self._open(deadline, key)
+        else:
+            self._watchdog.arm(key, deadline, conn.sock)
+        sock = conn.sock  # the connection lets go of it when the engine says it will close: the answer still reads it
+        sock.settimeout(self._remaining(deadline))
+        try:
+            conn.request("POST", self._path, body, {"Content-Type": "application/json", "Accept": "application/json"})
+            response = conn.getresponse()
+        except (ConnectionError, http.client.BadStatusLine) as e:
+            if reused and time.monotonic() < deadline:
+                raise _Stale() from e
+            raise
+        try:
+            return self._read(response, sock, deadline)
+        finally:
+            response.close()  # whatever happened: the socket the answer holds is not left to the collector
+
+    def _read(self, response: http.client.HTTPResponse, sock, deadline: float) -> bytes:
+        """The answer's body, at most ``max_bytes``, within the deadline."""
         self._local.server_ms = _server_ms(response.getheader("Server-Timing"))
         if response.status != 200:
-            response.close()
             raise EngineUnavailable(f"HTTP {response.status}")
         cap = self.options.max_bytes
         length = response.getheader("Content-Length")
-        if length is not None and (not length.isdigit() or int(length) > cap):
+        if length is not None and (not (length.isascii() and length.isdigit()) or int(length) > cap):
             raise EngineUnavailable(f"answer larger than {cap} bytes")
         chunks, size = [], 0
         while True:
-            conn.sock.settimeout(remaining())
+            sock.settimeout(self._remaining(deadline))
             chunk = response.read(min(65536, cap + 1 - size))  # read, not read1: it ends the response
             if not chunk:
                 break
@@ -418,10 +476,50 @@ class HttpEngine:
             size += len(chunk)
             if size > cap:
                 raise EngineUnavailable(f"answer larger than {cap} bytes")
-        remaining()
+        self._remaining(deadline)
         if response.will_close:
             self.close()
         return b"".join(chunks)
+
+
+class _Stale(Exception):
+    """A kept-alive connection failed before the first byte of an answer: the engine had closed it."""
+
+
+def _closed_by_peer(sock) -> bool:
+    """Whether an idle kept-alive connection has something to read — the engine's close (or bytes it should not
+    have sent): either way it cannot carry the next query."""
+    try:
+        readable, _, _ = select.select([sock], [], [], 0)
+    except (OSError, ValueError):
+        return True
+    return bool(readable)
+
+
+def _resolve(host: str, port: int, timeout: float) -> list:
+    """getaddrinfo within ``timeout`` seconds (name lookups have no timeout of their own); an IP address at once."""
+    try:
+        ipaddress.ip_address(host)
+        return socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except ValueError:
+        pass
+    found: list = []
+    failed: list[Exception] = []
+
+    def look_up() -> None:
+        try:
+            found.extend(socket.getaddrinfo(host, port, type=socket.SOCK_STREAM))
+        except OSError as e:
+            failed.append(e)
+
+    thread = threading.Thread(target=look_up, name="http-engine-resolve", daemon=True)
+    thread.start()
+    thread.join(timeout)
+    if thread.is_alive():
+        raise TimeoutError("the engine's name did not resolve in time")
+    if failed:
+        raise failed[0]
+    return found
 
 
 KIND = HttpKind()

@@ -18,17 +18,16 @@ from it (:meth:`EngineKind.load`), and, when the project can train it, fits one 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection, Iterable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
+from ..corpora.corpus import Progress
 from ..query import ContextQuery
 from ..scene import Scene
 from ..suggest import SuggestionList
 from ..taxonomy import Taxonomy
-
-Progress = Callable[[Iterable, str], Iterable]
 
 
 @runtime_checkable

@@ -55,9 +55,11 @@ def make_server(engine: SuggestionEngine, host: str = "127.0.0.1", port: int = 0
 
         def do_POST(self):  # noqa: N802 - the name http.server calls
             length = self.headers.get("Content-Length", "")
-            if not length.isdigit() or int(length) > MAX_QUERY_BYTES:
-                return self._send(413 if length.isdigit() else 411, {"error": "a query needs a Content-Length of "
-                                                                              f"at most {MAX_QUERY_BYTES} bytes"})
+            number = length.isascii() and length.isdigit()
+            if not number or int(length) > MAX_QUERY_BYTES:
+                self.close_connection = True  # the body is not read: the connection cannot carry another query
+                return self._send(413 if number else 411, {"error": "a query needs a Content-Length of at most "
+                                                                    f"{MAX_QUERY_BYTES} bytes"})
             data = self.rfile.read(int(length))
             started = time.perf_counter()
             try:
@@ -67,9 +69,10 @@ def make_server(engine: SuggestionEngine, host: str = "127.0.0.1", port: int = 0
             except orjson.JSONDecodeError:
                 self._send(400, {"error": "not JSON"}, started)
 
-        def _send(self, status: int, doc: dict, started: float) -> None:
+        def _send(self, status: int, doc: dict, started: float | None = None) -> None:
             """The answer, with the engine's own time (from the query read to the answer written) as
             Server-Timing, so that a client can tell it from the transport's."""
+            started = time.perf_counter() if started is None else started
             body = orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)
             self.send_response(status)
             self.send_header("Content-Type", "application/json")

@@ -113,10 +113,10 @@ def engine_use(study) -> list[dict]:
     """Per condition that suggests: its engine, and how often another engine stood in for it (and why, the
     commonest reasons first)."""
     reasons: dict[str, Counter] = {}
-    for detail in db.session.scalars(select(SessionLog.detail).where(SessionLog.study_id == study.id,
-                                                                     SessionLog.kind == "engine_fallback")):
-        if isinstance(detail, dict):
-            reasons.setdefault(str(detail.get("condition")), Counter())[str(detail.get("reason"))[:120]] += 1
+    condition, reason = SessionLog.detail["condition"].as_string(), SessionLog.detail["reason"].as_string()
+    for c, r, n in db.session.execute(select(condition, reason, func.count()).where(
+            SessionLog.study_id == study.id, SessionLog.kind == "engine_fallback").group_by(condition, reason)):
+        reasons.setdefault(str(c), Counter())[str(r)[:120]] += n
     return [{"condition": c.id, "engine": c.engine.name, "version": c.engine.kind.version,
              "fallback": c.engine.config.fallback.name if c.engine.name == "http" else None,
              "fallbacks": sum(reasons.get(c.id, Counter()).values()),

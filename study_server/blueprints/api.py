@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from flask import Blueprint, jsonify, request, url_for
+from flask import Blueprint, current_app, jsonify, request, url_for
 from sqlalchemy import bindparam, select
 
 from scenesuggest import scene_json
@@ -24,7 +24,7 @@ from ..extensions import db, json_value
 from ..models import Participant, Trial, log, utcnow
 from ..openapi import openapi_document
 from ..security import read_preview_token
-from ..studies import runtime
+from ..studies import EngineUnavailable, runtime
 
 bp = Blueprint("api", __name__, url_prefix="/api")
 
@@ -234,6 +234,10 @@ def suggest():
                                           data.get("normal"), lambda m: model_json(rt, m))
     except SceneSuggestError as e:
         raise RequestError(400, e.message, e.field) from None
+    except EngineUnavailable as e:
+        current_app.logger.error("%s", e)
+        raise RequestError(503, "suggestions are unavailable just now: try again, or place objects from the list",
+                           "engine") from None
     participant = who.id if isinstance(who, Participant) else None
     configured = rt.study.condition(condition).engine.name
     list_id = lists.record(participant, index, "context",

@@ -148,11 +148,13 @@ class ContextStats:
         self.base_instance = np.log((self.instances + COUNT_PRIOR) / (float(self.instances.sum()) + 1.0))
 
     @classmethod
-    def fit(cls, scenes: list[Scene], names: list[str]) -> ContextStats:
-        """Count the context of every category of ``names`` in ``scenes``."""
+    def fit(cls, scenes: list[Scene], names: list[str], scene_types: list[str] | None = None) -> ContextStats:
+        """Count the context of every category of ``names`` in ``scenes``; ``scene_types`` numbers the scene types
+        (default: those of ``scenes``, sorted) — give every fold of one training the same list, so that a scene
+        type's number means the same in all of their rows."""
         n = len(names)
         index = {c: i for i, c in enumerate(names)}
-        scene_types = sorted({s.scene_type for s in scenes})
+        scene_types = sorted(set(scene_types or ()) | {s.scene_type for s in scenes})
         t_index = {t: i for i, t in enumerate(scene_types)}
         bins = max(len(e) for e in EDGES.values()) + 1
         a = {"hist": np.zeros((len(DESCRIPTORS), n, bins)), "instances": np.zeros(n), "scenes": np.zeros(n),

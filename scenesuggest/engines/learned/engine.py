@@ -85,25 +85,29 @@ class LearnedEngine(Engine):
         self.stats, self.ranker, self.frames, self.meta = stats, ranker, frames, meta
 
     # --- ranking -------------------------------------------------------------------------------------------
-    def score(self, query) -> Scores:
-        """The paper's terms of every candidate, with ``total`` the ranker's score and ``features`` its rows."""
-        scores = super().score(query)
+    def score(self, query, allowed: np.ndarray | None = None) -> Scores:
+        """The paper's terms of every candidate, with ``total`` the ranker's score and ``features`` its rows; the
+        shortlist (SHORTLIST) is drawn from the ``allowed`` candidates (default: all)."""
+        scores = self._score(query)
         scores.features = ranking_features(self, self.stats, scores)
         scores.paper_total = scores.total
-        scores.total = self._rank(scores.features)
+        scores.total = self._rank(scores.features, allowed)
         return scores
 
-    def _shortlist(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """(the first trees' score of every row, the shortlisted rows), None when every row is ranked whole."""
+    def _shortlist(self, rows: np.ndarray, allowed: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+        """(the first trees' score of every row, the shortlisted rows — the best of the ``allowed`` ones), None
+        when every row is ranked whole."""
         if len(rows) <= SHORTLIST or self.ranker.num_trees() <= SHORTLIST_TREES:
             return None
         first = self.ranker.predict(rows, num_iteration=SHORTLIST_TREES, num_threads=1)
-        return first, np.argpartition(-first, SHORTLIST)[:SHORTLIST]
+        keys = first if allowed is None else np.where(allowed, first, -np.inf)
+        return first, np.argpartition(-keys, SHORTLIST)[:SHORTLIST]
 
-    def _rank(self, rows: np.ndarray) -> np.ndarray:
+    def _rank(self, rows: np.ndarray, allowed: np.ndarray | None = None) -> np.ndarray:
         """The ranker's score of every row: all its trees for the shortlist (see SHORTLIST), and below every
         shortlisted score, in their order, the first trees' score for the rest."""
-        found = self._shortlist(rows)
+        found = self._shortlist(rows, allowed)
         if found is None:
             return self.ranker.predict(rows, num_threads=1)
         first, short = found
@@ -144,15 +148,13 @@ class LearnedEngine(Engine):
 
     # --- explanation ---------------------------------------------------------------------------------------
     def explain(self, query, mode: str = "full", top: int | None = 10, categories=()) -> list[dict]:
-        """Why each category got its rank: the ranker's score, and the largest contributions of its features
-        (SHAP values, in the ranker's score units) with the features' values; for the ``top`` suggestions and
-        for ``categories`` wherever they rank. A category left out of the shortlist is explained by the first
-        trees, which left it out (``shortlisted``: false)."""
+        """Why each category got its rank among every category: the ranker's score, and the largest
+        contributions of its features (SHAP values, in the ranker's score units) with the features' values; for the
+        ``top`` suggestions and for ``categories`` wherever they rank. A category the first trees left out of the
+        shortlist is explained by those trees, and its place below the shortlist is one more contribution
+        (``below the shortlist``), so that the contributions and the baseline always sum to the score."""
         scores = self.score(query)
-        order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
-        rank = {int(i): r for r, i in enumerate(order, start=1)}
-        wanted = list(order[: top or len(order)]) + [self.index[c] for c in categories if c in self.index]
-        wanted = list(dict.fromkeys(int(i) for i in wanted))
+        rank, wanted = self.explained(scores, top, categories)
         found = self._shortlist(scores.features)
         short = set(range(len(self.candidates))) if found is None else set(found[1].tolist())
         out = []
@@ -161,10 +163,17 @@ class LearnedEngine(Engine):
             row = self.ranker.predict(scores.features[[i]], pred_contrib=True, num_iteration=iterations,
                                       num_threads=1)[0]
             largest = np.argsort(-np.abs(row[:-1]), kind="stable")[:EXPLAIN_TOP]
-            out.append({"rank": rank[i], "category": self.names[i], "score": float(row.sum()),
+            parts = [{"feature": RANKING[k], "value": float(scores.features[i, k]), "contribution": float(row[k])}
+                     for k in largest]
+            rest = float(row[:-1].sum() - sum(p["contribution"] for p in parts))
+            parts.append({"feature": f"the other {len(RANKING) - len(largest)} features", "value": None,
+                          "contribution": rest})
+            if i not in short:
+                parts.append({"feature": "below the shortlist", "value": None,
+                              "contribution": float(scores.total[i] - row.sum())})
+            out.append({"rank": rank[i], "category": self.names[i], "score": float(scores.total[i]),
                         "baseline": float(row[-1]), "shortlisted": i in short, "terms": self.terms(scores, i),
-                        "contributions": [{"feature": RANKING[k], "value": float(scores.features[i, k]),
-                                           "contribution": float(row[k])} for k in largest]})
+                        "contributions": parts})
         return out
 
     def with_options(self, **changes) -> LearnedEngine:
@@ -209,9 +218,9 @@ class LearnedEngine(Engine):
         except (OSError, ValueError) as e:
             raise SceneSuggestError(f"cannot read the learned engine: {e}", file=str(path)) from None
         meta = _checked_meta(payload.get("meta"), path)
-        priors = Priors.from_payload({k[7:]: v for k, v in payload.items() if k.startswith("priors.")}, path)
-        context = meta["context"]
         try:
+            priors = Priors.from_payload({k[7:]: v for k, v in payload.items() if k.startswith("priors.")}, path)
+            context = meta["context"]
             stats = ContextStats(context["names"], context["scene_types"],
                                  {k[8:]: v for k, v in payload.items() if k.startswith("context.")})
             ranker = lgb.Booster(model_str=_text(payload["ranker"]))

@@ -20,7 +20,7 @@ Orientation (:data:`FRAMES`): each frame proposes a heading about the surface no
 
 — and its row (:data:`ORIENTATION`) says how much every kind of evidence supports that heading, how peaked the
 frame's own evidence is, how many other frames agree with it, and the click's context. A classifier learns from
-them which frame to trust per query (:mod:`.frame_choice`).
+them which frame to trust per query (:meth:`.engine.LearnedEngine.frame_headings`).
 """
 
 from __future__ import annotations

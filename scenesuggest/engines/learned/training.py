@@ -15,13 +15,14 @@ file is written byte-stably (:mod:`scenesuggest.npz`).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import lightgbm as lgb
 import numpy as np
 
 from ... import poses
+from ...corpora.corpus import Progress
 from ...errors import SceneSuggestError
 from ...folds import grouped_folds, similar_groups
 from ...frames import FACES
@@ -56,7 +57,6 @@ FRAMES = {"objective": "binary", "learning_rate": 0.05, "num_leaves": 15, "min_d
           "deterministic": True, "force_row_wise": True, "num_threads": 2}
 FRAME_ROUNDS = 100
 
-Progress = Callable[[Iterable, str], Iterable]
 
 
 @dataclass
@@ -126,12 +126,19 @@ def out_of_fold(scenes: list[Scene], taxonomy: Taxonomy, seed: int, periods: Mod
         raise SceneSuggestError(f"the learned engine needs scenes of at least two kinds to train on; these "
                                 f"{len(scenes)} scenes are near-copies of one another", field="scenes")
     rows = Rows()
+    types = scene_types(scenes)
     for held in progress(grouped_folds(groups, k, seed), "learned engine: out-of-fold rows"):
         held_set = set(held.tolist())
         train = [s for i, s in enumerate(scenes) if i not in held_set]
         engine = Engine(Priors.fit(train, taxonomy))
-        rows.extend(fold_rows(engine, ContextStats.fit(train, engine.names), [scenes[i] for i in held], periods))
+        rows.extend(fold_rows(engine, ContextStats.fit(train, engine.names, types), [scenes[i] for i in held],
+                              periods))
     return rows
+
+
+def scene_types(scenes: list[Scene]) -> list[str]:
+    """The scene types of one training, numbered once for every fold's rows and for the engine."""
+    return sorted({s.scene_type for s in scenes})
 
 
 def _ranker(rows: Rows, seed: int) -> lgb.Booster:
@@ -172,4 +179,4 @@ def fit(scenes: list[Scene], taxonomy: Taxonomy, *, seed: int = 0, periods: Mode
                 len(x) for x in rows.orientation)), "ranker_rounds": RANKER_ROUNDS,
             "frame_rounds": FRAME_ROUNDS if frames is not None else 0, "inner_folds": INNER_FOLDS,
             "symmetry": periods is not None}
-    return LearnedEngine(priors, ContextStats.fit(scenes, names), ranker, frames, meta)
+    return LearnedEngine(priors, ContextStats.fit(scenes, names, scene_types(scenes)), ranker, frames, meta)
