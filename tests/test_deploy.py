@@ -21,7 +21,8 @@ def test_healthz_says_ok_and_names_what_is_wrong_without_secrets(tmp_path, demo_
     c = app.test_client()
     r = c.get("/healthz")
     assert r.status_code == 200 and r.headers["Cache-Control"] == "no-store"
-    assert r.json == {"ok": True, "database": "ok", "schema": "ok", "studies": {"demo": "ok"}}
+    assert r.json == {"ok": True, "database": "ok", "schema": "ok", "studies": {"demo": "ok"},
+                      "engines": {"demo": {"paper": {"version": "1", "status": "not loaded yet"}}}}
     with app.app_context():
         downgrade(directory=str(MIGRATIONS), revision="-1")
     r = c.get("/healthz")
