@@ -40,7 +40,7 @@ def main() -> int:
     from scenesuggest import engines
     from scenesuggest.corpora import load_corpus
     from scenesuggest.corpora.corpus import Corpus
-    from scenesuggest.evaluate import _run
+    from scenesuggest.evaluate import run_folds
     from scenesuggest.folds import grouped_folds, similar_groups
     from scenesuggest.suggest import EngineOptions
     from scenesuggest.symmetry import corpus_periods
@@ -66,7 +66,7 @@ def main() -> int:
                 keep = [i for i in range(len(corpus.scenes)) if i in held_set or groups[i] in kept]
                 sub = Corpus(corpus.source, [corpus.scenes[i] for i in keep], corpus.models, corpus.taxonomy)
                 local_held = np.array([k for k, i in enumerate(keep) if i in held_set])
-                run = _run(sub, [local_held], EngineOptions(), periods, quiet, specs=specs, seed=seed,
+                run = run_folds(sub, [local_held], EngineOptions(), periods, quiet, specs=specs, seed=seed,
                            rankings=False)
                 for s in specs:
                     er = run.engines[s.name]
@@ -83,14 +83,14 @@ def main() -> int:
 def _in_sample(spec, corpus, periods) -> dict:
     """The engine trained on every scene and asked about every scene (each object removed from it, as always)."""
     from scenesuggest.errors import SceneSuggestError
-    from scenesuggest.evaluate import EngineRun, _fitted, _measure
+    from scenesuggest.evaluate import EngineRun, fitted_engine, measure_query
     from scenesuggest.priors import Priors
     from scenesuggest.suggest import ContextQuery, Engine
 
     quiet = lambda items, label="": items  # noqa: E731
     priors = Priors.fit(corpus.scenes, corpus.taxonomy)
     paper = Engine(priors)
-    engine = _fitted(spec, priors, corpus.scenes, corpus, 0, periods, quiet)
+    engine = fitted_engine(spec, priors, corpus.scenes, corpus, 0, periods, quiet)
     out = EngineRun()
     for scene in corpus.scenes:
         for o in scene:
@@ -102,7 +102,8 @@ def _in_sample(spec, corpus, periods) -> dict:
                 paper.score(query)
             except SceneSuggestError:  # bad data, skipped as evaluate skips it
                 continue
-            _measure(out, engine, paper.with_options(orientation="paper"), query, scene, o, corpus, periods, False)
+            measure_query(out, engine, paper.with_options(orientation="paper"), query, scene, o, corpus, periods,
+                          False)
     return _figures(out.ranks, out.records, len(corpus.scenes))
 
 

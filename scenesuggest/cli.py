@@ -303,7 +303,8 @@ def evaluate_cmd(source: str, folds: int, seed: int, engine_names: tuple[str, ..
     """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines; with several
     --engine, every engine on the same folds with paired intervals of the MRR differences."""
     from .engines import configure, kind
-    from .evaluate import check_evaluable, evaluate, format_evaluation
+    from .evaluate import check_evaluable, evaluate
+    from .evaluate_format import format_evaluation
 
     for name in engine_names:  # before the options: an engine that needs some (http) is not evaluable anyway
         if not (kind(name).trainable or hasattr(kind(name), "from_priors")):

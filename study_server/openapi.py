@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scenesuggest.engines.http import ANSWER_SCHEMA, QUERY_SCHEMA
+from scenesuggest.engines.wire import ANSWER_SCHEMA, QUERY_SCHEMA
 from scenesuggest.event_schema import json_schema
 from scenesuggest.events import MAX_BATCH, MAX_SEQ, VERSIONS
 

@@ -11,7 +11,8 @@ import synthetic
 
 from scenesuggest.corpora.corpus import Corpus
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.evaluate import evaluate, folds_of, format_evaluation, rank_of, summary
+from scenesuggest.evaluate import evaluate, folds_of, rank_of, summary
+from scenesuggest.evaluate_format import format_evaluation
 
 
 def test_rank_of_counts_ties_half():

@@ -96,12 +96,12 @@ def test_no_import_cycles_within_a_package():
 
 def test_the_server_reaches_engines_by_name_only():
     """Engines are a registry: the server loads them through it (scenesuggest.engines and its protocol) and imports
-    no engine's own module — but the http engine's published schemas, which the OpenAPI document carries."""
+    no engine's own module — but the http engine's published schemas (wire), which the OpenAPI document carries."""
     engine_modules = {p.stem for p in (ROOT / "scenesuggest" / "engines").glob("*.py")} - {"__init__", "protocol"}
     engine_modules |= {p.name for p in (ROOT / "scenesuggest" / "engines").iterdir() if (p / "__init__.py").is_file()}
     assert {"paper", "learned", "frequency", "http"} <= engine_modules
-    schemas = {"scenesuggest.engines.http", "scenesuggest.engines.http.QUERY_SCHEMA",
-               "scenesuggest.engines.http.ANSWER_SCHEMA"}
+    schemas = {"scenesuggest.engines.wire", "scenesuggest.engines.wire.QUERY_SCHEMA",
+               "scenesuggest.engines.wire.ANSWER_SCHEMA"}
     for path in (ROOT / "study_server").rglob("*.py"):
         reached = {m for m in imports(path) if m.split(".")[:2] == ["scenesuggest", "engines"] and len(m.split(".")) > 2
                    and m.split(".")[2] in engine_modules}

@@ -1,16 +1,19 @@
 """The ``http`` engine: an engine in any language behind HTTP, with a fallback that always answers.
 
-For each query the server POSTs one JSON document (:func:`query_document`; its JSON Schema is
-:data:`QUERY_SCHEMA`, published in the API's OpenAPI document) to the engine's ``url`` and reads one JSON answer
-(:data:`ANSWER_SCHEMA`), which is validated strictly (:func:`parse_answer`): at most ``max_suggestions``
-suggestions of categories the query allows, each once, finite scores, rigid 4×4 placements (16 numbers,
-column-major, canonical → world, within 100 m of the click), faces and model ids the study knows, and at most
-``max_bytes`` bytes. A timeout (``timeout_ms``, the whole exchange: connecting, sending, waiting and reading), a
+For each query the server POSTs one JSON document (:func:`.wire.query_document`; its JSON Schema is
+:data:`.wire.QUERY_SCHEMA`, published in the API's OpenAPI document) to the engine's ``url`` and reads one JSON
+answer (:data:`.wire.ANSWER_SCHEMA`), which is validated strictly (:func:`.wire.parse_answer`): at most
+``max_suggestions`` suggestions of categories the query allows, each once, finite scores, rigid 4×4 placements
+(16 numbers, column-major, canonical → world, within 100 m of the click), attachment faces that the placements turn
+to the surface, finite headings, model ids the study knows, and at most ``max_bytes`` bytes. A timeout
+(``timeout_ms``, the whole exchange: name lookup, connecting, the TLS handshake, sending, waiting and reading), a
 refused connection, a status other than 200, a body that is not JSON or an answer that breaks a rule gives the
 fallback engine's list instead, with the reason (:attr:`~scenesuggest.suggest.SuggestionList.fallback`): the
-participant never waits longer than the timeout for a list and never sees an error because of the engine.
+participant never waits longer than the timeout (and the fallback's own time) for a list and never sees an error
+because of the engine.
 
-Connections are kept alive (one per thread) and made afresh after any failure.
+Connections are kept alive (one per thread) and made afresh after any failure, and when the engine has closed
+one while it was idle.
 """
 
 from __future__ import annotations
@@ -18,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import http.client
 import ipaddress
-import math
 import select
 import socket
 import ssl
@@ -30,77 +32,23 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-import numpy as np
 import orjson
 
-from .. import frames, poses
 from ..errors import SceneSuggestError
 from ..query import ContextQuery, prepare
-from ..scene_json import finite, scene_to_dict
-from ..suggest import MODES, Suggestion, SuggestionList
+from ..suggest import MODES, SuggestionList
 from ..taxonomy import Taxonomy
 from .protocol import EngineKind, LoadContext, SuggestionEngine
+from .wire import ANSWER_SCHEMA, QUERY_SCHEMA, EngineUnavailable, parse_answer, query_document
 
-PROTOCOL_VERSION = 1
 DEFAULT_TIMEOUT_MS = 300
 #: The longest a participant may wait for the engine (each sync server worker waits as long).
 MAX_TIMEOUT_MS = 2_000
 DEFAULT_MAX_SUGGESTIONS = 40
 DEFAULT_MAX_BYTES = 1 << 20
-#: A placement's rotation must be orthonormal to this tolerance, and its origin this close to the click (metres).
-RIGID_TOLERANCE = 1e-4
-MAX_DISTANCE_M = 100.0
-MAX_TERMS = 16
-MAX_MODELS = 64
-MAX_TEXT = 200
 OPTIONS = ("url", "timeout_ms", "fallback", "max_suggestions", "max_bytes")
 
-_NUMBER = {"type": "number"}
-_VEC3 = {"type": "array", "items": _NUMBER, "minItems": 3, "maxItems": 3}
-QUERY_SCHEMA = {
-    "type": "object", "title": "EngineQuery",
-    "description": "What the study server POSTs to an HTTP engine for one click (metres, world frame, +Y up).",
-    "required": ["protocol", "scene", "parent", "point", "normal", "surface_type", "scene_type", "mode", "top",
-                 "categories"],
-    "properties": {
-        "protocol": {"const": PROTOCOL_VERSION},
-        "scene": {"type": "object", "description": "the participant's scene in the native scene format "
-                                                   "(scenesuggest-scene, version 1)"},
-        "parent": {"type": "string", "description": "id of the clicked object"},
-        "point": {**_VEC3, "description": "the clicked point"},
-        "normal": {**_VEC3, "description": "the unit surface normal there"},
-        "surface_type": {"type": "string", "enum": ["up_interior", "up_exterior", "down_interior", "down_exterior",
-                                                    "vertical_interior", "vertical_exterior"]},
-        "scene_type": {"type": "string"},
-        "mode": {"type": "string", "enum": list(MODES),
-                 "description": "basic: canonical pose; full: also oriented"},
-        "top": {"type": "integer", "minimum": 1, "description": "at most this many suggestions are read"},
-        "categories": {"type": "array", "items": {"type": "string"},
-                       "description": "the categories the answer may hold (those the study's library can place)"},
-    },
-}
-ANSWER_SCHEMA = {
-    "type": "object", "title": "EngineAnswer", "required": ["suggestions"],
-    "description": "An HTTP engine's answer: suggestions, best first.",
-    "properties": {"suggestions": {"type": "array", "items": {
-        "type": "object", "required": ["category", "score", "placement"],
-        "properties": {
-            "category": {"type": "string", "description": "one of the query's categories, at most once"},
-            "score": {**_NUMBER, "description": "finite; higher is better"},
-            "placement": {"type": "array", "items": _NUMBER, "minItems": 16, "maxItems": 16,
-                          "description": "rigid 4×4 canonical → world transform, column-major"},
-            "attachment_face": {"type": "string", "enum": list(frames.FACES)},
-            "heading_deg": _NUMBER,
-            "models": {"type": "array", "items": {"type": "string"}, "maxItems": MAX_MODELS,
-                       "description": "model ids of the category, best first (default: the category's models)"},
-            "terms": {"type": "object", "additionalProperties": _NUMBER, "maxProperties": MAX_TERMS,
-                      "description": "why the category got its rank (name → number)"},
-        }}}},
-}
-
-
-class EngineUnavailable(Exception):
-    """The external engine gave no usable answer; ``str()`` is the reason, without the URL."""
+__all__ = ["ANSWER_SCHEMA", "EngineUnavailable", "HttpEngine", "KIND", "QUERY_SCHEMA", "parse_answer"]
 
 
 @dataclass(frozen=True)
@@ -166,91 +114,6 @@ class HttpKind(EngineKind):
 
         fallback = context.load(config.fallback) if context.load is not None else load(config.fallback, context)
         return HttpEngine(config, fallback)
-
-
-def query_document(prep, mode: str, top: int, categories: Collection[str]) -> dict:
-    """The JSON document POSTed for a prepared query (:data:`QUERY_SCHEMA`)."""
-    return {"protocol": PROTOCOL_VERSION, "scene": scene_to_dict(prep.query.scene), "parent": prep.query.parent_id,
-            "point": [float(x) for x in prep.point], "normal": [float(x) for x in prep.normal],
-            "surface_type": prep.surface_type, "scene_type": prep.scene_type, "mode": mode, "top": int(top),
-            "categories": sorted(categories)}
-
-
-def _placements(items: list, point: np.ndarray) -> np.ndarray:
-    """(n, 4, 4) placements of the answer's items, checked: 16 finite numbers each, rigid, near the click."""
-    numbers = (int, float)  # JSON numbers as the parser gives them (not booleans, strings or nulls)
-    for i, item in enumerate(items):
-        value = item.get("placement")
-        if not isinstance(value, list) or len(value) != 16 or not all(type(v) in numbers for v in value):
-            raise EngineUnavailable(f"invalid answer: suggestions[{i}].placement is not 16 finite numbers")
-    m = np.array([item["placement"] for item in items], dtype=float).reshape(-1, 4, 4).transpose(0, 2, 1)
-    if not np.isfinite(m).all():
-        raise EngineUnavailable("invalid answer: a placement is not 16 finite numbers")
-    r = m[:, :3, :3]
-    bad = ((np.abs(m[:, 3] - [0, 0, 0, 1]).max(axis=1) > RIGID_TOLERANCE)
-           | (np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max(axis=(1, 2)) > RIGID_TOLERANCE)
-           | (np.linalg.det(r) <= 0)) if len(m) else np.zeros(0, dtype=bool)
-    if bad.any():
-        raise EngineUnavailable(f"invalid answer: suggestions[{int(np.argmax(bad))}].placement is not a rigid "
-                                "transform")
-    far = np.linalg.norm(m[:, :3, 3] - point, axis=1) > MAX_DISTANCE_M if len(m) else np.zeros(0, dtype=bool)
-    if far.any():
-        raise EngineUnavailable(f"invalid answer: suggestions[{int(np.argmax(far))}].placement is more than "
-                                f"{MAX_DISTANCE_M:g} m from the click")
-    return m
-
-
-def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, ...]], point, normal,
-                 max_suggestions: int) -> list[Suggestion]:
-    """The suggestions of an answer document, checked by the rules of the module docstring; raises
-    :class:`EngineUnavailable` naming the first broken rule (``suggestions[3].placement: …``)."""
-    if not isinstance(doc, dict) or not isinstance(doc.get("suggestions"), list):
-        raise EngineUnavailable("invalid answer: expected {\"suggestions\": [...]}")
-    items = doc["suggestions"]
-    if len(items) > max_suggestions:
-        raise EngineUnavailable(f"invalid answer: {len(items)} suggestions, at most {max_suggestions}")
-    for i, item in enumerate(items):
-        if not isinstance(item, dict):
-            raise EngineUnavailable(f"invalid answer: suggestions[{i}] is not an object")
-    placements = _placements(items, np.asarray(point, dtype=float))
-    out, seen = [], set()
-    for i, (item, placement) in enumerate(zip(items, placements, strict=True)):
-        where = f"suggestions[{i}]"
-        category = item.get("category")
-        if not isinstance(category, str) or category not in allowed:
-            raise EngineUnavailable(f"invalid answer: {where}.category is not one the query allows")
-        if category in seen:
-            raise EngineUnavailable(f"invalid answer: {where}.category appears twice")
-        seen.add(category)
-        if not finite(item.get("score")):
-            raise EngineUnavailable(f"invalid answer: {where}.score is not a finite number")
-        touching = frames.face_of_direction(placement[:3, :3].T @ -np.asarray(normal, dtype=float))
-        face = item.get("attachment_face", touching)
-        if face not in frames.FACES:
-            raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not one of {', '.join(frames.FACES)}")
-        if face != touching:
-            raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not the face its placement turns to "
-                                    "the clicked surface")
-        heading = item.get("heading_deg")
-        if heading is None:
-            heading = math.degrees(float(poses.wrap(poses.object_heading(placement, face, normal))))
-        if not finite(heading):
-            raise EngineUnavailable(f"invalid answer: {where}.heading_deg is not a finite number (nor follows from "
-                                    "the placement)")
-        known = models.get(category, ())
-        chosen = item.get("models", list(known[:MAX_MODELS]))
-        if not isinstance(chosen, list) or len(chosen) > MAX_MODELS:
-            raise EngineUnavailable(f"invalid answer: {where}.models is not a list of at most {MAX_MODELS} ids")
-        if not all(isinstance(m, str) for m in chosen) or not set(chosen) <= set(known):
-            raise EngineUnavailable(f"invalid answer: {where}.models are not models of {category!r}")
-        terms = item.get("terms", {})
-        if (not isinstance(terms, dict) or len(terms) > MAX_TERMS
-                or not all(isinstance(k, str) and len(k) <= MAX_TEXT and finite(v) for k, v in terms.items())):
-            raise EngineUnavailable(f"invalid answer: {where}.terms must map at most {MAX_TERMS} names to numbers")
-        out.append(Suggestion(rank=i + 1, category=category, score=float(item["score"]),
-                              terms={k: float(v) for k, v in terms.items()}, placement=placement,
-                              attachment_face=face, heading_deg=float(heading), models=tuple(chosen) or known))
-    return out
 
 
 class _Watchdog:

@@ -1,5 +1,5 @@
-"""Any registered engine as an HTTP engine: answers the study server's queries (:data:`.http.QUERY_SCHEMA`) with
-answers (:data:`.http.ANSWER_SCHEMA`) — the reference implementation of the protocol, and a way to run an engine
+"""Any registered engine as an HTTP engine: answers the study server's queries (:data:`.wire.QUERY_SCHEMA`) with
+answers (:data:`.wire.ANSWER_SCHEMA`) — the reference implementation of the protocol, and a way to run an engine
 in a process (or on a machine) of its own.
 
 ``scenesuggest engine serve NAME --priors FILE --port N``. One POST per query, to any path; a query that cannot be
