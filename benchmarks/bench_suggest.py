@@ -188,7 +188,7 @@ def http_overhead(priors, queries) -> dict:
         try:
             wait_for_port(port)
             http = engines.load(engines.configure({"name": "http", "url": f"http://127.0.0.1:{port}/",
-                                                   "timeout_ms": 5000}), LoadContext(path))
+                                                   "timeout_ms": 2000}), LoadContext(path))
             http.suggest(queries[0], "full", top=TOP)
             overhead, fallbacks = [], 0
             for q in queries:
