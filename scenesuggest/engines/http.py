@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import http.client
 import ipaddress
+import math
 import select
 import socket
 import ssl
@@ -118,8 +119,10 @@ class HttpKind(EngineKind):
 
 class _Watchdog:
     """Ends exchanges that pass their deadline, however the engine dribbles its bytes: one thread per engine
-    sleeps until the nearest deadline and shuts that exchange's socket (a timer thread per request cost 1 ms);
-    it ends after a minute with nothing to watch and starts again when needed."""
+    sleeps until the nearest deadline and shuts that exchange's socket (a timer thread per request cost 1 ms).
+    Arming wakes it only when the new deadline comes before its own waking time, so that queries one after
+    another (each deadline later than the last) do not wake it at all. It ends after a minute with nothing to
+    watch and starts again when needed."""
 
     IDLE_S = 60.0
 
@@ -127,6 +130,8 @@ class _Watchdog:
         self._due: dict[int, tuple[float, socket.socket]] = {}
         self._wake = threading.Condition()
         self._thread: threading.Thread | None = None
+        #: When the thread next wakes by itself (monotonic seconds).
+        self._waking = math.inf
 
     def arm(self, key: int, deadline: float, sock: socket.socket) -> None:
         with self._wake:
@@ -134,7 +139,8 @@ class _Watchdog:
             if self._thread is None:
                 self._thread = threading.Thread(target=self._run, name="http-engine-watchdog", daemon=True)
                 self._thread.start()
-            self._wake.notify()
+            elif deadline < self._waking:  # woken only to come sooner: one query after another leaves it asleep
+                self._wake.notify()
 
     def disarm(self, key: int) -> bool:
         """Whether the exchange was still armed (False: its socket was shut, or it never was armed)."""
@@ -151,12 +157,15 @@ class _Watchdog:
                         with contextlib.suppress(OSError):  # the plain socket's: a TLS socket's own would unwrap it
                             socket.socket.shutdown(sock, socket.SHUT_RDWR)
                 if not self._due:
+                    self._waking = now + self.IDLE_S
                     self._wake.wait(self.IDLE_S)
                     if not self._due:
-                        self._thread = None
+                        self._thread, self._waking = None, math.inf
                         return
                     continue
-                self._wake.wait(max(min(d for d, _ in self._due.values()) - now, 0.001))
+                wait = max(min(d for d, _ in self._due.values()) - now, 0.001)
+                self._waking = now + wait
+                self._wake.wait(wait)
 
 
 class _Connection(threading.local):

@@ -24,6 +24,7 @@ MAX_DISTANCE_M = 100.0
 MAX_TERMS = 16
 MAX_MODELS = 64
 MAX_TEXT = 200
+_FACE_NORMALS = np.array([frames.FACE_NORMALS[f] for f in frames.FACES], dtype=float)
 
 _NUMBER = {"type": "number"}
 _VEC3 = {"type": "array", "items": _NUMBER, "minItems": 3, "maxItems": 3}
@@ -118,6 +119,9 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
         if not isinstance(item, dict):
             raise EngineUnavailable(f"invalid answer: suggestions[{i}] is not an object")
     placements = _placements(items, np.asarray(point, dtype=float))
+    # the face each placement turns to the clicked surface: its outward normal closest to −normal (canonical frame)
+    inward = np.einsum("nji,j->ni", placements[:, :3, :3], -np.asarray(normal, dtype=float))
+    touching_faces = np.argmax(inward @ _FACE_NORMALS.T, axis=1) if len(items) else np.zeros(0, dtype=np.int64)
     out, seen = [], set()
     for i, (item, placement) in enumerate(zip(items, placements, strict=True)):
         where = f"suggestions[{i}]"
@@ -129,7 +133,7 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
         seen.add(category)
         if not finite(item.get("score")):
             raise EngineUnavailable(f"invalid answer: {where}.score is not a finite number")
-        touching = frames.face_of_direction(placement[:3, :3].T @ -np.asarray(normal, dtype=float))
+        touching = frames.FACES[touching_faces[i]]
         face = item.get("attachment_face", touching)
         if face not in frames.FACES:
             raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not one of {', '.join(frames.FACES)}")
