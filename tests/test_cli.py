@@ -91,3 +91,27 @@ def test_suggest_errors_are_clear(tmp_path):
     bad = run("suggest", "--priors", str(tmp_path / "old.npz"), "--scene", str(corpus_dir / "scenes" / "study00.json"),
               "--parent", "room", "--point", "0,0,0", "--normal", "0,1,0", check=False)
     assert bad.returncode == 2 and "cannot read priors" in bad.stderr
+
+
+def test_engine_train_cli(tmp_path):
+    """`scenesuggest engine train` writes a learned engine's file that `suggest --engine learned` reads; engines it
+    cannot train, and unknown ones, are named."""
+    import synthetic
+
+    from scenesuggest.corpora.native import write_native
+
+    corpus_dir = write_native(synthetic.corpus(), tmp_path / "corpus")
+    out = tmp_path / "learned.npz"
+    info = json.loads(run("engine", "train", "learned", f"json:{corpus_dir}", "-o", str(out), "--json").stdout)
+    assert info["engine"] == "learned" and out.stat().st_size > 0
+    scene = corpus_dir / "scenes" / "study00.json"
+    desk = next(o for o in json.loads(scene.read_text())["objects"] if o["category"] == "Desk")
+    x, _, z = desk["transform"][12:15]
+    found = json.loads(run("suggest", "--engine", "learned", "--priors", str(out), "--scene", str(scene), "--parent",
+                           desk["id"], "--point", f"{x},0.75,{z - 0.2}", "--normal", "0,1,0", "--json").stdout)
+    assert found["engine"] == "learned" and found["suggestions"]
+    bad = run("engine", "train", "http", f"json:{corpus_dir}", "-o", str(tmp_path / "h.npz"), check=False)
+    assert bad.returncode == 2 and "not trained by this project" in bad.stderr and not (tmp_path / "h.npz").exists()
+    bad = run("engine", "train", "nope", f"json:{corpus_dir}", "-o", str(tmp_path / "n.npz"), check=False)
+    assert bad.returncode == 2 and "unknown engine 'nope'" in bad.stderr
+    assert "Train the engine NAME on SOURCE" in run("engine", "train", "--help").stdout

@@ -32,7 +32,7 @@ def list_cmd(as_json: bool) -> None:
     emit({"engines": found}, as_json, "\n".join(lines))
 
 
-@engine.command("train")
+@engine.command("train", help="Train the engine NAME on SOURCE (" + SOURCE_HELP + ") and write its file.")
 @click.argument("name")
 @click.argument("source")
 @click.option("-o", "--out", "out", required=True, type=click.Path(dir_okay=False), help="The engine's file (.npz).")
@@ -40,7 +40,6 @@ def list_cmd(as_json: bool) -> None:
 @meshes_option
 @click.option("--json", "as_json", is_flag=True)
 def train_cmd(name: str, source: str, out: str, seed: int, meshes: str | None, as_json: bool) -> None:
-    """Train the engine NAME on SOURCE (""" + SOURCE_HELP + """) and write its file."""
     from ..symmetry import corpus_periods
 
     if not kind(name).trainable:  # before its options: an engine that needs some (http) is not trained here
