@@ -5,11 +5,14 @@ instructions, every trial, exit survey) through its HTTP interface alone, rebuil
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.stats
 
 from .actions import Trial
+from .human import Human
 from .page import Page
 from .transport import LossyTransport
 from .walker import Walker
@@ -54,24 +57,38 @@ class BotResult:
 
 
 class Bot:
-    """One simulated participant; ``speed`` scales every operator time (1 = the model's average person)."""
+    """One simulated participant behaving as ``human`` (default :class:`~.human.Human`); ``speed`` scales every
+    operator time (1 = the model's average person; drawn log-normal with ``human.skill_sd`` when not given).
+    Scenes are harder or easier for everyone alike: the factor of a scene is drawn from ``scene_seed`` and the
+    scene's id."""
 
     def __init__(self, transport, study: str, pid: str, rng: np.random.Generator, speed: float | None = None,
-                 behaviours: Behaviours | None = None, symmetry: dict[str, float] | None = None):
+                 behaviours: Behaviours | None = None, symmetry: dict[str, float] | None = None,
+                 human: Human | None = None, scene_seed: int = 0):
         self.http, self.study, self.pid, self.rng = transport, study, pid, rng
+        self.human = human or Human()
+        self.scene_seed = scene_seed
         #: model id → symmetry period (deg), shared between bots: a person sees that a vase needs no turning
         self.symmetry = symmetry if symmetry is not None else {}
         self.library: dict[str, dict] = {}
         self.fixed: list[dict] = []
-        self.speed = speed if speed is not None else float(rng.lognormal(0.0, 0.25))
+        z_speed, u_overlook = rng.normal(), rng.random()  # drawn always: common random numbers
+        self.speed = speed if speed is not None else float(np.exp(self.human.skill_sd * z_speed))
         self.does = behaviours or Behaviours()
         if self.does.lossy or self.does.latency_s:
             self.http = LossyTransport(transport, rng, self.does.lossy, self.does.latency_s)
         self.walker = Walker(self.http, study)
-        # how often this person overlooks the wanted model in a list (mean 0.2): then they search instead
-        self.overlook = float(rng.beta(2.0, 8.0))
+        # how often this person overlooks the wanted model in a list (Beta, mean human.overlook, strength 10)
+        mean = self.human.overlook
+        self.overlook = float(scipy.stats.beta.ppf(u_overlook, 10 * mean, 10 * (1 - mean))) if mean > 0 else 0.0
+        self.played = 0  # trials played so far, practice included (the practice effect)
         self.seq = 0
         self.result = BotResult(pid)
+
+    def scene_factor(self, scene: str) -> float:
+        """How much harder than average ``scene`` is (a time factor, log-normal with ``human.scene_sd``)."""
+        z = np.random.default_rng([self.scene_seed, zlib.crc32(scene.encode())]).normal()
+        return float(np.exp(self.human.scene_sd * z))
 
     def overlooks(self) -> bool:
         return self.rng.random() < self.overlook
@@ -102,6 +119,7 @@ class Bot:
 
     def do_trial(self, boot: dict) -> None:
         seconds = Trial(self, boot).play()
+        self.played += 1
         if boot["trial"]["kind"] == "trial":
             self.result.trials += 1
             self.result.condition_seconds.setdefault(boot["trial"]["condition"], []).append(seconds)

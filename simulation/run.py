@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .human import Human
 from .participant import Behaviours, Bot
 from .transport import FlaskTransport, FlowError, HttpTransport
 
@@ -15,9 +16,11 @@ RETRY_S = 60.0
 
 
 def simulate(participants: int, seed: int = 0, *, study: str, url: str | None = None, app=None,
-             behaviours: Behaviours | None = None, progress: Callable[[str], None] = lambda label: None) -> dict:
+             behaviours: Behaviours | None = None, human: Human | None = None,
+             progress: Callable[[str], None] = lambda label: None) -> dict:
     """Run ``participants`` bots one after another through ``study`` (bot i draws from the generator seeded
-    ``[seed, i]``).
+    ``[seed, i]``), behaving as ``human`` (default :class:`~.human.Human`; a calibration's fit:
+    :func:`.calibrate.read`); the scenes' difficulty is drawn from ``seed``.
 
     With ``url`` they talk HTTP to that server; otherwise to ``app`` (a Flask app) through its test client.
     Returns the counts of completed participants, trials, events sent and objects the bots could not find, and
@@ -29,7 +32,7 @@ def simulate(participants: int, seed: int = 0, *, study: str, url: str | None = 
     for i in range(participants):
         transport = HttpTransport(url, retry_for=RETRY_S) if url else FlaskTransport(app.test_client())
         bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]), behaviours=behaviours,
-                  symmetry=symmetry)
+                  symmetry=symmetry, human=human, scene_seed=seed)
         try:
             results.append(bot.run())
         except FlowError as e:

@@ -13,7 +13,13 @@ SCENE = {"type": "object", "required": ["objects"], "description": "The editor's
          "scene format (id, model_id, category, size, transform, parent, …)",
          "properties": {"objects": {"type": "array", "items": {"type": "object"}}}}
 MODEL = {"type": "object", "properties": {"id": {"type": "string"}, "name": {"type": "string"},
-                                          "category": {"type": "string"}, "asset": {"type": "string"},
+                                          "category": {"type": "string"},
+                                          "category_path": {"type": "array", "items": {"type": "string"},
+                                                            "description": "the category's path in the "
+                                                                           "taxonomy"},
+                                          "tags": {"type": "array", "items": {"type": "string"},
+                                                   "description": "the model's search words"},
+                                          "asset": {"type": "string"},
                                           "thumbnail": {"type": "string"}, "size": VEC3}}
 
 

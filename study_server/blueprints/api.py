@@ -111,7 +111,7 @@ def model_json(rt, m) -> dict:
     if d is None:
         d = rt.model_descriptions[m.id] = {
             "id": m.id, "name": m.name, "category": m.category, "category_path": tuple(m.category_path),
-            "size": tuple(m.size),
+            "tags": tuple(m.tags), "size": tuple(m.size),
             **{key: url_for("participant.asset", study_id=rt.study.id, filename=name)[len(prefix):]
                for key, name in (("asset", m.asset), ("thumbnail", m.thumbnail))}}
     return {**d, "asset": prefix + d["asset"], "thumbnail": prefix + d["thumbnail"]}

@@ -1,0 +1,118 @@
+"""What a simulated person is like: every behavioural parameter of the bots, named, with its unit, its allowed
+range and where its default comes from.
+
+A :class:`Human` is one set of values (the defaults, or a calibration's fit: :mod:`.calibrate`). The operator
+times themselves (keystroke, point, button, mental preparation, Fitts' law) stay in :mod:`.timing`; what is here
+is what the keystroke-level model leaves out and a person spends most of their seconds on — hesitating, looking
+round the scene, scanning lists, choosing search words, misjudged drags and turns, and getting faster with
+practice — and how much people and scenes differ.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+
+from scenesuggest.errors import SceneSuggestError
+
+
+def _p(default: float, unit: str, low: float, high: float, source: str, free: bool = True) -> float:
+    """A parameter's declaration: its default, and its metadata for :func:`describe` and validation."""
+    return field(default=default, metadata={"unit": unit, "low": low, "high": high, "source": source,
+                                             "free": free})
+
+
+@dataclass(frozen=True)
+class Human:
+    """The behaviour of the simulated participants (one set of values for all of them; people differ by
+    ``skill_sd`` and scenes by ``scene_sd``). ``free`` parameters are fitted by :mod:`.calibrate` to the paper's
+    ``none`` condition; the others are fixed by the interface or the literature."""
+
+    hesitation_s: float = _p(0.5, "s", 0.0, 10.0, "mean pause before each action (exponential); fitted")
+    look_round_s: float = _p(1.5, "s", 0.0, 20.0, "mean time looking round the scene (camera orbits) before "
+                                                  "placing each object; fitted")
+    scan_item_s: float = _p(0.35, "s", 0.05, 3.0, "looking at one thumbnail of a list (visual search, about "
+                                                  "0.3 s per item; Card, Moran & Newell 1983); fitted")
+    list_patience: float = _p(24.0, "items", 1.0, 400.0, "items of the fixed model list a person scans before "
+                                                         "searching instead; fitted")
+    search_first: float = _p(0.3, "probability", 0.0, 1.0, "chance of typing a search before scanning the "
+                                                           "model list; fitted")
+    overlook: float = _p(0.2, "probability", 0.0, 0.9, "mean chance of missing the wanted model in a list "
+                                                       "while looking at it (per person: Beta, strength 10); "
+                                                       "fitted")
+    category_words: float = _p(0.5, "probability", 0.0, 1.0, "chance that a search uses the category's words "
+                                                             "(else words of the model's name and tags); fitted")
+    drag_error: float = _p(0.3, "fraction", 0.0, 2.0, "standard deviation of where a drag ends, as a fraction of "
+                                                      "its distance (each miss is corrected by another drag); "
+                                                      "fitted")
+    drag_settle_s: float = _p(1.0, "s", 0.0, 20.0, "checking a drag's result and aiming the correction; fitted")
+    turn_overshoot_deg: float = _p(15.0, "deg per 90 deg", 0.0, 120.0, "standard deviation of how far a turn goes "
+                                                                       "past (or short of) the wanted heading, "
+                                                                       "per 90 degrees turned; fitted")
+    practice: float = _p(0.3, "fraction", 0.0, 3.0, "extra time on a person's first trial, as a fraction of "
+                                                    "their practised time; fitted")
+    practice_halving: float = _p(2.0, "trials", 0.5, 20.0, "trials after which the practice extra halves "
+                                                           "(power law of practice, Newell & Rosenbloom 1981)",
+                                 free=False)
+    suggestion_patience: float = _p(12.0, "items", 1.0, 100.0, "suggestions looked at before searching: the "
+                                                               "panel shows 3 x 4 tiles without scrolling",
+                                    free=False)
+    results_scanned: float = _p(12.0, "items", 1.0, 200.0, "search results looked at before reformulating: "
+                                                           "the panel's first screen", free=False)
+    reformulations: float = _p(3.0, "searches", 0.0, 10.0, "new search texts tried after the first before giving "
+                                                           "up on an object", free=False)
+    position_tolerance_m: float = _p(0.03, "m", 0.001, 1.0, "how close a person drags before they are "
+                                                            "satisfied (the target shown beside, at this scale)",
+                                     free=False)
+    turn_tolerance_deg: float = _p(4.0, "deg", 0.5, 45.0, "how close a person turns before they are satisfied",
+                                   free=False)
+    skill_sd: float = _p(0.25, "log s", 0.0, 2.0, "spread of people's speed: log-normal standard deviation of a "
+                                                  "person's time factor", free=False)
+    scene_sd: float = _p(0.15, "log s", 0.0, 2.0, "spread of scenes' difficulty: log-normal standard deviation of "
+                                                  "a scene's time factor, the same for everyone", free=False)
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise SceneSuggestError(f"{f.name}: expected a number, got {value!r}", field=f.name)
+            if not math.isfinite(value):
+                raise SceneSuggestError(f"{f.name}: expected a finite number, got {value!r}", field=f.name)
+            low, high = f.metadata["low"], f.metadata["high"]
+            if not low <= value <= high:
+                raise SceneSuggestError(f"{f.name}: {value!r} is outside [{low}, {high}] {f.metadata['unit']}",
+                                        field=f.name)
+
+    def practice_factor(self, played: int) -> float:
+        """How much slower than practised a person is on their trial number ``played`` (0 = the first)."""
+        return 1.0 + self.practice * 0.5 ** (played / self.practice_halving)
+
+    def with_values(self, values: dict[str, float]) -> Human:
+        """These parameters with ``values`` (name → value) replaced; an unknown name is an error."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise SceneSuggestError(f"no behaviour parameter {unknown[0]!r} (known: {', '.join(sorted(known))})",
+                                    field=unknown[0])
+        return replace(self, **{k: float(v) for k, v in values.items()})
+
+    def values(self) -> dict[str, float]:
+        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+
+
+def free_parameters() -> list[str]:
+    """The names of the parameters a calibration fits, in declaration order."""
+    return [f.name for f in fields(Human) if f.metadata["free"]]
+
+
+def bounds(name: str) -> tuple[float, float]:
+    f = {f.name: f for f in fields(Human)}[name]
+    return f.metadata["low"], f.metadata["high"]
+
+
+def describe(human: Human | None = None) -> list[dict]:
+    """Every parameter: name, value, unit, range, free, and where its default comes from."""
+    human = human or Human()
+    return [{"name": f.name, "value": getattr(human, f.name), "default": f.default, "unit": f.metadata["unit"],
+             "low": f.metadata["low"], "high": f.metadata["high"], "free": f.metadata["free"],
+             "source": f.metadata["source"]} for f in fields(Human)]
