@@ -77,7 +77,8 @@ demo-power: demo-report
 
 # The SceneSuggest replication (experiments/scenesuggest-2015): prepare its library, priors and targets from your
 # copy of the Stanford Scene Database ($$SCENESUGGEST_STANFORD_DIR, default ../shared/data/stanford_scene_db),
-# run 20 simulated participants, export, analyse, and write the report and its comparison with the paper into
+# calibrate the simulated participants on the paper's `none` condition (calibration.json; again only when the study,
+# its priors, library or the simulation code changed), run 20 simulated participants, export, analyse, and write the report and its comparison with the paper into
 # experiments/scenesuggest-2015/results/.
 REPLICATION := experiments/scenesuggest-2015
 REPLICATION_RUN := var/experiments/scenesuggest-2015/run
@@ -85,8 +86,12 @@ SCENESUGGEST_STANFORD_DIR ?= $(CURDIR)/../shared/data/stanford_scene_db
 replication: setup
 	SCENESUGGEST_STANFORD_DIR=$(SCENESUGGEST_STANFORD_DIR) $(BIN)/python $(REPLICATION)/prepare.py
 	rm -rf $(REPLICATION_RUN) && mkdir -p $(REPLICATION_RUN)
+	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/calibrate.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
+		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study calibrate --if-stale \
+		-o $(REPLICATION)/calibration.json
 	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
-		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study simulate --participants 20 --seed 0
+		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study simulate --participants 20 --seed 0 \
+		--calibration $(REPLICATION)/calibration.json
 	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml \
 		$(BIN)/scenesuggest study export --study scenesuggest-2015 --db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3 \
 		--out $(REPLICATION_RUN)/export

@@ -416,7 +416,7 @@ class Trial:
                 break
             self.act(M + P)
             self.event("move_start", {"object": obj["id"]})
-            self.spend(drag_seconds(distance))
+            self.spend(drag_seconds(distance) + self.who.rng.exponential(1.0) * h.drag_settle_s)  # watching it
             end = self.on_parent(obj, contact + self.plane_offset(obj, h.drag_error * distance / math.sqrt(2)))
             if np.linalg.norm(np.subtract(end, contact)) <= h.position_tolerance_m:
                 end = contact.tolist()
@@ -424,7 +424,6 @@ class Trial:
             moved = {**placed, "transform": placed["transform"][:12] + position + [1.0], "contact_point": end}
             self.change("move_end", {"object": obj["id"], "distance": float(np.linalg.norm(np.subtract(end, here))),
                                      "parent": obj["parent"]}, [moved])
-            self.spend(self.who.rng.exponential(1.0) * h.drag_settle_s)  # check where it went
         normal = obj["contact_normal"]
         for _ in range(MAX_DRAGS):
             placed = self.objects[obj["id"]]
@@ -438,6 +437,6 @@ class Trial:
             self.event("rotate_start", {"object": obj["id"]})
             miss = self.who.rng.normal(0.0, 1.0) * h.turn_overshoot_deg * abs(turn) / 90.0
             done = turn + miss if abs(miss) > h.turn_tolerance_deg else turn
-            self.spend(turn_seconds(done, h.turn_tolerance_deg))
+            self.spend(turn_seconds(done, h.turn_tolerance_deg) + self.who.rng.exponential(1.0) * h.turn_settle_s)
             after = {**placed, "transform": turned(placed["transform"], normal, done, placed["transform"][12:15])}
             self.change("rotate_end", {"object": obj["id"], "angle": done}, [after])

@@ -45,7 +45,10 @@ class Human:
     drag_error: float = _p(0.3, "fraction", 0.0, 2.0, "standard deviation of where a drag ends, as a fraction of "
                                                       "its distance (each miss is corrected by another drag); "
                                                       "fitted")
-    drag_settle_s: float = _p(1.0, "s", 0.0, 20.0, "checking a drag's result and aiming the correction; fitted")
+    drag_settle_s: float = _p(1.0, "s", 0.0, 30.0, "mean time a drag is held while fine-positioning and "
+                                                   "watching (exponential), beyond its Fitts' law time; fitted")
+    turn_settle_s: float = _p(1.0, "s", 0.0, 30.0, "mean time a turn is held while watching the heading "
+                                                   "(exponential), beyond its key presses; fitted")
     turn_overshoot_deg: float = _p(15.0, "deg per 90 deg", 0.0, 120.0, "standard deviation of how far a turn goes "
                                                                        "past (or short of) the wanted heading, "
                                                                        "per 90 degrees turned; fitted")
@@ -75,12 +78,12 @@ class Human:
         for f in fields(self):
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, int | float):
-                raise SceneSuggestError(f"{f.name}: expected a number, got {value!r}", field=f.name)
+                raise SceneSuggestError(f"expected a number, got {value!r}", field=f.name)
             if not math.isfinite(value):
-                raise SceneSuggestError(f"{f.name}: expected a finite number, got {value!r}", field=f.name)
+                raise SceneSuggestError(f"expected a finite number, got {value!r}", field=f.name)
             low, high = f.metadata["low"], f.metadata["high"]
             if not low <= value <= high:
-                raise SceneSuggestError(f"{f.name}: {value!r} is outside [{low}, {high}] {f.metadata['unit']}",
+                raise SceneSuggestError(f"{value!r} is outside [{low}, {high}] ({f.metadata['unit']})",
                                         field=f.name)
 
     def practice_factor(self, played: int) -> float:
@@ -94,7 +97,8 @@ class Human:
         if unknown:
             raise SceneSuggestError(f"no behaviour parameter {unknown[0]!r} (known: {', '.join(sorted(known))})",
                                     field=unknown[0])
-        return replace(self, **{k: float(v) for k, v in values.items()})
+        return replace(self, **{k: float(v) if isinstance(v, int | float) and not isinstance(v, bool) else v
+                                for k, v in values.items()})
 
     def values(self) -> dict[str, float]:
         return {f.name: float(getattr(self, f.name)) for f in fields(self)}

@@ -51,6 +51,17 @@ PAPER = {
     "mrr": (0.353, 0.785, 0.769),
     "rank1_share": (0.296, 0.687, 0.675),
 }
+#: The paper's 95% bootstrap intervals of Table 1 (low, high) per condition, and Table 2's rank shares.
+PAPER_CI = {
+    "total_time": ((177.0, 241.0), (130.0, 267.0), (118.0, 168.0)),
+    "rotation_time": ((19.9, 28.7), (19.5, 26.5), (14.3, 21.1)),
+    "translation_time": ((32.0, 51.1), (31.0, 50.1), (30.1, 62.5)),
+    "n_text_queries": ((3.8, 7.0), (2.3, 4.9), (1.6, 3.9)),
+    "mrr": ((0.318, 0.388), (0.765, 0.805), (0.747, 0.791)),
+}
+PAPER_RANKS = {"1": (0.296, 0.687, 0.675), "2": (0.140, 0.111, 0.0984), "3": (0.0035, 0.0428, 0.0487),
+               "4+": (0.560, 0.159, 0.178)}
+RANK_SHARE_TOLERANCE = 0.08  # Table 2 gives no interval: a predicted share within 8 points matches
 LABELS = {
     "total_time": "Total time (s)", "rotation_time": "Rotation time (s)", "translation_time": "Translation time (s)",
     "n_text_queries": "Keyword queries", "mrr": "MRR", "rank1_share": "Rank-1 picks",
@@ -76,8 +87,15 @@ def simulated(report: Path) -> dict[str, tuple[dict, ...]]:
     queries = bootstrap_by(trials, "n_text_queries", "condition", list(CONDITIONS), resamples=resamples, seed=seed)
     out["n_text_queries"] = tuple({"mean": queries[c].mean, "low": queries[c].low, "high": queries[c].high}
                                   for c in CONDITIONS)
-    t2 = {row["condition"]: row for row in results["table2"]}
-    out["rank1_share"] = tuple({"mean": t2[c]["share_1"], "low": None, "high": None} for c in CONDITIONS)
+    picks = pd.read_csv(report / "measures" / "picks.csv")
+    picks = picks[picks["final"].astype(bool) & picks["rank"].notna()]
+    for label, hit in (("1", picks["rank"] == 1), ("2", picks["rank"] == 2), ("3", picks["rank"] == 3),
+                       ("4+", picks["rank"] >= 4)):
+        shares = bootstrap_by(picks.assign(hit=hit.astype(float)), "hit", "condition", list(CONDITIONS),
+                              unit="trial", resamples=resamples, seed=seed)
+        out[f"rank_{label}"] = tuple({"mean": shares[c].mean, "low": shares[c].low, "high": shares[c].high}
+                                     for c in CONDITIONS)
+    out["rank1_share"] = out["rank_1"]
     out["_lrt"] = {k: v["lrt"] for k, v in results["tests"].items() if v and "lrt" in v}
     out["_n"] = {"participants": results["participants"], "trials": results["trials"], "picks": results["picks"]}
     return out
@@ -222,11 +240,83 @@ def _direction(values) -> str:
     return " ".join("−" if b < a else "+" if b > a else "=" for a, b in ((none, basic), (none, full), (basic, full)))
 
 
+def _cell(key: str, mean, low=None, high=None) -> str:
+    return _fmt(key, mean) + (f" [{_fmt(key, low)}, {_fmt(key, high)}]" if low is not None else "")
+
+
+def predictions(sim: dict) -> list[dict]:
+    """Every cell of Table 1 and Table 2, paper beside simulated: ``none`` is what the simulator was calibrated
+    on; ``basic`` and ``full`` are predictions, matched when a Table 1 mean falls inside the paper's 95% interval
+    and a Table 2 share within RANK_SHARE_TOLERANCE of the paper's."""
+    rows = []
+    for key, paper in PAPER.items():
+        if key == "rank1_share":
+            continue
+        for i, c in enumerate(CONDITIONS):
+            ours, (low, high) = sim[key][i], PAPER_CI[key][i]
+            rows.append({"table": 1, "measure": key, "condition": c, "paper": paper[i], "paper_low": low,
+                         "paper_high": high, **{f"simulated{k}": ours[v] for k, v in
+                                                (("", "mean"), ("_low", "low"), ("_high", "high"))},
+                         "role": "calibrated" if c == "none" else "predicted",
+                         "matched": bool(low <= ours["mean"] <= high)})
+    for label, paper in PAPER_RANKS.items():
+        for i, c in enumerate(CONDITIONS):
+            ours = sim[f"rank_{label}"][i]
+            rows.append({"table": 2, "measure": f"rank_{label}", "condition": c, "paper": paper[i],
+                         "paper_low": None, "paper_high": None, "simulated": ours["mean"],
+                         "simulated_low": ours["low"], "simulated_high": ours["high"],
+                         "role": "calibrated" if c == "none" else "predicted",
+                         "matched": bool(abs(ours["mean"] - paper[i]) <= RANK_SHARE_TOLERANCE)})
+    return rows
+
+
+def prediction_lines(rows: list[dict]) -> list[str]:
+    lines = ["", "## Every cell of Table 1 and Table 2: calibrated on `none`, predicted for `basic` and `full`", "",
+             "The simulated participants' free parameters were fitted to the paper's `none` row only "
+             "(`calibration.json`, `scenesuggest study calibrate`); `basic` and `full` are predictions. A Table 1 "
+             "prediction matches when its mean is inside the paper's 95% interval; a Table 2 share when it is within "
+             f"{100 * RANK_SHARE_TOLERANCE:.0f} points of the paper's (the paper gives no interval).", "",
+             "| Table | Measure | Condition | Role | Paper | Simulated [95% interval] | Matched |",
+             "|---:|---|---|---|---:|---:|:---:|"]
+    for r in rows:
+        key = "rank1_share" if r["table"] == 2 else r["measure"]
+        label = LABELS.get(r["measure"], f"Rank {r['measure'].split('_')[1]} picks")
+        lines.append(f"| {r['table']} | {label} | {r['condition']} | {r['role']} | "
+                     f"{_cell(key, r['paper'], r['paper_low'], r['paper_high'])} | "
+                     f"{_cell(key, r['simulated'], r['simulated_low'], r['simulated_high'])} | "
+                     f"{'yes' if r['matched'] else 'no'} |")
+    predicted = [r for r in rows if r["role"] == "predicted"]
+    lines += ["", f"Predictions matched: {sum(r['matched'] for r in predicted)} of {len(predicted)}.", ""]
+    return lines
+
+
+def model_choices(report: Path, prepared: Path) -> dict[str, dict[str, int]]:
+    """Per condition, how many final picks chose the target object's own model and how many another model of its
+    category (a participant may choose either)."""
+    picks = pd.read_csv(report / "measures" / "picks.csv")
+    picks = picks[picks["final"].astype(bool)]
+    wanted = {}
+    for scene_id in {s for period in PERIODS for s in period}:
+        for o in scene_json.load(prepared / "scenes" / f"{scene_id}.json"):
+            wanted.setdefault((scene_id, o.category), set()).add(o.model_id)
+    out = {}
+    for c in CONDITIONS:
+        own = picks[picks["condition"] == c]
+        same = [m in wanted.get((sc, cat), ()) for m, sc, cat in zip(own["model"], own["scene"], own["category"],
+                                                                      strict=True)]
+        known = [(sc, cat) in wanted for sc, cat in zip(own["scene"], own["category"], strict=True)]
+        out[c] = {"target_model": int(sum(same)),
+                  "other_model_of_category": int(sum(k and not s for k, s in zip(known, same, strict=True))),
+                  "other_category": int(sum(not k for k in known))}
+    return out
+
+
 def write(sim: dict, engine_rows: list[dict], out: Path, per_engine: list[dict] | None = None,
-          trained: dict[str, dict] | None = None) -> None:
+          trained: dict[str, dict] | None = None, choices: dict | None = None) -> None:
     lines = ["# The replication next to the paper (simulated participants)", "",
              "Generated by `make replication` (experiments/scenesuggest-2015/compare.py). **Simulated participants**: "
-             f"{sim['_n']['participants']['completed']} keystroke-level-model bots, "
+             f"{sim['_n']['participants']['completed']} bots (keystroke-level model with people's behaviour, "
+             "calibrated on the paper's `none` condition), "
              f"{sim['_n']['trials']['completed']} trials, {sim['_n']['picks']} picks — not people.", "",
              "Means per trial (MRR and rank-1 share: per pick) with 95% bootstrap intervals. Direction: the sign of "
              "basic − none, full − none and full − basic.", "",
@@ -250,6 +340,14 @@ def write(sim: dict, engine_rows: list[dict], out: Path, per_engine: list[dict] 
     for key, lrt in sim["_lrt"].items():
         p = "< .001" if lrt["p"] < 0.001 else f"{lrt['p']:.3f}"
         lines.append(f"| {key} | {lrt['chi2']:.2f} | {lrt['df']} | {p} |")
+    rows = predictions(sim)
+    lines += prediction_lines(rows)
+    if choices:
+        lines += ["Which model was chosen (final picks): the target object's own, another of its category, or a "
+                  "model of another category.", "", "| Condition | Target's model | Another of its category | "
+                  "Another category |", "|---|---:|---:|---:|"]
+        lines += [f"| {c} | {v['target_model']} | {v['other_model_of_category']} | {v['other_category']} |"
+                  for c, v in choices.items()]
     frame = pd.DataFrame(engine_rows)
     ranked = frame["rank"].notna()
     rr = np.where(ranked, 1.0 / frame["rank"].fillna(np.inf), 0.0)
@@ -277,14 +375,14 @@ def write(sim: dict, engine_rows: list[dict], out: Path, per_engine: list[dict] 
     (out / "comparison.md").write_text("\n".join(lines))
     doc = {"paper": PAPER, "simulated": {k: v for k, v in sim.items() if not k.startswith("_")},
            "lr_tests": sim["_lrt"], "n": sim["_n"], "engine_on_targets": engine_rows,
-           "engines_on_targets": per_engine or []}
+           "engines_on_targets": per_engine or [], "predictions": rows, "model_choices": choices or {}}
     (out / "comparison.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
 
 
 def main() -> int:
     trained = trained_engines(PREPARED)
     write(simulated(RESULTS / "report"), engine_on_targets(PREPARED), RESULTS,
-          engines_on_targets(PREPARED, trained), trained)
+          engines_on_targets(PREPARED, trained), trained, model_choices(RESULTS / "report", PREPARED))
     print(f"wrote {RESULTS / 'comparison.md'}")
     return 0
 
