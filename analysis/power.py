@@ -25,10 +25,14 @@ def _draw(frame: pd.DataFrame, chosen: np.ndarray) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True) if parts else frame.iloc[:0]
 
 
-def p_values(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str]) -> dict[str, float]:
-    """The LR-test p-value of condition for every Table 1 measure (NaN where a model cannot be fitted)."""
+def p_values(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str],
+             measures: list[str] | None = None) -> dict[str, float]:
+    """The LR-test p-value of condition for every Table 1 measure (or those of ``measures``; NaN where a model
+    cannot be fitted)."""
     out = {}
     for measure, _, _, family, table in MEASURES:
+        if measures is not None and measure not in measures:
+            continue
         frame = picks if table == "picks" else trials
         frame = frame[frame["condition"].isin(conditions)].copy()
         frame["condition"] = pd.Categorical(frame["condition"], conditions)
@@ -41,8 +45,10 @@ def p_values(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str]) -
 
 
 def power(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str], sizes: list[int], studies: int,
-          seed: int = 0, alpha: float = 0.05, progress: Callable[[str], None] = lambda label: None) -> dict:
-    """``{N: {measure: power}}`` from ``studies`` simulated studies per size (seeded)."""
+          seed: int = 0, alpha: float = 0.05, progress: Callable[[str], None] = lambda label: None,
+          measures: list[str] | None = None) -> dict:
+    """``{N: {measure: power}}`` from ``studies`` simulated studies per size (seeded), for every Table 1 measure
+    or those of ``measures``."""
     trials = trials[trials["complete"]]
     pilot = sorted(trials["participant"].unique(), key=str)
     if len(pilot) < 2:
@@ -52,10 +58,11 @@ def power(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str], size
     rng = np.random.default_rng(seed)
     table: dict[int, dict[str, float]] = {}
     for n in sizes:
-        rejections: dict[str, list[bool]] = {m: [] for m, *_ in MEASURES}
+        rejections: dict[str, list[bool]] = {m: [] for m, *_ in MEASURES if measures is None or m in measures}
         for k in range(studies):
             chosen = rng.choice(pilot, size=n, replace=True)
-            for measure, p in p_values(_draw(trials, chosen), _draw(picks, chosen), conditions).items():
+            for measure, p in p_values(_draw(trials, chosen), _draw(picks, chosen), conditions,
+                                       measures).items():
                 if np.isfinite(p):
                     rejections[measure].append(p < alpha)
             progress(f"N = {n}: study {k + 1}/{studies}")

@@ -39,7 +39,8 @@ class _Group(click.Group):
     lazy = {"analyze": ("analysis.cli", "analyze"), "schedule": ("study_server.cli", "schedule"),
             "study": ("study_server.cli", "study"), "engine": ("scenesuggest.engines.cli", "engine")}
     #: Commands that other packages add to those groups: group → [(module, attribute)].
-    extra = {"study": [("simulation.cli", "simulate_cmd"), ("simulation.cli", "calibrate_cmd")]}
+    extra = {"study": [("simulation.cli", "simulate_cmd"), ("simulation.cli", "calibrate_cmd"),
+                       ("simulation.cli", "power_cmd")]}
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted([*super().list_commands(ctx), *self.lazy])

@@ -224,14 +224,17 @@ class Trial:
     def search_texts(self, obj: dict) -> list[str]:
         """What this person types for ``obj``, in order: the category's words or words of the model's name and
         tags (which first: ``category_words``), then the other, then the category's parents in the taxonomy
-        (most specific first); at most 1 + ``reformulations`` different texts."""
+        (most specific first); at most 1 + ``reformulations`` different texts. With chance ``generic_words``
+        the category's words are first cut to their last (the head noun: ``desk lamp`` → ``lamp``), which
+        matches more models."""
         model = self.who.library.get(obj["model_id"], {})
         category = words(obj["category"])
         own = list(dict.fromkeys(search_words(model.get("name", "")) + [w for tag in model.get("tags", ())
                                                                         for w in search_words(tag)]))
-        two, category_first = self.who.rng.random(2)  # drawn always: common random numbers across parameters
+        two, category_first, generic = self.who.rng.random(3)  # drawn always: common random numbers
         own_text = (" ".join(own[:2]) if two < 0.5 else own[0]) if own else category
-        first = [category, own_text] if category_first < self.human.category_words else [own_text, category]
+        said = [category.split()[-1], category] if generic < self.human.generic_words else [category]
+        first = [*said, own_text] if category_first < self.human.category_words else [own_text, *said]
         parents = [words(c) for c in reversed(model.get("category_path", ())[:-1])]
         texts = list(dict.fromkeys(t for t in [*first, *parents, category.split()[-1]] if t))
         return texts[:1 + round(self.human.reformulations)]

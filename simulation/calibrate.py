@@ -50,6 +50,9 @@ PAPER_NONE = {
 PAPER_NONE_RANKS = {"1": 0.296, "2": 0.140, "3": 0.0035, "4+": 0.560}
 RANK_SE = 0.05  # the paper gives no interval for rank shares: a share off by 5 points costs one standard error
 PRIOR_SD = 1.0  # the prior: each parameter's logit-scale distance from its default, in these units
+#: The calibration's uncertainty: evaluated parameter sets whose loss is within this of the best (the loss is in
+#: squared standard errors: 4 is two standard errors along one direction), at most PLAUSIBLE_SETS of them.
+PLAUSIBLE_DELTA, PLAUSIBLE_SETS = 4.0, 5
 SIMULATION_FILES = ("human.py", "actions.py", "timing.py", "participant.py")  # what the bots do
 
 
@@ -72,12 +75,10 @@ class _Local:
     search, model files) and keeps the events it is sent instead of storing them."""
 
     def __init__(self, app, study_id: str):
-        from study_server.studies import runtime
+        from study_server.offline import OfflineAnswers
 
-        self.app, self.study_id = app, study_id
+        self.answers = OfflineAnswers(app, study_id)
         self.client = app.test_client()
-        with app.test_request_context():
-            self.rt = runtime(study_id)
         self.cache: dict[str, Response] = {}
         self.events: list[dict] = []
 
@@ -90,20 +91,14 @@ class _Local:
         return self.cache[path]
 
     def _answer(self, path: str) -> Response:
-        from study_server.blueprints.api import model_json
-
         url = urlsplit(path)
-        with self.app.test_request_context():
-            if url.path.startswith("/api/scenes/"):
-                which = parse_qs(url.query).get("which", ["target"])[0]
-                return self._json(self.rt.scene(url.path.rsplit("/", 1)[1], which))
-            if url.path == "/api/models":
-                return self._json({"models": [model_json(self.rt, m) for m in self.rt.fixed_list]})
-            if url.path == "/api/search":
-                text = parse_qs(url.query).get("q", [""])[0]
-                hits = self.rt.search_index.search(text, 60)
-                return self._json({"list_id": None, "query": text, "hits": [
-                    dict(model_json(self.rt, self.rt.library[h.model_id]), rank=i + 1) for i, h in enumerate(hits)]})
+        if url.path.startswith("/api/scenes/"):
+            which = parse_qs(url.query).get("which", ["target"])[0]
+            return self._json(self.answers.scene(url.path.rsplit("/", 1)[1], which))
+        if url.path == "/api/models":
+            return self._json(self.answers.models())
+        if url.path == "/api/search":
+            return self._json(self.answers.search(parse_qs(url.query).get("q", [""])[0]))
         r = self.client.get(path)  # a model file
         return Response(r.status_code, r.get_data())
 
@@ -128,7 +123,7 @@ class Rehearsal:
 
     def __post_init__(self):
         self.local = _Local(self.app, self.study_id)
-        self.study = self.local.rt.study
+        self.study = self.local.answers.study
         self.symmetry: dict[str, float] = {}
 
     def events(self, human: Human) -> pd.DataFrame:
@@ -233,17 +228,44 @@ def fit(rehearsal: Rehearsal, evaluations: int = 300, start: Human | None = None
     best_u = min(seen, key=lambda k: seen[k][0])
     human = human_of(np.asarray(best_u))
     value, measured = seen[best_u]
+    plausible = _plausible(seen, best_u, value)
     return {"format": FORMAT, "version": VERSION, "fingerprint": fingerprint(rehearsal.study),
             "parameters": human.values(), "free": names, "loss": value,
             "loss_without_prior": loss(measured), "measured_none": measured,
+            "plausible": [{"loss": seen[u][0], "parameters": human_of(np.asarray(u)).values()} for u in plausible],
             "paper_none": {**PAPER_NONE, **{f"rank_{k}": v for k, v in PAPER_NONE_RANKS.items()}},
             "seed": rehearsal.seed, "participants": rehearsal.participants, "evaluations": len(seen),
             "converged": bool(result.success), "seconds": round(time.perf_counter() - started, 1),
             "created": datetime.now(UTC).isoformat(timespec="seconds")}
 
 
+def _plausible(seen: dict, best: tuple, value: float, count: int = PLAUSIBLE_SETS) -> list[tuple]:
+    """The calibration's uncertainty as parameter sets: the best one, then evaluated sets whose loss is within
+    PLAUSIBLE_DELTA of it, each chosen farthest (in logits) from those already chosen."""
+    near = [u for u, (v, _) in seen.items() if v <= value + PLAUSIBLE_DELTA and u != best]
+    chosen = [best]
+    while near and len(chosen) < count:
+        far = max(near, key=lambda u: min(float(np.linalg.norm(np.subtract(u, c))) for c in chosen))
+        chosen.append(far)
+        near.remove(far)
+    return chosen
+
+
 def write(document: dict, path: Path) -> None:
     write_atomically(Path(path), (json.dumps(document, indent=1, sort_keys=True) + "\n").encode())
+
+
+def read_plausible(path: Path, study=None) -> list[Human]:
+    """The calibration's plausible parameter sets (the best first; see :func:`_plausible`)."""
+    best = read(path, study)
+    document = json.loads(Path(path).read_text())
+    out = [best]
+    for k, entry in enumerate(document.get("plausible", [])[1:], start=1):
+        try:
+            out.append(Human().with_values(entry["parameters"]))
+        except (SceneSuggestError, KeyError, TypeError) as e:
+            raise SceneSuggestError(f"{e}", file=str(path), field=f"plausible[{k}]") from None
+    return out
 
 
 def read(path: Path, study=None) -> Human:

@@ -27,10 +27,9 @@ def _app(study_id: str | None):
 
 
 def _study(app, study_id: str):
-    from study_server.studies import runtime
+    from study_server.offline import OfflineAnswers
 
-    with app.test_request_context():
-        return runtime(study_id).study
+    return OfflineAnswers(app, study_id).study
 
 
 @click.command("simulate")
@@ -80,17 +79,19 @@ def simulate_cmd(participants: int, seed: int, url: str | None, study_id: str | 
               help="Bots per evaluation (bot i plays schedule row i).")
 @click.option("--seed", default=0, show_default=True, help="The bots' seed (the same for every evaluation).")
 @click.option("--evaluations", default=300, show_default=True, type=click.IntRange(min=1))
+@click.option("--start", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Start the fit from this calibration file's parameters (default: the parameters' defaults).")
 @click.option("--if-stale", is_flag=True, help="Do nothing when --out was fitted on this study, its priors, "
                                                "library and simulation code.")
 @click.option("--json", "as_json", is_flag=True)
-def calibrate_cmd(out: Path, study_id: str | None, participants: int, seed: int, evaluations: int, if_stale: bool,
-                  as_json: bool) -> None:
+def calibrate_cmd(out: Path, study_id: str | None, participants: int, seed: int, evaluations: int,
+                  start: Path | None, if_stale: bool, as_json: bool) -> None:
     """Fit the simulated participants' free behaviour parameters to the paper's `none` condition (Table 1's
     means and Table 2's rank shares; never the other conditions' numbers) by rehearsing the study's `none`
     trials; writes the parameters, the loss, the seed and what the fit depends on."""
     import json
 
-    from .calibrate import Rehearsal, fit, stale_keys, write
+    from .calibrate import Rehearsal, fit, read, stale_keys, write
 
     app, study_id = _app(study_id)
     if if_stale and out.is_file():
@@ -103,8 +104,55 @@ def calibrate_cmd(out: Path, study_id: str | None, participants: int, seed: int,
                  f"{out}: fitted on this study, its priors, library and simulation code; kept")
             return
     rehearsal = Rehearsal(app, study_id, participants, seed)
-    document = fit(rehearsal, evaluations, progress=lambda message: click.echo(message, err=True))
+    document = fit(rehearsal, evaluations, start=read(start) if start is not None else None,
+                   progress=lambda message: click.echo(message, err=True))
     write(document, out)
     measured = ", ".join(f"{k} {v:.3g}" for k, v in document["measured_none"].items())
     emit(document, as_json, f"{out}: loss {document['loss']:.2f} after {document['evaluations']} evaluations "
                             f"({document['seconds']:.0f} s); none: {measured}")
+
+
+def _sizes(ctx, param, value: str) -> list[int]:
+    try:
+        sizes = sorted({int(v) for v in value.split(",") if v.strip()})
+    except ValueError:
+        raise click.BadParameter("expected numbers separated by commas, e.g. 10,20,40") from None
+    if not sizes or sizes[0] < 2:
+        raise click.BadParameter("each size must be at least 2")
+    return sizes
+
+
+@click.command("power")
+@click.option("--calibration", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The calibration file (from `study calibrate`); its plausible parameter sets give the range.")
+@click.option("--participants", "sizes", default="10,20,40,60", show_default=True, callback=_sizes,
+              help="Study sizes to compute the power at.")
+@click.option("--studies", default=100, show_default=True, type=click.IntRange(min=10),
+              help="Resampled studies per size.")
+@click.option("--pilot", default=20, show_default=True, type=click.IntRange(min=2),
+              help="Simulated participants per parameter set.")
+@click.option("--sets", default=3, show_default=True, type=click.IntRange(min=1),
+              help="Plausible parameter sets of the calibration to use (the best fit first).")
+@click.option("--study", "study_id", default=None, help="Study id (default: the first configured study).")
+@click.option("--seed", default=0, show_default=True)
+@click.option("--json", "as_json", is_flag=True)
+def power_cmd(calibration: Path, sizes: list[int], studies: int, pilot: int, sets: int, study_id: str | None,
+              seed: int, as_json: bool) -> None:
+    """Participants needed for 80% power on H1 (total time) and H2 (rotation time, full vs basic), from pilots of
+    the calibrated simulated participants, with the range over the calibration's plausible parameter sets."""
+    from .calibrate import read_plausible
+    from .power import study_power
+
+    app, study_id = _app(study_id)
+    humans = read_plausible(calibration, _study(app, study_id))[:sets]
+    result = study_power(study_id, humans, sizes, studies, pilot, seed,
+                         progress=lambda message: click.echo(message, err=True))
+    lines = [f"power at alpha = {result['alpha']} ({studies} studies per size, pilots of {pilot} simulated "
+             f"participants, {len(humans)} plausible parameter set(s): best fit [range])"]
+    for name, h in result["hypotheses"].items():
+        cells = ", ".join(f"N={n}: {v['best']:.2f} [{v['low']:.2f}, {v['high']:.2f}]" for n, v in h["power"].items())
+        need = h["needed"]
+        text = "more than tested" if need["best"] is None else str(need["best"])
+        rng = f"{need['low'] or '>' + str(sizes[-1])}–{need['high'] or '>' + str(sizes[-1])}"
+        lines.append(f"{name}: {cells}; participants for 80% power: {text} (range {rng})")
+    emit(result, as_json, "\n".join(lines))

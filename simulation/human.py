@@ -42,6 +42,8 @@ class Human:
                                                        "fitted")
     category_words: float = _p(0.5, "probability", 0.0, 1.0, "chance that a search uses the category's words "
                                                              "(else words of the model's name and tags); fitted")
+    generic_words: float = _p(0.3, "probability", 0.0, 1.0, "chance that a person types only the category's "
+                                                            "head noun first (lamp for a desk lamp); fitted")
     drag_error: float = _p(0.3, "fraction", 0.0, 2.0, "standard deviation of where a drag ends, as a fraction of "
                                                       "its distance (each miss is corrected by another drag); "
                                                       "fitted")

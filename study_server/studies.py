@@ -13,7 +13,7 @@ import threading
 from functools import cached_property
 from pathlib import Path
 
-from flask import abort, current_app
+from flask import abort, current_app, request, url_for
 
 from scenesuggest import engines, scene_json
 from scenesuggest.engines.protocol import LoadContext, SuggestionEngine
@@ -68,6 +68,20 @@ class StudyRuntime:
         #: size is computed from its bounding box and its URLs by routing (a sixth of a suggestion request's CPU).
         #: Bounded by the library: one entry per model.
         self.model_descriptions: dict[str, dict] = {}
+
+    def describe(self, m: ModelInfo) -> dict:
+        """What the API says of model ``m`` (size in metres, asset and thumbnail URLs), in a request context: a
+        new dict each call. Made once per model (:attr:`model_descriptions`, URLs below the mount point, which is
+        prefixed per request)."""
+        prefix = request.script_root
+        d = self.model_descriptions.get(m.id)
+        if d is None:
+            d = self.model_descriptions[m.id] = {
+                "id": m.id, "name": m.name, "category": m.category, "category_path": tuple(m.category_path),
+                "tags": tuple(m.tags), "size": tuple(m.size),
+                **{key: url_for("participant.asset", study_id=self.study.id, filename=name)[len(prefix):]
+                   for key, name in (("asset", m.asset), ("thumbnail", m.thumbnail))}}
+        return {**d, "asset": prefix + d["asset"], "thumbnail": prefix + d["thumbnail"]}
 
     def check_resources(self) -> None:
         """Fail at start-up, naming the key, when the priors file or the model library is missing or unreadable

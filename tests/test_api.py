@@ -168,8 +168,6 @@ def test_search_models_and_scenes(client, app):
 def test_a_models_description_is_made_once_and_follows_the_mount_point(client, app):
     """Descriptions come from the study's cache: what one caller changes in its copy is not in the next answer,
     and an app mounted below a path (SCRIPT_NAME) gets its URLs below it, whoever asked first."""
-    from study_server.blueprints.api import model_json
-
     b = to_trials(client)
     plain = client.get("/api/models", headers=auth(b)).json["models"]
     mounted = client.get("/api/models", headers=auth(b), environ_overrides={"SCRIPT_NAME": "/lab"}).json["models"]
@@ -178,9 +176,9 @@ def test_a_models_description_is_made_once_and_follows_the_mount_point(client, a
     rt = app.extensions["studies"]["demo"]
     model = rt.fixed_list[0]
     with app.test_request_context("/"):
-        first = model_json(rt, model)
+        first = rt.describe(model)
         first["asset"], first["name"] = "/elsewhere", "changed"
-        assert json.loads(json.dumps(model_json(rt, model))) == next(m for m in plain if m["id"] == model.id)
+        assert json.loads(json.dumps(rt.describe(model))) == next(m for m in plain if m["id"] == model.id)
     assert len(rt.model_descriptions) == len(plain)  # one per model, however many mount points asked
 
 

@@ -149,6 +149,15 @@ def test_cli_calibrate_then_simulate_with_it(tmp_path, demo_resources):
     sim = subprocess.run([*cli, "simulate", "--participants", "1", "--calibration", str(out), "--json"],
                          capture_output=True, text=True, env=env, cwd=ROOT)
     assert sim.returncode == 0 and json.loads(sim.stdout)["completed"] == 1, sim.stderr
+    power = subprocess.run([*cli, "power", "--calibration", str(out), "--participants", "4,6", "--studies", "10",
+                            "--pilot", "3", "--sets", "2", "--json"], capture_output=True, text=True, env=env, cwd=ROOT)
+    assert power.returncode == 0, power.stderr
+    result = json.loads(power.stdout)
+    assert result["parameter_sets"] == 2 and set(result["hypotheses"]) == {
+        "H1 total time (none, basic, full)", "H2 rotation time (full vs basic)"}
+    for h in result["hypotheses"].values():
+        assert set(h["power"]) == {"4", "6"} and all(0 <= v["low"] <= v["best"] <= v["high"] <= 1
+                                                      for v in h["power"].values())
     (tmp_path / "bad.json").write_text(json.dumps({**json.loads(out.read_text()), "parameters": {"overlook": 2}}))
     bad = subprocess.run([*cli, "simulate", "--participants", "1", "--calibration", str(tmp_path / "bad.json")],
                          capture_output=True, text=True, env=env, cwd=ROOT)

@@ -42,11 +42,20 @@ def test_the_server_never_imports_the_simulation():
 
 
 def test_the_simulation_drives_the_server_from_outside():
-    """Bots reach the server over HTTP or a test client; only the command builds an app, with the public factory."""
+    """Bots reach the server over HTTP or a test client and never read the analysis. Only the composition roots
+    build an app (with the public factory) or read a study's answers in process (the offline answers), and only
+    the ones that score simulated studies, as an analyst would, use the analysis: the calibration and the power
+    analysis."""
+    factory = {"study_server", "study_server.create_app", "study_server.upgrade_database"}
+    offline = {"study_server.offline", "study_server.offline.OfflineAnswers"}
+    roots = {"cli.py": factory | offline, "calibrate.py": offline, "power.py": factory}
+    readers = {"calibrate.py", "power.py"}
     for path in (ROOT / "simulation").rglob("*.py"):
-        server = {m for m in imports(path) if m.split(".")[0] in ("study_server", "analysis")}
-        allowed = {"study_server", "study_server.create_app", "study_server.upgrade_database"}
-        assert server <= (allowed if path.name == "cli.py" else set()), (path, server)
+        found = imports(path)
+        server = {m for m in found if m.split(".")[0] == "study_server"}
+        assert server <= roots.get(path.name, set()), (path, server)
+        if path.name not in readers:
+            assert not {m for m in found if m.split(".")[0] == "analysis"}, path
 
 
 def test_server_layers_point_down_only():

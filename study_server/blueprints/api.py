@@ -102,21 +102,6 @@ def body() -> dict:
     return data
 
 
-def model_json(rt, m) -> dict:
-    """What the API says of model ``m`` of study runtime ``rt`` (size in metres, asset and thumbnail URLs): a new
-    dict each call. Made once per model (:attr:`StudyRuntime.model_descriptions`, URLs below the mount point, which
-    is prefixed per request)."""
-    prefix = request.script_root
-    d = rt.model_descriptions.get(m.id)
-    if d is None:
-        d = rt.model_descriptions[m.id] = {
-            "id": m.id, "name": m.name, "category": m.category, "category_path": tuple(m.category_path),
-            "tags": tuple(m.tags), "size": tuple(m.size),
-            **{key: url_for("participant.asset", study_id=rt.study.id, filename=name)[len(prefix):]
-               for key, name in (("asset", m.asset), ("thumbnail", m.thumbnail))}}
-    return {**d, "asset": prefix + d["asset"], "thumbnail": prefix + d["thumbnail"]}
-
-
 def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
     if preview is not None:
         return {"index": 0, "kind": "preview", "condition": preview.condition, "scene": preview.scene}
@@ -231,7 +216,7 @@ def suggest():
     scene = live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
     try:
         items, found = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
-                                          data.get("normal"), lambda m: model_json(rt, m))
+                                          data.get("normal"), lambda m: rt.describe(m))
     except SceneSuggestError as e:
         raise RequestError(400, e.message, e.field) from None
     except EngineUnavailable as e:
@@ -281,7 +266,7 @@ def search():
     if participant is not None:
         db.session.commit()
     return jsonify({"list_id": list_id, "query": text,
-                    "hits": [dict(model_json(rt, rt.library[h.model_id]), rank=i + 1)
+                    "hits": [dict(rt.describe(rt.library[h.model_id]), rank=i + 1)
                              for i, h in enumerate(hits)]})
 
 
@@ -289,7 +274,7 @@ def search():
 def models():
     who = caller()
     rt = runtime(who.study_id)
-    return jsonify({"models": [model_json(rt, m) for m in rt.fixed_list]})
+    return jsonify({"models": [rt.describe(m) for m in rt.fixed_list]})
 
 
 @bp.get("/scenes/<scene_id>")
