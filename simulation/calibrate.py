@@ -56,9 +56,28 @@ PLAUSIBLE_DELTA, PLAUSIBLE_SETS = 4.0, 5
 SIMULATION_FILES = ("human.py", "actions.py", "timing.py", "participant.py")  # what the bots do
 
 
+def priors_content_sha256(path: Path) -> str | None:
+    """SHA-256 of what a priors file holds (its arrays, by name, and its metadata), leaving out the hash of the
+    engine code that trained it: a change to the engine's code that leaves the learned numbers as they were
+    (the priors file then differs in that hash only) keeps a calibration fresh."""
+    if not path.is_file():
+        return None
+    h = hashlib.sha256()
+    with np.load(path, allow_pickle=False) as arrays:
+        for name in sorted(arrays.files):
+            a = arrays[name]
+            if name == "meta":
+                meta = json.loads(a.tobytes())
+                meta.pop("code", None)
+                a = np.frombuffer(json.dumps(meta, sort_keys=True).encode(), dtype=np.uint8)
+            h.update(f"{name}:{a.dtype.str}:{a.shape};".encode())
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
 def fingerprint(study) -> dict:
-    """What a calibration depends on besides its parameters: the study, its priors and model library (SHA-256
-    of the files) and the simulation's code."""
+    """What a calibration depends on besides its parameters: the study, the content of its priors (the engine)
+    and its model library's index (SHA-256 of the file), and the simulation's code."""
     from scenesuggest.library import INDEX_FILE
 
     def sha256(path: Path) -> str | None:
@@ -66,7 +85,7 @@ def fingerprint(study) -> dict:
 
     here = Path(__file__).parent
     code = hashlib.sha256(b"".join((here / name).read_bytes() for name in SIMULATION_FILES)).hexdigest()
-    return {"study": study.id, "priors_sha256": sha256(study.priors),
+    return {"study": study.id, "priors_content_sha256": priors_content_sha256(study.priors),
             "library_sha256": sha256(study.library / INDEX_FILE), "simulation_sha256": code}
 
 
@@ -302,6 +321,6 @@ def stale_keys(document: dict, study) -> list[str]:
     """What the calibration ``document`` was fitted with that differs from ``study`` now: any of study, priors,
     library, simulation."""
     now, then = fingerprint(study), document.get("fingerprint") or {}
-    names = {"study": "study", "priors_sha256": "priors (engine file)", "library_sha256": "model library",
+    names = {"study": "study", "priors_content_sha256": "priors (the engine)", "library_sha256": "model library",
              "simulation_sha256": "simulation code"}
     return [label for key, label in names.items() if then.get(key) != now[key]]

@@ -109,6 +109,28 @@ def test_the_calibration_never_reads_the_other_conditions():
     assert not any("compare" in m or "experiments" in m or "analysis.report" in m for m in imported)
 
 
+def test_the_engine_in_a_fingerprint_is_what_its_priors_hold_not_the_code_hash(rehearsal, tmp_path):
+    """Priors retrained by changed engine code that learns the same numbers keep a calibration fresh; priors
+    that learned other numbers make it stale."""
+    from scenesuggest.npz import npz_bytes
+
+    with np.load(rehearsal.study.priors) as z:
+        arrays = {name: z[name] for name in z.files}
+    meta = json.loads(arrays["meta"].tobytes())
+
+    def saved(name, **changes):
+        path = tmp_path / name
+        path.write_bytes(npz_bytes({**arrays, **changes}))
+        return path
+
+    recoded = np.frombuffer(json.dumps({**meta, "code": "0" * 16}, sort_keys=True).encode(), dtype=np.uint8)
+    same = calibrate.priors_content_sha256(rehearsal.study.priors)
+    assert calibrate.priors_content_sha256(saved("recoded.npz", meta=recoded)) == same
+    name = next(n for n in arrays if n != "meta" and arrays[n].size and arrays[n].dtype.kind == "f")
+    assert calibrate.priors_content_sha256(saved("other.npz", **{name: arrays[name] + 1})) != same
+    assert calibrate.priors_content_sha256(tmp_path / "missing.npz") is None
+
+
 def test_a_fit_writes_a_file_that_simulate_reads_and_refuses_when_stale(rehearsal, tmp_path):
     document = fit(rehearsal, evaluations=3)
     assert document["evaluations"] == 3 and math.isfinite(document["loss"]) and document["seed"] == 0

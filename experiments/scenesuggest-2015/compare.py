@@ -280,7 +280,7 @@ def prediction_lines(rows: list[dict]) -> list[str]:
              "|---:|---|---|---|---:|---:|:---:|"]
     for r in rows:
         key = "rank1_share" if r["table"] == 2 else r["measure"]
-        label = LABELS.get(r["measure"], f"Rank {r['measure'].split('_')[1]} picks")
+        label = LABELS[r["measure"]] if r["table"] == 1 else f"Rank {r['measure'].split('_')[1]} picks"
         lines.append(f"| {r['table']} | {label} | {r['condition']} | {r['role']} | "
                      f"{_cell(key, r['paper'], r['paper_low'], r['paper_high'])} | "
                      f"{_cell(key, r['simulated'], r['simulated_low'], r['simulated_high'])} | "
