@@ -7,6 +7,7 @@ from .events import (
     FACES,
     MAX_LIST,
     MAX_SEQ,
+    MAX_STRINGS,
     MAX_TEXT,
     OBJECT_STATE,
     SCENE_CHANGES,
@@ -39,7 +40,7 @@ def _field_schema(spec: Field) -> dict:
              "int": {"type": "integer", "minimum": -MAX_SEQ, "maximum": MAX_SEQ},
              "num": {"type": "number"}, "bool": {"type": "boolean"},
              "vec3": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
-             "strs": {"type": "array", "items": {"type": "string", "maxLength": MAX_TEXT}, "maxItems": MAX_LIST},
+             "strs": {"type": "array", "items": {"type": "string", "maxLength": MAX_TEXT}, "maxItems": MAX_STRINGS},
              "enum": {"type": "string", "enum": list(spec.choices)}}
     schema = dict(kinds[spec.kind])
     if spec.minimum is not None:

@@ -20,6 +20,10 @@ from dataclasses import dataclass
 #: Largest accepted string, list and batch sizes (a participant's events are small).
 MAX_TEXT = 2000
 MAX_LIST = 500
+#: Strings in one list an event carries: a list shown may be a study's whole library in its fixed order (the
+#: Stanford database has about 1,580 models with meshes; a model id is about 40 characters, so a list this long
+#: is about 200 kB, within a batch's body limit).
+MAX_STRINGS = 5000
 MAX_BATCH = 500
 #: Largest seq (the column is a 32-bit integer on PostgreSQL).
 MAX_SEQ = 2**31 - 1
@@ -264,8 +268,8 @@ def _check_field(spec: Field, value) -> None:
     elif k == "states":
         _check_states(value)
     elif k == "strs":
-        if type(value) is not list or len(value) > MAX_LIST:
-            raise _Bad(f"expected a list of at most {MAX_LIST} strings")
+        if type(value) is not list or len(value) > MAX_STRINGS:
+            raise _Bad(f"expected a list of at most {MAX_STRINGS} strings")
         if not _plain_texts(value):  # only then look at each string, to say which one is wrong
             for i, v in enumerate(value):
                 try:

@@ -82,6 +82,22 @@ def test_strings_that_cannot_be_stored_and_seqs_that_overflow_get_a_422(app_on, 
     assert c.post("/api/events", data=emoji, headers={**auth(b), "Content-Type": "application/json"}).status_code == 200
 
 
+def test_a_whole_librarys_list_is_stored_and_a_longer_one_refused_naming_it(app_on):
+    """A fixed list of every model of a large library (the Stanford database's 1,580; ids of 40 characters) is one
+    event the server stores whole; a list over MAX_STRINGS is refused with its field."""
+    from scenesuggest.events import MAX_STRINGS
+
+    c = app_on.test_client()
+    b = to_trials(c)
+    library = [f"{i:040x}" for i in range(1580)]
+    assert post_events(c, b, [event(0, "list_shown", source="fixed", items=library)]).status_code == 200
+    with app_on.app_context():
+        assert db.session.query(Event).one().payload["items"] == library
+    r = post_events(c, b, [event(1, "list_shown", source="fixed", items=["m"] * (MAX_STRINGS + 1))])
+    assert r.status_code == 422 and r.json["field"] == "events[0].payload.items", r.json
+    assert f"at most {MAX_STRINGS} strings" in r.json["error"]
+
+
 def test_the_export_never_crashes_on_what_is_stored(app_on, tmp_path):
     c = app_on.test_client()
     b = to_trials(c)

@@ -8,6 +8,9 @@
 // events are sent again under the seqs the server hands out. An ended session (410) stops the outbox.
 
 const MAX_BATCH = 200;
+// A batch's events in JSON at most this many characters (the server takes bodies up to 1 MiB; one event may be a
+// whole library's fixed list, about 200 kB): a batch is cut short before it, always holding at least one event.
+const MAX_BATCH_CHARS = 256 * 1024;
 const MAX_BACKOFF_MS = 30000;
 /** What tells two events apart when their seqs change: a random id kept with the event in this browser (never
  * sent); entries stored by an older page without one fall back to their client time and type. */
@@ -133,7 +136,13 @@ export class Outbox {
       // one batch, one vocabulary: events an older page left behind are sent in the version they were logged in
       const version = state.pending.length ? versionOf(state.pending[0]) : this.vocabulary;
       const run = state.pending.findIndex((e) => versionOf(e) !== version);
-      const batch = state.pending.slice(0, Math.min(MAX_BATCH, run < 0 ? MAX_BATCH : run));
+      const batch = [];
+      let chars = 0;
+      for (const e of state.pending.slice(0, Math.min(MAX_BATCH, run < 0 ? MAX_BATCH : run))) {
+        chars += JSON.stringify(wire(e)).length;
+        if (batch.length && chars > MAX_BATCH_CHARS) break;
+        batch.push(e);
+      }
       if (!batch.length) { this.onStatus("saved"); return true; }
       let response;
       try {
