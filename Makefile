@@ -86,6 +86,7 @@ SCENESUGGEST_STANFORD_DIR ?= $(CURDIR)/../shared/data/stanford_scene_db
 replication: setup
 	SCENESUGGEST_STANFORD_DIR=$(SCENESUGGEST_STANFORD_DIR) $(BIN)/python $(REPLICATION)/prepare.py
 	rm -rf $(REPLICATION_RUN) && mkdir -p $(REPLICATION_RUN)
+	$(BIN)/python $(REPLICATION)/compare.py engines
 	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/calibrate.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
 		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study calibrate --if-stale \
 		-o $(REPLICATION)/calibration.json
@@ -97,6 +98,13 @@ replication: setup
 		--out $(REPLICATION_RUN)/export
 	rm -rf $(REPLICATION)/results/report
 	$(BIN)/scenesuggest analyze report --export $(REPLICATION_RUN)/export --out $(REPLICATION)/results/report
+	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-learned.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
+		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION_RUN)/study-learned.toml $(BIN)/scenesuggest study simulate --participants 20 \
+		--seed 0 --calibration $(REPLICATION)/calibration.json
+	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION_RUN)/study-learned.toml \
+		$(BIN)/scenesuggest study export --study scenesuggest-2015 --db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-learned.sqlite3 \
+		--out $(REPLICATION_RUN)/export-learned
+	$(BIN)/scenesuggest analyze report --export $(REPLICATION_RUN)/export-learned --out $(REPLICATION_RUN)/report-learned
 	$(BIN)/python $(REPLICATION)/compare.py
 
 # The replication study served for people (prepared first): http://127.0.0.1:5000/study/scenesuggest-2015/start?pid=…

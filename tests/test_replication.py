@@ -179,3 +179,26 @@ def test_simulated_participants_complete_the_replication(replication, tmp_path):
         done = db.session.query(Trial).filter(Trial.done_at.isnot(None)).all()
         assert len(done) == 30 and {t.replay for t in done} == {"match"}
         assert min(t.score for t in done) > 0.8, sorted(t.score for t in done)
+
+
+def test_the_learned_engine_variant_changes_the_suggestion_conditions_only(replication, tmp_path):
+    """The study ``make replication`` runs again with the learned engine: the same study (id, scenes, design,
+    resources) with ``basic`` and ``full`` served by the learned engine, written anywhere."""
+    import tomllib
+
+    compare = replication_module("compare")
+    learned = tmp_path / "learned.npz"
+    variant = tomllib.loads(compare.learned_variant(replication, learned))
+    original = tomllib.loads(replication.read_text())
+    engines = {c["id"]: c.get("engine") for c in variant["conditions"]}
+    assert engines == {"none": None, "basic": {"name": "learned", "file": str(learned)},
+                       "full": {"name": "learned", "file": str(learned)}}
+    assert variant["id"] == original["id"] and variant["design"] == original["design"]
+    for key in ("priors", "library"):
+        assert variant["resources"][key] == str((replication.parent / original["resources"][key]).resolve())
+    assert [s["target"] for s in variant["scenes"]] == [
+        str((replication.parent / s["target"]).resolve()) for s in original["scenes"]]
+    with pytest.raises(SystemExit, match="basic and full"):
+        bad = tmp_path / "study.toml"
+        bad.write_text(replication.read_text().replace('id = "full"', 'id = "oriented"'))
+        compare.learned_variant(bad, learned)

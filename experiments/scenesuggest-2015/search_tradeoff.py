@@ -1,0 +1,47 @@
+"""Why the calibrated bots search less than the paper's participants in `none`: keyword queries, MRR and rank
+shares of the replication's `none` trials as the share of objects searched for first (``search_first``) and the
+list patience (items scanned before giving up on the list) move away from the calibrated values, everything else
+as calibrated. One JSON line per setting, with the loss against the paper's `none` row (without the prior).
+
+Run after ``make replication`` (it needs the prepared study and ``calibration.json``)::
+
+    DATABASE_URL=sqlite:////tmp/tradeoff.sqlite3 SCENESUGGEST_INSTANCE=var/experiments/scenesuggest-2015/run/instance \\
+    SCENESUGGEST_STUDIES=$PWD/experiments/scenesuggest-2015/study.toml \\
+    .venv/bin/python experiments/scenesuggest-2015/search_tradeoff.py
+
+About a minute: each setting rehearses the `none` trials of 40 bots (seed 0), as the calibration does.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parents[1]))
+
+from simulation.calibrate import Rehearsal, loss, measure, read  # noqa: E402
+from study_server import create_app, upgrade_database  # noqa: E402
+
+#: (search_first, list_patience) settings; None keeps the calibrated value.
+SETTINGS = [(None, None), (0.5, None), (0.75, None), (0.95, None), (None, 40.0), (None, 15.0), (0.95, 15.0)]
+
+
+def main() -> int:
+    app = create_app()
+    upgrade_database(app)
+    rehearsal = Rehearsal(app, "scenesuggest-2015", participants=40, seed=0)
+    calibrated = read(HERE / "calibration.json", rehearsal.study)
+    for search_first, patience in SETTINGS:
+        changes = {k: v for k, v in (("search_first", search_first), ("list_patience", patience)) if v is not None}
+        human = calibrated.with_values(changes)
+        measured = measure(rehearsal.events(human))
+        print(json.dumps({"search_first": round(human.search_first, 3), "list_patience": round(human.list_patience, 1),
+                          "loss": round(loss(measured), 2), **{k: round(v, 3) for k, v in measured.items()}}),
+              flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
