@@ -52,6 +52,8 @@ def test_a_person_completes_the_replication(page, replication_server):
               const r = p.getBoundingClientRect();
               return t.scrollWidth <= t.clientWidth + 1 && r.left >= 0 && r.right <= innerWidth
                 && r.bottom <= innerHeight; }""")
+            labels = page.locator(".suggestions .tile[data-category] > span").all_inner_texts()
+            assert labels and not [t for t in labels if any(a.islower() and b.isupper() for a, b in zip(t, t[1:]))]
         if cond not in shot and hook(page, "trial") >= 0:
             page.evaluate("() => window.sceneSuggestTest.loaded()")
             screenshot(page, f"replication-{cond}")

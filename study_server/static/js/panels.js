@@ -18,6 +18,14 @@ function tile(model, label, onPick, extra = {}) {
     [img, el("span", { text: label })]);
 }
 
+/** A category's name as words: "ChestOfDrawers" → "Chest of drawers", "4Shelves" → "4 shelves"; acronyms
+ * ("TV", "PS3", "DSLR camera") and names already in words stay as they are. */
+export function categoryLabel(category) {
+  const words = category.replace(/([a-z])([A-Z])/g, "$1 $2").replace(/([0-9A-Z])([A-Z][a-z])/g, "$1 $2")
+    .split(" ");
+  return words.map((w, i) => (i > 0 && /^[A-Z][a-z]+$/.test(w) ? w.toLowerCase() : w)).join(" ");
+}
+
 /** Debounced keyword search against the study's library; ``show`` receives the hits. */
 function searchBox(placeholder, api, onResults, log) {
   const input = el("input", { type: "search", placeholder, "aria-label": placeholder, autocomplete: "off" });
@@ -109,8 +117,9 @@ export class SuggestionPanel {
     const items = this.response.suggestions;
     this.body.replaceChildren(...items.map((s, i) => {
       const group = el("div", { class: "category", role: "listitem" });
-      const main = tile(s.models[0], s.category, () => this.onPick(s, s.models[0], { source: "context", rank: i + 1,
-        listId: this.response.list_id }), { "data-category": s.category, "data-rank": String(i + 1) });
+      const main = tile(s.models[0], categoryLabel(s.category), () => this.onPick(s, s.models[0], {
+        source: "context", rank: i + 1, listId: this.response.list_id }),
+      { "data-category": s.category, "data-rank": String(i + 1) });
       group.append(main);
       if (s.models.length > 1) {
         const more = el("button", { type: "button", class: "more", text: `+${s.models.length - 1}`, title: this.strings.more,
