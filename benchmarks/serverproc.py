@@ -232,11 +232,19 @@ class ThrowawayPostgres:
             time.sleep(0.1)
         return self
 
-    def create(self, name: str) -> str:
-        """A new empty database; returns its URL."""
-        subprocess.run([*self.run, f"{self.bindir}/createdb", "-h", "127.0.0.1", "-p", str(self.port), "-U",
-                        "postgres", name], check=True, capture_output=True)
-        return self.url.rsplit("/", 1)[0] + "/" + name
+    def create(self, name: str, owner: str | None = None) -> str:
+        """A new empty database; returns its URL. With ``owner``, that login role (made if missing, not a
+        superuser) owns it and the URL signs in as it, as an app's role does in production."""
+        where = ["-h", "127.0.0.1", "-p", str(self.port), "-U", "postgres"]
+        if owner:
+            subprocess.run([*self.run, f"{self.bindir}/psql", *where, "-q", "-c",
+                            f"DO $$ BEGIN IF NOT EXISTS (SELECT FROM pg_roles WHERE rolname = '{owner}') THEN "
+                            f"CREATE ROLE {owner} LOGIN NOSUPERUSER; END IF; END $$"], check=True,
+                           capture_output=True)
+        subprocess.run([*self.run, f"{self.bindir}/createdb", *where, *(["-O", owner] if owner else []), name],
+                       check=True, capture_output=True)
+        base = self.url.rsplit("/", 1)[0] + "/" + name
+        return base.replace("//postgres@", f"//{owner}@") if owner else base
 
     def stop(self) -> None:
         import shutil

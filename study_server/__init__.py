@@ -86,7 +86,9 @@ def create_app(config: dict | None = None) -> Flask:
     from .boot import api_base
     from .importmap import IMPORT_MAP
     from .security import CookieSessions, csrf_token, security_headers
+    from .urls import RowNumber
 
+    app.url_map.converters["row"] = RowNumber
     app.register_blueprint(vendor.bp)
     app.register_blueprint(participant.bp)
     app.register_blueprint(api.bp)

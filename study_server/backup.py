@@ -1,10 +1,16 @@
 """Backups that restore: ``scenesuggest study backup`` and ``study restore``.
 
 SQLite is copied with its online backup API (one read transaction: a consistent snapshot while participants
-keep writing); PostgreSQL with ``pg_dump`` in its custom format (a snapshot too), restored by ``pg_restore`` in one
-transaction. A backup is written beside its name and linked into place, so it never replaces a file; a restore
-goes only into an empty database (no tables), so it never mixes two studies' data. Both say what they hold: the
-schema revision and the number of participants and events.
+keep writing); PostgreSQL with ``pg_dump`` in its custom format (a snapshot too). Either goes into one file with a
+manifest of what made it and the payload's SHA-256 (``backup_archive``). A backup is written beside its name and
+linked into place, so it never replaces a file.
+
+A restore goes only into an empty database (no tables), so it never mixes two studies' data, and only restores
+what ``study backup`` wrote and our migrations define: the digest must match; the schema the backup brings is
+compared with the one the migrations build at its revision, and anything else (a trigger, a view, a function, a
+changed table) is refused by name (``backup_schema``). PostgreSQL is restored as the app's role, never a
+superuser; its schema is built by our migrations and the archive gives only rows. Sign-ins (login attempts,
+admin sessions) are not carried across.
 """
 
 from __future__ import annotations
@@ -14,22 +20,32 @@ import os
 import shutil
 import sqlite3
 import subprocess
+import tempfile
 from pathlib import Path
 
-from sqlalchemy import create_engine, inspect, text
+from sqlalchemy import MetaData, create_engine, inspect, text
 from sqlalchemy.engine import URL, make_url
 from sqlalchemy.exc import SQLAlchemyError
 
-from scenesuggest.errors import SceneSuggestError
+import scenesuggest
 
-SQLITE_MAGIC = b"SQLite format 3\x00"
-PG_MAGIC = b"PGDMP"
+from .backup_archive import PAYLOAD, BackupError, extract_payload, read_manifest, write_archive
+from .backup_schema import (
+    SIGN_INS,
+    check_sqlite_head,
+    known_revisions,
+    migrate_to,
+    pg_refusals,
+    pg_schema,
+    pg_toc,
+    sqlite_differences,
+    sqlite_objects,
+)
+
+__all__ = ["BackupError", "backup", "restore"]
+
 #: The tables every database of this app has: a backup without them is not one of ours.
 OURS = ("alembic_version", "participants", "events", "trials")
-
-
-class BackupError(SceneSuggestError):
-    pass
 
 
 def _kind(url: str) -> str:
@@ -143,80 +159,194 @@ def _pg_dump(url: str, tmp: Path) -> dict:
         engine.dispose()
 
 
+def _dump(url: str, kind: str, into: Path) -> dict:
+    """Copy the database at ``url`` into the private file ``into`` (SQLite's file, or pg_dump's archive);
+    returns the revision and counts of the copy."""
+    if kind == "postgresql":
+        return _pg_dump(url, into)
+    source = sqlite3.connect(f"{_sqlite_path(url).resolve().as_uri()}?mode=ro", uri=True, timeout=30)
+    target = sqlite3.connect(into)
+    try:
+        source.backup(target)  # one read transaction: a snapshot of committed data
+        target.execute("PRAGMA journal_mode=DELETE")  # one self-contained file, whatever the server used
+    finally:
+        target.close()
+        source.close()
+    return _summary(f"sqlite:///{into}")
+
+
 def backup(url: str, out: str | Path) -> dict:
-    """Back up the database at ``url`` into the new file ``out``; returns what it holds (kind, revision,
-    participants, events, bytes)."""
+    """Back up the database at ``url`` into the new file ``out``; returns its manifest (kind, revision,
+    participants, events, app version, the database's bytes and SHA-256) and the file's ``bytes``."""
     out = Path(out)
     kind = _kind(url)
     if kind == "sqlite" and not _sqlite_path(url).is_file():
         raise BackupError("no such database file", field="--db")
     tmp = _claim(out)
-    summary = None
+    payload = tmp.with_name(tmp.name + "." + PAYLOAD[kind].rsplit(".", 1)[1])
     try:
-        if kind == "sqlite":
-            source = sqlite3.connect(f"{_sqlite_path(url).resolve().as_uri()}?mode=ro", uri=True, timeout=30)
-            target = sqlite3.connect(tmp)
-            try:
-                source.backup(target)  # one read transaction: a snapshot of committed data
-                target.execute("PRAGMA journal_mode=DELETE")  # one self-contained file, whatever the server used
-            finally:
-                target.close()
-                source.close()
-            summary = _summary(f"sqlite:///{tmp}")
-        else:
-            summary = _pg_dump(url, tmp)
+        _private_file(payload)
+        summary = _dump(url, kind, payload)
+        manifest = write_archive(payload, {"kind": kind, **summary, "app_version": scenesuggest.__version__,
+                                           "created": _now()}, tmp)
         os.link(tmp, out)  # fails rather than replace a file made meanwhile
     except FileExistsError:
         raise BackupError("exists: a backup never replaces a file (choose another name)", file=str(out)) from None
     finally:
         tmp.unlink(missing_ok=True)
-    return {"kind": kind, **summary, "bytes": out.stat().st_size}
+        payload.unlink(missing_ok=True)
+    return {**manifest, "file_bytes": out.stat().st_size}
+
+
+def _now() -> str:
+    from datetime import UTC, datetime
+
+    return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def restore(source: str | Path, url: str) -> dict:
     """Restore the backup ``source`` into the empty database at ``url``; returns what it holds and the result
-    of the database's integrity check."""
+    of the database's integrity check. Refuses, before anything is kept, a file ``study backup`` did not write
+    whole, and a database holding anything our migrations do not create."""
     source = Path(source)
-    try:
-        with source.open("rb") as f:
-            head = f.read(16)
-    except OSError as e:
-        raise BackupError(f"cannot read: {e.strerror}", file=str(source)) from None
-    made_by = "sqlite" if head == SQLITE_MAGIC else "postgresql" if head.startswith(PG_MAGIC) else None
-    if made_by is None:
-        raise BackupError("not a backup (neither a SQLite database nor a pg_dump archive)", file=str(source))
+    manifest = read_manifest(source)
     kind = _kind(url)
-    if made_by != kind:
-        raise BackupError(f"a {made_by} backup restores into {made_by}, not into this {kind} database",
+    if manifest["kind"] != kind:
+        raise BackupError(f"a {manifest['kind']} backup restores into {manifest['kind']}, not into this {kind} "
+                          "database", field="--db")
+    if manifest["revision"] not in known_revisions():
+        raise BackupError(f"made at schema revision {manifest['revision']!r}, which this version of the app does "
+                          f"not know (it was made by {manifest['app_version']}): restore with that version",
+                          file=str(source))
+    done = _restore_sqlite(source, url) if kind == "sqlite" else _restore_pg(source, url)
+    for key in ("revision", "participants", "events"):
+        if done[key] != manifest[key]:
+            raise BackupError(f"the restored database holds {key} {done[key]!r}, its manifest says "
+                              f"{manifest[key]!r}: the backup is not what it claims", file=str(source))
+    return {"kind": kind, **done, "sha256": manifest["sha256"], "app_version": manifest["app_version"]}
+
+
+def _restore_sqlite(source: Path, url: str) -> dict:
+    path = _sqlite_path(url)
+    if path.exists() and path.stat().st_size and _tables(url):
+        raise BackupError("the database is not empty: restore into a new one (a restore never mixes data)",
                           field="--db")
-    if kind == "sqlite":
-        path = _sqlite_path(url)
-        if path.exists() and path.stat().st_size and _tables(url):
-            raise BackupError("the database is not empty: restore into a new one (a restore never mixes data)",
-                              field="--db")
-        _summary(f"sqlite:///{source}")  # one of ours, before anything is written
-        if not path.exists():
-            path.parent.mkdir(parents=True, exist_ok=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=path.parent, prefix=".restore-") as scratch:
+        copy, reference = Path(scratch) / "backup.sqlite3", Path(scratch) / "reference.sqlite3"
+        _private_file(copy)
+        manifest = extract_payload(source, copy, check_head=check_sqlite_head)
+        try:
+            check = sqlite3.connect(f"{copy.as_uri()}?mode=ro", uri=True).execute("PRAGMA integrity_check")
+            verdict = check.fetchone()[0]
+            check.connection.close()
+        except sqlite3.DatabaseError as e:
+            raise BackupError(f"the backup's database cannot be read ({e})", file=str(source)) from None
+        if verdict != "ok":
+            raise BackupError(f"the backup's database fails SQLite's integrity check ({verdict})", file=str(source))
+        migrate_to(f"sqlite:///{reference}", manifest["revision"])
+        differences = sqlite_differences(sqlite_objects(copy), sqlite_objects(reference))
+        if differences:
+            raise BackupError("holds what the migrations do not create, so nothing was restored: "
+                              + "; ".join(differences), file=str(source))
+        created = not path.exists()
+        if created:
             _private_file(path)
-        backup_db = sqlite3.connect(f"{source.resolve().as_uri()}?mode=ro", uri=True)
+        path.chmod(0o600)
+        backup_db = sqlite3.connect(f"{copy.as_uri()}?mode=ro", uri=True)
         target = sqlite3.connect(path)
         try:
             backup_db.backup(target)
+            with target:
+                present = {name for (name,) in target.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+                for table in present.intersection(SIGN_INS):
+                    target.execute(f"DELETE FROM {table}")  # noqa: S608 - our own table names
             check = target.execute("PRAGMA integrity_check").fetchone()[0]
         finally:
             target.close()
             backup_db.close()
-        if check != "ok":
-            path.unlink()
-            raise BackupError(f"the restored database fails SQLite's integrity check ({check}); nothing was kept",
-                              file=str(source))
-    else:
-        if _tables(url):
-            raise BackupError("the database is not empty: restore into a new one (a restore never mixes data)",
-                              field="--db")
-        uri, env = _libpq(url)
-        _run([_pg_tool("pg_restore"), "--no-owner", "--no-privileges", "--no-password", "--exit-on-error",
-              "--single-transaction",
-              f"--dbname={uri}", str(source)], env, "pg_restore")
-        check = "ok"  # pg_restore checked every statement in one transaction
-    return {"kind": kind, **_summary(url), "integrity": check}
+    if check != "ok":
+        path.unlink()
+        raise BackupError(f"the restored database fails SQLite's integrity check ({check}); nothing was kept",
+                          file=str(source))
+    return {**_summary(url), "integrity": check}
+
+
+def _superuser(url: str) -> bool:
+    engine = create_engine(url)
+    try:
+        with engine.connect() as con:
+            return bool(con.execute(text("SELECT rolsuper FROM pg_roles WHERE rolname = current_user")).scalar())
+    except SQLAlchemyError as e:
+        raise BackupError(f"cannot open the database ({type(e).__name__}: {str(e).splitlines()[0]})",
+                          field="--db") from None
+    finally:
+        engine.dispose()
+
+
+def _drop_everything(url: str) -> None:
+    """Undo a refused restore: drop every table of ours (the database had none before it)."""
+    engine = create_engine(url)
+    try:
+        with engine.begin() as con:
+            metadata = MetaData()
+            metadata.reflect(con)
+            metadata.drop_all(con)
+    finally:
+        engine.dispose()
+
+
+def _restore_pg(source: Path, url: str) -> dict:
+    if _superuser(url):
+        raise BackupError("refusing to restore as a superuser: a dump is code, and a superuser runs whatever it "
+                          "holds as the server's operating-system user; restore as the app's role (the owner of "
+                          "the new database, e.g. DATABASE_URL=postgresql+psycopg://scenesuggest@…/restored)",
+                          field="--db")
+    if _tables(url):
+        raise BackupError("the database is not empty: restore into a new one (a restore never mixes data)",
+                          field="--db")
+    tool = _pg_tool("pg_restore")
+    uri, env = _libpq(url)
+    with tempfile.TemporaryDirectory(prefix="scenesuggest-restore-") as scratch:
+        archive = Path(scratch) / "backup.pgdump"
+        _private_file(archive)
+        manifest = extract_payload(source, archive)
+        entries = pg_toc(tool, archive)
+        refused = pg_refusals(entries, None)  # what no migration makes, before anything is written
+        if refused:
+            raise BackupError("holds what the migrations do not create, so nothing was restored: "
+                              + "; ".join(refused), file=str(source))
+        try:
+            migrate_to(url, manifest["revision"])  # the schema is ours; the archive gives only rows
+            reference = Path(scratch) / "reference.pgdump"
+            _run([_pg_tool("pg_dump"), "--format=custom", "--schema-only", "--no-owner", "--no-password",
+                  f"--file={reference}", f"--dbname={uri}"], env, "pg_dump")
+            refused = pg_refusals(entries, pg_schema(pg_toc(tool, reference)))
+            if refused:
+                raise BackupError("holds what the migrations do not create, so nothing was restored: "
+                                  + "; ".join(refused), file=str(source))
+            order = {t: i for i, t in enumerate(_table_order(url))}
+            rows = sorted(((order.get(name, len(order)), line) for line, kind, _s, name in entries
+                           if kind == "TABLE DATA" and name in order and name not in (*SIGN_INS, "alembic_version")
+                           or kind == "SEQUENCE SET"), key=lambda r: r[0])
+            chosen = Path(scratch) / "rows.list"
+            chosen.write_text("".join(line + "\n" for _o, line in rows))
+            _run([tool, "--data-only", "--no-owner", "--no-privileges", "--no-password", "--exit-on-error",
+                  "--single-transaction", f"--use-list={chosen}", f"--dbname={uri}", str(archive)], env,
+                 "pg_restore")
+        except BaseException:
+            _drop_everything(url)
+            raise
+    return {**_summary(url), "integrity": "ok"}  # pg_restore checked every row in one transaction
+
+
+def _table_order(url: str) -> list[str]:
+    """Our tables, each after the tables its foreign keys name (the order rows are restored in)."""
+    engine = create_engine(url)
+    try:
+        with engine.connect() as con:
+            metadata = MetaData()
+            metadata.reflect(con)
+            return [t.name for t in metadata.sorted_tables]
+    finally:
+        engine.dispose()

@@ -180,7 +180,8 @@ def study_backup_cmd(out: str, database_url: str | None, as_json: bool) -> None:
 
     done = backup(_database_url(database_url), out)
     emit(done, as_json, f"backed up {done['participants']} participants and {done['events']} events "
-                        f"(schema {done['revision']}, {done['kind']}) to {out}: {done['bytes']} bytes")
+                        f"(schema {done['revision']}, {done['kind']}) to {out}: {done['file_bytes']} bytes, its "
+                        f"database's SHA-256 {done['sha256'][:16]}…")
 
 
 @study.command("restore")
@@ -188,13 +189,38 @@ def study_backup_cmd(out: str, database_url: str | None, as_json: bool) -> None:
 @click.option("--db", "database_url", default=None, help="Database URL (default: DATABASE_URL or the instance DB).")
 @click.option("--json", "as_json", is_flag=True)
 def study_restore_cmd(file: str, database_url: str | None, as_json: bool) -> None:
-    """Restore a backup into an empty database (one with no tables; anything else is refused)."""
+    """Restore a backup 'study backup' wrote into an empty database (one with no tables), as the app's role.
+    Refused, naming why: a file whose digest does not match, and one holding what the migrations do not create
+    (triggers, views, functions, changed tables). Sign-ins are not carried across."""
     from .backup import restore
 
     done = restore(file, _database_url(database_url))
     emit(done, as_json, f"restored {done['participants']} participants and {done['events']} events (schema "
                         f"{done['revision']}; integrity {done['integrity']}); run 'scenesuggest study migrate' if "
                         "the server's code is newer than the backup")
+
+
+@study.command("admin-link")
+@click.option("--minutes", default=15, show_default=True, type=click.IntRange(1, 24 * 60),
+              help="How long the link works (it works once).")
+@click.option("--base", default="http://127.0.0.1:5000", show_default=True,
+              help="The server's public address, e.g. https://study.example.org.")
+@click.option("--json", "as_json", is_flag=True)
+def study_admin_link_cmd(minutes: int, base: str, as_json: bool) -> None:
+    """Print a one-time admin sign-in link: the operator's way in that failed logins cannot close (run it where
+    the server's database is: DATABASE_URL or the instance folder)."""
+    from datetime import timedelta
+
+    from .security import new_admin_link
+
+    if not base.startswith(("http://", "https://")) or any(c.isspace() for c in base):
+        raise SceneSuggestError("expected the server's address, like https://study.example.org", field="--base")
+    app = create_app({"CHECK_RESOURCES": False, "WARM_STUDIES": False})
+    with app.app_context():
+        secret = new_admin_link(timedelta(minutes=minutes))
+    url = f"{base.rstrip('/')}/admin/link/{secret}"
+    emit({"url": url, "minutes": minutes}, as_json,
+         f"{url}\nworks once, for {minutes} minutes: open it in the browser you administer from")
 
 
 @study.command("deploy-files")

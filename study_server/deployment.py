@@ -25,6 +25,22 @@ class DeployError(SceneSuggestError):
     pass
 
 
+#: The one rule for a path written into nginx's site, systemd's unit or the environment file: absolute, and only
+#: characters none of them (nor a shell sourcing the environment file) reads as syntax: no whitespace, quotes,
+#: ';', '{', '#', '$', '%', '\\' or control characters.
+SAFE_PATH = re.compile(r"/[A-Za-z0-9._@+,=/-]*")
+#: A system user name (useradd's pattern); root is refused: the app servers never run as root.
+USER_NAME = re.compile(r"[a-z_][a-z0-9_-]{0,31}")
+MAX_WORKERS = 64
+
+
+def safe_path(value: str, field: str) -> str:
+    if not SAFE_PATH.fullmatch(value) or "/../" in value + "/":
+        raise DeployError(f"expected an absolute path of letters, digits and ._@+,=/- only (no spaces, quotes or "
+                          f"control characters), got {value!r}", field=field)
+    return value
+
+
 @dataclass
 class Deployment:
     """Where things are. Ports and addresses: nginx listens on ``http_port`` and ``https_port`` (of ``address``,
@@ -45,8 +61,29 @@ class Deployment:
     workers: int = 2
 
     def check(self) -> None:
+        """Refuse, naming it, any value that would change the meaning of a file it lands in."""
+        import ipaddress
+
         if not re.fullmatch(r"[A-Za-z0-9.-]+", self.server_name):
             raise DeployError("expected a host name (letters, digits, '.' and '-')", field="--server-name")
+        if not USER_NAME.fullmatch(self.user) or self.user == "root":
+            raise DeployError("expected a system user name (lower-case letters, digits, '_' and '-'), not root: "
+                              "the app servers run unprivileged", field="--user")
+        if not 1 <= self.workers <= MAX_WORKERS:
+            raise DeployError(f"expected 1 to {MAX_WORKERS} workers per app server", field="--workers")
+        if self.address:
+            try:
+                ipaddress.ip_address(self.address)
+            except ValueError:
+                raise DeployError("expected an IP address to listen on", field="address") from None
+        for value, name in ((self.cert, "--cert"), (self.key, "--key"), (self.nginx_dir, "nginx_dir"),
+                            (self.cache, "cache"), (self.acme_root, "acme_root"), (self.env_file, "env_file"),
+                            (sys.executable, "the Python running this"), (str(config.data_home()),
+                                                                          "SCENESUGGEST_HOME")):
+            if value is not None:
+                safe_path(value, name)
+        for study in config.study_files():
+            safe_path(str(study.resolve()), "SCENESUGGEST_STUDIES")
         ports = [self.http_port, self.https_port, *self.app_ports]
         if not self.app_ports or any(not 0 < p < 65536 for p in ports) or len(set(ports)) != len(ports):
             raise DeployError("expected distinct ports from 1 to 65535, one or more for app servers", field="--app")

@@ -174,6 +174,17 @@ class AdminSession(db.Model):
     last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
 
 
+class AdminLink(db.Model):
+    """A one-time admin sign-in link printed by ``scenesuggest study admin-link``: its id is the SHA-256 of the
+    link's secret; it works once, before ``expires_at``, whatever failed logins have done meanwhile."""
+
+    __tablename__ = "admin_links"
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    expires_at: Mapped[datetime] = mapped_column(DateTime)
+    used_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+
+
 def log(kind: str, participant: Participant | None = None, study_id: str | None = None, **detail) -> None:
     """Add a session-log row to the current transaction."""
     db.session.add(SessionLog(participant_id=participant.id if participant else None,
@@ -190,5 +201,5 @@ def flag(participant: Participant, reason: str) -> None:
     log("flagged", participant, reason=reason)
 
 
-__all__ = ["AdminSession", "Event", "LoginAttempt", "Participant", "SessionLog", "ShownList", "StudyRecord",
-           "SurveyResponse", "Trial", "flag", "log", "utcnow"]
+__all__ = ["AdminLink", "AdminSession", "Event", "LoginAttempt", "Participant", "SessionLog", "ShownList",
+           "StudyRecord", "SurveyResponse", "Trial", "flag", "log", "utcnow"]

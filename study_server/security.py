@@ -13,12 +13,12 @@ from functools import wraps
 from flask import abort, current_app, redirect, request, session, url_for
 from flask.sessions import NullSession, SecureCookieSessionInterface
 from itsdangerous import BadSignature, URLSafeTimedSerializer
-from sqlalchemy import delete, func, or_, select
+from sqlalchemy import delete, func, or_, select, update
 from werkzeug.security import check_password_hash
 
 from .extensions import db
 from .importmap import IMPORT_MAP_HASH
-from .models import AdminSession, LoginAttempt, utcnow
+from .models import AdminLink, AdminSession, LoginAttempt, utcnow
 
 #: Failed admin logins allowed per client (device or address) within the window before answering 429.
 LOGIN_LIMIT = 5
@@ -31,6 +31,9 @@ ADMIN_IDLE = timedelta(hours=1)
 DEVICE_COOKIE = "scenesuggest_admin_device"
 DEVICE_SALT = "scenesuggest-admin-device"
 DEVICE_LIFETIME = timedelta(days=365)
+#: How long a printed one-time sign-in link works (``scenesuggest study admin-link``), by default and at most.
+ADMIN_LINK_LIFETIME = timedelta(minutes=15)
+ADMIN_LINK_LONGEST = timedelta(hours=24)
 
 
 def csrf_token() -> str:
@@ -140,6 +143,12 @@ def attempt_login(password: str) -> str | None:
     if not ok:
         db.session.commit()
         return None
+    return _start_admin_session(key)
+
+
+def _start_admin_session(key: str) -> str:
+    """Sign this browser in: a fresh admin session (a new session id: no fixation); returns the value of its
+    device cookie."""
     sid = secrets.token_urlsafe(32)
     db.session.add(AdminSession(id=_digest(sid), created_at=utcnow(), last_seen_at=utcnow()))
     db.session.commit()
@@ -149,6 +158,36 @@ def attempt_login(password: str) -> str | None:
     session.permanent = False
     device = key.removeprefix("device:") if key.startswith("device:") else secrets.token_urlsafe(16)
     return _signer(DEVICE_SALT).dumps(device)
+
+
+def new_admin_link(lifetime: timedelta = ADMIN_LINK_LIFETIME) -> str:
+    """A new one-time sign-in secret, working for ``lifetime`` (the database keeps only its digest); links that
+    have expired are forgotten."""
+    if not timedelta(0) < lifetime <= ADMIN_LINK_LONGEST:
+        raise ValueError(f"a sign-in link works for up to {ADMIN_LINK_LONGEST}")
+    secret = secrets.token_urlsafe(32)
+    now = utcnow()
+    db.session.execute(delete(AdminLink).where(AdminLink.expires_at < now))
+    db.session.add(AdminLink(id=_digest(secret), created_at=now, expires_at=now + lifetime))
+    db.session.commit()
+    return secret
+
+
+def admin_link_live(secret: str) -> bool:
+    row = db.session.get(AdminLink, _digest(secret))
+    return row is not None and row.used_at is None and row.expires_at > utcnow()
+
+
+def use_admin_link(secret: str) -> str | None:
+    """Sign in with a one-time link: only once (one UPDATE claims it, so two browsers racing get one session)
+    and before it expires, whatever failed logins have done. Returns a device cookie value, or None."""
+    now = utcnow()
+    claimed = db.session.execute(update(AdminLink).where(
+        AdminLink.id == _digest(secret), AdminLink.used_at.is_(None), AdminLink.expires_at > now).values(used_at=now))
+    db.session.commit()
+    if claimed.rowcount != 1:
+        return None
+    return _start_admin_session(_client_key())
 
 
 def _digest(sid: str) -> str:

@@ -20,7 +20,7 @@ def fresh_database(request, backend_url, tmp_path):
     """A second empty database beside ``backend_url``, on the same kind of server."""
     if backend_url.startswith("sqlite"):
         return f"sqlite:///{tmp_path / 'restored.sqlite3'}"
-    return request.getfixturevalue("postgres_server").create("restored")
+    return request.getfixturevalue("postgres_server").create("restored", owner="app")
 
 
 def stored_events(url):
@@ -77,11 +77,11 @@ def test_restore_refuses_what_it_cannot_restore_and_names_it(tmp_path, demo_reso
     (tmp_path / "notes.txt").write_text("not a backup")
     with pytest.raises(BackupError, match="not a backup"):
         restore(tmp_path / "notes.txt", f"sqlite:///{tmp_path / 'a.sqlite3'}")
-    taken = backup(url, tmp_path / "b.sqlite3")
+    taken = backup(url, tmp_path / "b.backup")
     assert taken["kind"] == "sqlite" and taken["participants"] == 0
-    assert (tmp_path / "b.sqlite3").stat().st_mode & 0o077 == 0  # private, as the database is
+    assert (tmp_path / "b.backup").stat().st_mode & 0o077 == 0  # private, as the database is
     with pytest.raises(BackupError) as info:
-        restore(tmp_path / "b.sqlite3", "postgresql+psycopg://u@127.0.0.1:1/x")
+        restore(tmp_path / "b.backup", "postgresql+psycopg://u@127.0.0.1:1/x")
     assert "a sqlite backup restores into sqlite" in info.value.message and info.value.field == "--db"
     other = tmp_path / "other.sqlite3"
     import sqlite3
@@ -89,13 +89,13 @@ def test_restore_refuses_what_it_cannot_restore_and_names_it(tmp_path, demo_reso
     with sqlite3.connect(other) as con:
         con.execute("CREATE TABLE mine (x)")
     with pytest.raises(BackupError, match="not empty"):
-        restore(tmp_path / "b.sqlite3", f"sqlite:///{other}")
+        restore(tmp_path / "b.backup", f"sqlite:///{other}")
     foreign = tmp_path / "foreign.sqlite3"
     with sqlite3.connect(foreign) as con:
         con.execute("CREATE TABLE mine (x)")
-    with pytest.raises(BackupError, match="not a database of this app"):
+    with pytest.raises(BackupError, match="not a backup written by 'study backup'"):
         restore(foreign, f"sqlite:///{tmp_path / 'c.sqlite3'}")
-    assert not (tmp_path / "c.sqlite3").exists() or (tmp_path / "c.sqlite3").stat().st_size == 0
+    assert not (tmp_path / "c.sqlite3").exists()
 
 
 def test_the_commands_back_up_and_restore(tmp_path, demo_resources):

@@ -2,6 +2,8 @@
 puts a real proxy in front)."""
 
 import json
+import os
+import subprocess
 
 import pytest
 from conftest import make_app
@@ -208,7 +210,7 @@ def test_deploy_files_are_filled_in_private_where_secret_and_never_overwritten(t
     unit = texts["systemd/scenesuggest@.service"]
     assert "Restart=on-failure" in unit and f"ReadWritePaths=-{tmp_path / 'home'} {tmp_path / 'my-study'}" in unit
     env = texts["scenesuggest.env"]
-    assert f"SCENESUGGEST_STUDIES={tmp_path / 'my-study' / 'study.toml'}" in env and "PROXY_HOPS=1" in env
+    assert f"SCENESUGGEST_STUDIES='{tmp_path / 'my-study' / 'study.toml'}'" in env and "PROXY_HOPS=1" in env
     secret = next(line.split("=", 1)[1] for line in env.splitlines() if line.startswith("SCENESUGGEST_SECRET_KEY="))
     assert len(secret) == 64
     assert stat.S_IMODE((tmp_path / "out" / "scenesuggest.env").stat().st_mode) == 0o600
@@ -222,6 +224,83 @@ def test_deploy_files_are_filled_in_private_where_secret_and_never_overwritten(t
             write_deploy_files(tmp_path / "never", bad)
         assert info.value.field == field
     assert not (tmp_path / "never").exists()
+
+
+HOSTILE = [  # (Deployment's keyword, value, the option named): each would have changed a file's meaning
+    ("cert", "/etc/ssl/a.pem;\n    location /x { return 200; }\n#", "--cert"),
+    ("key", "/etc/ssl/k.pem\nssl_verify_client off", "--key"),
+    ("cert", "relative/cert.pem", "--cert"),
+    ("user", "scenesuggest\nExecStartPre=+/bin/sh -c id", "--user"),
+    ("user", "root", "--user"),
+    ("user", "Bad User", "--user"),
+    ("workers", 0, "--workers"),
+    ("workers", -3, "--workers"),
+    ("address", "127.0.0.1; evil", "address"),
+]
+
+
+@pytest.mark.parametrize(("key", "value", "option"), HOSTILE)
+def test_deploy_files_refuse_a_value_that_would_change_a_files_meaning(tmp_path, key, value, option):
+    from study_server.deployment import DeployError, Deployment, write_deploy_files
+
+    with pytest.raises(DeployError) as info:
+        write_deploy_files(tmp_path / "out", Deployment("study.example.org", **{key: value}))
+    assert info.value.field == option
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("studies", ["/srv/my study/study.toml", "/srv/a/study.toml\nSCENESUGGEST_ENV=development",
+                                     "/srv/$(id)/study.toml", "/srv/it's/study.toml"])
+def test_deploy_files_refuse_study_paths_a_unit_or_a_shell_would_split(tmp_path, monkeypatch, studies):
+    from study_server.deployment import DeployError, Deployment, write_deploy_files
+
+    monkeypatch.setenv("SCENESUGGEST_STUDIES", studies)
+    with pytest.raises(DeployError) as info:
+        write_deploy_files(tmp_path / "out", Deployment("study.example.org"))
+    assert info.value.field == "SCENESUGGEST_STUDIES" and not (tmp_path / "out").exists()
+
+
+def test_the_written_files_pass_nginx_and_systemds_own_checks(tmp_path, monkeypatch):
+    """nginx -t on the site (as the proxy test runs it) and systemd-analyze verify on the unit, where present;
+    the environment file sourced by a shell sets exactly its variables."""
+    import shutil
+
+    from serverproc import NginxProxy, nginx_missing
+
+    monkeypatch.setenv("SCENESUGGEST_STUDIES", str(tmp_path / "my-study,v2" / "study.toml"))
+    checked = 0
+    if not nginx_missing():
+        proxy = NginxProxy(tmp_path / "nginx", [8001])
+        nginx = shutil.which("nginx", path=os.environ.get("PATH", "") + ":/usr/sbin")
+        done = subprocess.run([nginx, "-t", "-c", str(proxy.prefix / "nginx.conf"), "-p", str(proxy.prefix)],
+                              capture_output=True, text=True)
+        assert done.returncode == 0 and "syntax is ok" in done.stderr, done.stderr
+        checked += 1
+        unit = (proxy.prefix / "deploy" / "systemd" / "scenesuggest@.service").read_text()
+        env_file = proxy.prefix / "deploy" / "scenesuggest.env"
+    else:
+        from study_server.deployment import Deployment, write_deploy_files
+
+        write_deploy_files(tmp_path / "out", Deployment("study.example.org"))
+        unit = (tmp_path / "out" / "systemd" / "scenesuggest@.service").read_text()
+        env_file = tmp_path / "out" / "scenesuggest.env"
+    if shutil.which("systemd-analyze"):
+        instance = tmp_path / "units" / "scenesuggest@8001.service"
+        instance.parent.mkdir()
+        instance.write_text(unit.replace("User=scenesuggest", "User=daemon").replace("Group=scenesuggest",
+                                                                                    "Group=daemon"))
+        done = subprocess.run(["systemd-analyze", "verify", "--man=no", str(instance)], capture_output=True,
+                              text=True)
+        assert done.returncode == 0 and "scenesuggest@8001.service" not in done.stderr, done.stderr
+        checked += 1
+    sourced = subprocess.run(["sh", "-c", f"set -a; . '{env_file}'; env"], capture_output=True, text=True,
+                             env={"PATH": "/usr/bin:/bin"})
+    assert sourced.returncode == 0, sourced.stderr
+    names = {line.split("=", 1)[0] for line in sourced.stdout.splitlines() if line.startswith("SCENESUGGEST_")}
+    assert names == {"SCENESUGGEST_ENV", "SCENESUGGEST_SECRET_KEY", "SCENESUGGEST_STUDIES", "SCENESUGGEST_HOME",
+                     "SCENESUGGEST_CACHE", "SCENESUGGEST_PROXY_HOPS", "SCENESUGGEST_ADMIN_PASSWORD_HASH"}
+    assert f"SCENESUGGEST_STUDIES={tmp_path / 'my-study,v2' / 'study.toml'}" in sourced.stdout.splitlines()
+    assert checked >= (2 if os.environ.get("CI") == "true" else 0)
 
 
 def test_postgresql_without_its_driver_says_how_to_install_it(tmp_path, monkeypatch):

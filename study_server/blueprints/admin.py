@@ -37,6 +37,7 @@ from ..security import (
     DEVICE_COOKIE,
     DEVICE_LIFETIME,
     LoginBlocked,
+    admin_link_live,
     admin_required,
     attempt_login,
     check_csrf,
@@ -44,6 +45,7 @@ from ..security import (
     csrf_token,
     end_admin_session,
     preview_token,
+    use_admin_link,
 )
 from ..studies import runtime
 
@@ -66,15 +68,35 @@ def login():
             device, error, status = None, "Too many failed attempts. Try again in 15 minutes.", 429
         if device:
             target = request.args.get("next", "")
-            response = redirect(target if NEXT.fullmatch(target) and ".." not in target else url_for(".dashboard"))
-            response.set_cookie(DEVICE_COOKIE, device, max_age=int(DEVICE_LIFETIME.total_seconds()), path="/admin",
-                                httponly=True, secure=current_app.config.get("SESSION_COOKIE_SECURE", False),
-                                samesite="Strict")
-            return response
+            return _signed_in(redirect(target if NEXT.fullmatch(target) and ".." not in target
+                                       else url_for(".dashboard")), device)
         if status == 200:
             error, status = "Wrong password.", 401
     configured = bool(current_app.config.get("ADMIN_PASSWORD_HASH"))
     return render_template("admin/login.html", error=error, configured=configured), status
+
+
+def _signed_in(response, device: str):
+    """``response`` with the browser's device cookie (failed logins elsewhere then never lock it out)."""
+    response.set_cookie(DEVICE_COOKIE, device, max_age=int(DEVICE_LIFETIME.total_seconds()), path="/admin",
+                        httponly=True, secure=current_app.config.get("SESSION_COOKIE_SECURE", False),
+                        samesite="Strict")
+    return response
+
+
+@bp.route("/link/<secret>", methods=["GET", "POST"])
+def link(secret: str):
+    """A one-time sign-in link (``scenesuggest study admin-link``): opening it shows a button, so a chat app's
+    link preview does not spend it; the button signs in once, before the link expires, however many logins
+    have failed meanwhile. A used, expired or unknown link is 410."""
+    if request.method == "POST":
+        check_csrf()
+        device = use_admin_link(secret) if len(secret) <= 128 else None
+        if device:
+            return _signed_in(redirect(url_for(".dashboard")), device)
+    elif len(secret) <= 128 and admin_link_live(secret):
+        return render_template("admin/link.html", spent=False)
+    return render_template("admin/link.html", spent=True), 410
 
 
 @bp.post("/logout")
@@ -141,7 +163,7 @@ def participants(study_id: str):
                            stale_before=fresh_after(study, utcnow()))
 
 
-@bp.get("/<study_id>/participants/<int:pid>")
+@bp.get("/<study_id>/participants/<row:pid>")
 @admin_required
 def participant(study_id: str, pid: int):
     study = runtime(study_id).study
@@ -169,7 +191,7 @@ def _trial_of(study_id: str, pid: int, index: int) -> Trial:
     return t
 
 
-@bp.get("/<study_id>/participants/<int:pid>/trials/<int(signed=True):index>/replay")
+@bp.get("/<study_id>/participants/<row:pid>/trials/<row(signed=True):index>/replay")
 @admin_required
 def replay(study_id: str, pid: int, index: int):
     """A trial rebuilt from its events, step by step: the participants' editor, read-only."""
@@ -181,14 +203,14 @@ def replay(study_id: str, pid: int, index: int):
                            scene_title=rt.study.scenes[t.scene_id].title)
 
 
-@bp.get("/<study_id>/participants/<int:pid>/trials/<int(signed=True):index>/replay.json")
+@bp.get("/<study_id>/participants/<row:pid>/trials/<row(signed=True):index>/replay.json")
 @admin_required
 def replay_data(study_id: str, pid: int, index: int):
     rt = runtime(study_id)
     return jsonify(replay_document(rt, _trial_of(study_id, pid, index)))
 
 
-@bp.post("/<study_id>/participants/<int:pid>/exclude")
+@bp.post("/<study_id>/participants/<row:pid>/exclude")
 @admin_required
 def exclude(study_id: str, pid: int):
     check_csrf()

@@ -1,0 +1,30 @@
+"""One-time admin sign-in links (``scenesuggest study admin-link``)
+
+The operator's way in that failed logins from an anonymous crowd cannot close.
+
+Revision ID: 5c1e7d9a3f20
+Revises: 3b9d2c41e7a5
+Create Date: 2026-12-04 03:00:00.000000
+
+"""
+import sqlalchemy as sa
+from alembic import op
+
+# revision identifiers, used by Alembic.
+revision = '5c1e7d9a3f20'
+down_revision = '3b9d2c41e7a5'
+branch_labels = None
+depends_on = None
+
+
+def upgrade():
+    op.create_table('admin_links',
+                    sa.Column('id', sa.String(length=64), nullable=False),
+                    sa.Column('created_at', sa.DateTime(), nullable=False),
+                    sa.Column('expires_at', sa.DateTime(), nullable=False),
+                    sa.Column('used_at', sa.DateTime(), nullable=True),
+                    sa.PrimaryKeyConstraint('id'))
+
+
+def downgrade():
+    op.drop_table('admin_links')
