@@ -6,6 +6,7 @@ Errors (:class:`scenesuggest.errors.SceneSuggestError`) print ``Error: …`` and
 from __future__ import annotations
 
 import os
+import shlex
 import sys
 from pathlib import Path
 
@@ -60,10 +61,11 @@ def study_init_cmd(folder: str, corpus: str, meshes: str | None, title: str | No
     written = init_study(folder, corpus, title, study_id, meshes, say=lambda m: click.echo(m, err=True))
     study_file = Path(folder) / "study.toml"
     load_studies([study_file], check=False)  # what was written validates
+    quoted = shlex.quote(str(study_file))  # the commands are pasted into a shell: a folder named $(…) stays a name
     emit({"folder": str(Path(folder).resolve()), "files": [str(p) for p in written]}, as_json,
          "\n".join([f"wrote {p}" for p in written] + [
-             "", f"next: scenesuggest study validate {study_file}",
-             f"      SCENESUGGEST_STUDIES={study_file} scenesuggest study serve",
+             "", f"next: scenesuggest study validate {quoted}",
+             f"      SCENESUGGEST_STUDIES={quoted} scenesuggest study serve",
              f"      (the steps after that are in {Path(folder) / 'README.md'})"]))
 
 

@@ -15,11 +15,14 @@ the folder is built beside its place and renamed into it, which must be free (ab
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
 import secrets
+import shlex
 import shutil
+import unicodedata
 from pathlib import Path
 from string import Template
 
@@ -61,9 +64,15 @@ class InitError(SceneSuggestError):
 
 
 def study_id_for(folder: Path) -> str:
-    """A study id from a folder name: lower case letters, digits, '-' and '_' (at most ``MAX_ID``)."""
-    slug = re.sub(r"[^a-z0-9_-]+", "-", folder.resolve().name.lower())[:MAX_ID].strip("-_")
-    return slug or "study"
+    """A study id from a folder name: lower case letters, digits, '-' and '_' (at most ``MAX_ID``). Accents are
+    dropped ("Étude" → "etude"); a name with no Latin letters gets ``study-`` and 8 hex digits of its SHA-256,
+    so two such folders get two ids."""
+    name = folder.resolve().name
+    plain = unicodedata.normalize("NFKD", name).encode("ascii", "ignore").decode().lower()
+    slug = re.sub(r"[^a-z0-9_-]+", "-", plain)[:MAX_ID].strip("-_")
+    if slug:
+        return slug
+    return "study-" + hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:8] if name else "study"
 
 
 def completion_code(rng: secrets.SystemRandom, outcome: str) -> str:
@@ -85,8 +94,9 @@ def study_file_text(study_id: str, title: str, resources: str, practice_title: s
 
 
 def readme_text(folder: Path, study_id: str, title: str) -> str:
+    """The next steps; the study file's path in their commands is shell-quoted (it may hold anything)."""
     return Template((STARTER / "README.md").read_text(encoding="utf-8")).substitute(
-        id=study_id, title=title, file=str(folder.resolve() / "study.toml"))
+        id=study_id, title=title, file=shlex.quote(str(folder.resolve() / "study.toml")))
 
 
 def stanford_folder(corpus: str) -> Path | None:
@@ -114,6 +124,9 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
         if "\0" in value or any(0xD800 <= ord(c) <= 0xDFFF for c in value):
             raise InitError("holds a NUL or a character that is not UTF-8 (a lone surrogate)", field=field)
     folder = Path(folder).absolute()
+    if ":" in str(folder):
+        raise InitError("holds ':', which separates the study files in SCENESUGGEST_STUDIES: the server could not "
+                        "be given this study; choose another folder", file=str(folder))
     stanford = stanford_folder(corpus)
     if meshes is not None and stanford is None:
         raise InitError("only a Stanford corpus has meshes to find", field="--meshes")
@@ -123,8 +136,9 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
     if not re.fullmatch(rf"[A-Za-z0-9_-]{{1,{MAX_ID}}}", study_id):
         raise InitError(f"{study_id[:80]!r}: use 1 to {MAX_ID} letters, digits, '-' and '_'", field="--id")
     title = (title or study_id.replace("-", " ").replace("_", " ").capitalize()).strip()
-    if not title or len(title) > MAX_TITLE or any(ord(c) < 32 for c in title):
-        raise InitError(f"expected a title of 1 to {MAX_TITLE} characters on one line", field="--title")
+    if not title or len(title) > MAX_TITLE or any(unicodedata.category(c) == "Cc" for c in title):
+        raise InitError(f"expected a title of 1 to {MAX_TITLE} characters on one line, without control "
+                        "characters", field="--title")
     if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
         raise InitError("already exists and is not an empty folder: nothing was written (a new study never "
                         "overwrites anything)", file=str(folder))
@@ -143,8 +157,9 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
             resources = Template(STANFORD_RESOURCES).substitute(
                 corpus=json.dumps(f"stanford:{stanford}", ensure_ascii=False))
             practice_title = STANFORD_PRACTICE_TITLE
-        (tmp / "study.toml").write_text(study_file_text(study_id, title, resources, practice_title),
-                                        encoding="utf-8")
+        private = os.open(tmp / "study.toml", os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)  # it holds the codes
+        with os.fdopen(private, "w", encoding="utf-8") as f:
+            f.write(study_file_text(study_id, title, resources, practice_title))
         (tmp / "README.md").write_text(readme_text(folder, study_id, title), encoding="utf-8")
         _move_in(tmp, folder)
     except BaseException:

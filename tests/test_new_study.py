@@ -1,6 +1,7 @@
 """``scenesuggest study init``: a new study that validates and runs as written, with the demo's keys, its own
 completion codes, and nothing ever overwritten."""
 
+import re
 import tomllib
 
 import pytest
@@ -93,6 +94,39 @@ def test_the_command_writes_a_study_and_refuses_a_folder_in_use(tmp_path):
                           capture_output=True, text=True, cwd=here)  # the working directory, empty
     assert made.returncode == 0, made.stderr
     assert sorted(p.name for p in here.iterdir()) == ["README.md", "scenes", "study.toml"]
+
+
+def test_what_init_writes_is_safe_whatever_the_folder_and_title(tmp_path):
+    """A control character in the title, a folder named to run a command when its next steps are pasted, a ':'
+    that SCENESUGGEST_STUDIES would split, names in other scripts, and the codes' file kept private."""
+    import shlex
+    import stat
+    import subprocess
+    import sys
+
+    from study_server.new_study import study_id_for
+
+    for title in ("A\x7fpilot", "A\x85pilot", "two\nlines"):
+        with pytest.raises(InitError) as info:
+            init_study(tmp_path / "t", title=title)
+        assert info.value.field == "--title" and not (tmp_path / "t").exists()
+    with pytest.raises(InitError, match="holds ':'"):
+        init_study(tmp_path / "a:b")
+    assert not (tmp_path / "a:b").exists()
+    assert study_id_for(tmp_path / "Étude Café") == "etude-cafe"
+    ids = {study_id_for(tmp_path / name) for name in ("研究", "実験", "исследование")}
+    assert len(ids) == 3 and all(re.fullmatch(r"study-[0-9a-f]{8}", i) for i in ids)
+    hostile = tmp_path / "$(touch pwned)"
+    made = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "init", str(hostile)],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert made.returncode == 0, made.stderr
+    pasted = next(line for line in made.stdout.splitlines() if "study validate" in line).split("next:", 1)[1]
+    assert shlex.split(pasted)[-1] == str(hostile / "study.toml")  # one word, as written
+    subprocess.run(["sh", "-c", pasted.replace("scenesuggest study validate", "true")], cwd=tmp_path, check=True)
+    readme = (hostile / "README.md").read_text()
+    assert f"validate {shlex.quote(str(hostile / 'study.toml'))}" in readme
+    assert not (tmp_path / "pwned").exists()
+    assert stat.S_IMODE((hostile / "study.toml").stat().st_mode) == 0o600
 
 
 @pytest.mark.slow  # builds a real 100-model library: about a minute and a half
