@@ -98,7 +98,9 @@ def create_app(config: dict | None = None) -> Flask:
     if hops:  # behind that many reverse proxies: their X-Forwarded-* say the client's address, scheme and host
         from werkzeug.middleware.proxy_fix import ProxyFix
 
-        app.wsgi_app = ProxyFix(app.wsgi_app, x_for=hops, x_proto=hops, x_host=hops, x_port=hops)
+        # never X-Forwarded-Host: the proxy sets Host (to the one name it serves), and a client's own claim of a
+        # host would otherwise name it in the links the app writes
+        app.wsgi_app = ProxyFix(app.wsgi_app, x_for=hops, x_proto=hops, x_host=0, x_port=hops)
     app.session_interface = CookieSessions()
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token

@@ -133,6 +133,12 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
     if prepare:
         _prepare(config.study_files())
     app = create_app({"WARM_STUDIES": False})  # this process only migrates; the workers warm
+    if app.config.get("PROXY_HOPS") and not _loopback(host):
+        raise SceneSuggestError(
+            f"SCENESUGGEST_PROXY_HOPS={app.config['PROXY_HOPS']} makes the app believe X-Forwarded-For, so it must "
+            f"be reachable through the proxy only: bound to {host}, anyone reaching the port directly could claim "
+            "any address (and dodge the arrival quota and login limits). Bind to 127.0.0.1 behind the proxy, or "
+            "set SCENESUGGEST_PROXY_HOPS=0", field="--host")
     upgrade_database(app)
     password_file = config.ensure_admin_password(config.instance_path())
     base = f"http://{host}:{port}"
@@ -145,6 +151,17 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
     os.environ.setdefault("SCENESUGGEST_WARM", "1")  # each worker loads the studies before its first request
     os.execv(sys.executable, [sys.executable, "-m", "gunicorn", "--workers", str(workers), "--bind",
                               f"{host}:{port}", "--access-logfile", "-", "study_server:create_app()"])
+
+
+def _loopback(host: str) -> bool:
+    import ipaddress
+
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
 
 
 @study.command("export")

@@ -11,8 +11,13 @@ study files name by corpus only | ``var/`` of the checkout; installed: ``var/sce
 | ``SCENESUGGEST_ADMIN_PASSWORD_HASH`` | werkzeug hash of the admin password | ``instance/admin.json`` |
 | ``SCENESUGGEST_FRAME_ANCESTORS`` | CSP frame-ancestors, for platforms that embed the study | ``'self'`` |
 | ``SCENESUGGEST_PROXY_HOPS`` | how many reverse proxies stand before the app: their ``X-Forwarded-For``, \
-``-Proto``, ``-Host`` and ``-Port`` are believed for that many hops, no more (the client's address for rate \
-limits, ``https`` for URLs) | ``0``: none believed |
+``-Proto`` and ``-Port`` are believed for that many hops, no more (the client's address for rate limits, \
+``https`` for URLs; an entry that is not an IP address counts for nothing); ``X-Forwarded-Host`` never \
+(the proxy's ``Host`` is used). ``study serve`` refuses hops on an address beyond loopback (anyone reaching the \
+port could claim any address) | ``0``: none believed |
+| ``SCENESUGGEST_SERVER_NAME`` | the study's public host name: requests naming another host get 400, and links \
+the app writes (the admin's participant link) name this one (``localhost`` and ``127.0.0.1`` also answer, \
+for checks on the host itself) | any host |
 | ``SCENESUGGEST_WARM`` | ``1``: each app process loads every study's priors, library and engines before its \
 first request (``study serve`` sets it unless set; commands that do not serve never warm); ``0``: on first use \
 | ``1`` in production, else ``0`` |
@@ -24,6 +29,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import secrets
 import sys
 from pathlib import Path
@@ -94,6 +100,10 @@ def from_environment(instance: Path) -> dict:
     if not hops.isdigit() or int(hops) > MAX_PROXY_HOPS:
         raise ConfigError(f"expected the number of reverse proxies before the app, 0 to {MAX_PROXY_HOPS}",
                           field="SCENESUGGEST_PROXY_HOPS")
+    server_name = os.environ.get("SCENESUGGEST_SERVER_NAME", "")
+    if server_name and not re.fullmatch(r"[A-Za-z0-9.-]{1,253}", server_name):
+        raise ConfigError("expected the public host name (letters, digits, '.' and '-')",
+                          field="SCENESUGGEST_SERVER_NAME")
     warm = os.environ.get("SCENESUGGEST_WARM", "1" if production else "0")
     if warm not in ("0", "1"):
         raise ConfigError("expected 1 (load every study's resources before the first request) or 0",
@@ -102,6 +112,7 @@ def from_environment(instance: Path) -> dict:
         "ENV_NAME": env,
         "WARM_STUDIES": warm == "1",
         "PROXY_HOPS": int(hops),
+        "TRUSTED_HOSTS": [server_name, "localhost", "127.0.0.1"] if server_name else None,
         "DEBUG": False,
         "SESSION_COOKIE_SECURE": production,
         "STUDY_FILES": study_files(),

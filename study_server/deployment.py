@@ -98,6 +98,9 @@ class Deployment:
             "HTTPS_LISTEN": f"{listen}{self.https_port}", "SERVER_NAME": self.server_name,
             "HTTP_LISTEN6": "" if self.address else f"    listen [::]:{self.http_port};\n",
             "HTTPS_LISTEN6": "" if self.address else f"    listen [::]:{self.https_port} ssl http2;\n",
+            "HTTP_LISTEN6_DEFAULT": "" if self.address else f"    listen [::]:{self.http_port} default_server;\n",
+            "HTTPS_LISTEN6_DEFAULT": "" if self.address else
+            f"    listen [::]:{self.https_port} ssl http2 default_server;\n",
             "ACME_ROOT": self.acme_root, "HTTPS_PORT_SUFFIX": "" if self.https_port == 443 else f":{self.https_port}",
             "CERT": cert, "KEY": key, "STATIC": str(config.PACKAGE / "static"), "THREE": str(three_folder()),
             "NGINX_DIR": self.nginx_dir, "USER": self.user, "ENV_FILE": self.env_file, "PYTHON": sys.executable,

@@ -76,8 +76,13 @@ def http_error(e):
     """Werkzeug's HTTP errors (unknown URLs, wrong methods, aborts): JSON for the API, a calm page elsewhere."""
     from flask import current_app, jsonify
 
+    from werkzeug.exceptions import SecurityError
+
     from .extensions import db
 
+    if isinstance(e, SecurityError):  # a Host the server does not answer for: no page of ours names it
+        return current_app.response_class("This server does not answer for that host name.\n", 400,
+                                          mimetype="text/plain")
     if _is_api():
         limit = current_app.config.get("MAX_CONTENT_LENGTH")
         if e.code == 413 and limit:  # the body is over MAX_CONTENT_LENGTH: say which limit

@@ -55,7 +55,14 @@ def check_csrf() -> None:
 
 
 def client_ip() -> str:
-    return (request.remote_addr or "unknown")[:64]
+    """The client's address: what the believed proxies say it is when that is an IP address, else the address
+    of whoever connected (a string a client put in X-Forwarded-For never keys a quota)."""
+    for address in (request.remote_addr, request.environ.get("werkzeug.proxy_fix.orig", {}).get("REMOTE_ADDR")):
+        try:
+            return str(ipaddress.ip_address((address or "").split("%", 1)[0]))
+        except ValueError:
+            continue
+    return "unknown"
 
 
 def client_network() -> str:

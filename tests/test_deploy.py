@@ -81,8 +81,48 @@ def test_the_app_believes_exactly_the_configured_proxy_hops(tmp_path, demo_resou
     c = app.test_client()
     c.environ_base["REMOTE_ADDR"] = "127.0.0.1"
     seen = c.get("/whoami", headers={"X-Forwarded-For": "198.51.100.1, 192.0.2.1", "X-Forwarded-Proto": "https",
-                                     "X-Forwarded-Host": "study.example"}).get_data(as_text=True)
-    assert seen == ("https://study.example/ 192.0.2.1" if hops else "http://localhost/ 127.0.0.1")
+                                     "Host": "study.example", "X-Forwarded-Host": "evil.example"}
+                 ).get_data(as_text=True)  # the proxy sets Host; a forwarded host is never believed
+    assert seen == ("https://study.example/ 192.0.2.1" if hops else "http://study.example/ 127.0.0.1")
+
+
+def test_only_an_ip_address_keys_a_quota_and_only_the_server_name_is_answered(tmp_path, demo_resources):
+    """An X-Forwarded-For entry that is not an address counts for nothing (the connecting address is used); with
+    SCENESUGGEST_SERVER_NAME set, a request naming another host is refused and links name the server."""
+    from flask import url_for
+
+    from study_server.security import client_ip
+
+    app = make_app(tmp_path, PROXY_HOPS=1, TRUSTED_HOSTS=["study.example", "localhost", "127.0.0.1"])
+    app.add_url_rule("/whoami", "whoami", lambda: f"{url_for('health.healthz', _external=True)} {client_ip()}")
+    c = app.test_client()
+    c.environ_base["REMOTE_ADDR"] = "127.0.0.1"
+    for claimed in ("anything at all", "999.1.1.1", "' OR 1=1 --", "x" * 500):
+        seen = c.get("/whoami", headers={"X-Forwarded-For": claimed, "Host": "study.example"})
+        assert seen.get_data(as_text=True) == "http://study.example/healthz 127.0.0.1", claimed
+    seen = c.get("/whoami", headers={"X-Forwarded-For": "2001:db8::7", "Host": "study.example"})
+    assert seen.get_data(as_text=True).endswith(" 2001:db8::7")
+    for host in ("evil.example", "study.example.evil.example", "study.example@evil.example"):
+        assert c.get("/healthz", headers={"Host": host}).status_code == 400, host
+    assert c.get("/healthz", headers={"Host": "127.0.0.1:8001"}).status_code == 200  # a check on the host itself
+
+
+def test_serve_refuses_believed_proxies_on_an_address_beyond_loopback(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setenv("SCENESUGGEST_PROXY_HOPS", "1")
+    monkeypatch.setenv("SCENESUGGEST_INSTANCE", str(tmp_path / "instance"))
+    for host in ("0.0.0.0", "::", "192.0.2.10", "study.example.org"):
+        done = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "serve", "--no-prepare", "--host",
+                               host, "--port", "1"], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2 and "SCENESUGGEST_PROXY_HOPS=1" in done.stderr and "--host" in done.stderr, (
+            host, done.stderr)
+    monkeypatch.setenv("SCENESUGGEST_SERVER_NAME", "bad name")
+    from study_server.config import ConfigError, from_environment
+
+    with pytest.raises(ConfigError) as info:
+        from_environment(tmp_path / "instance")
+    assert info.value.field == "SCENESUGGEST_SERVER_NAME"
 
 
 def test_proxy_hops_must_be_a_small_number(monkeypatch, tmp_path):
@@ -204,7 +244,8 @@ def test_deploy_files_are_filled_in_private_where_secret_and_never_overwritten(t
                           "systemd/scenesuggest@.service", "scenesuggest.env"}
     assert not any("@@" in t for t in texts.values())
     site = texts["nginx/scenesuggest.conf"]
-    assert site.count("server 127.0.0.1:80") == 3 and "return 301 https://$host$request_uri;" in site
+    assert site.count("server 127.0.0.1:80") == 3 and "return 301 https://study.example.org$request_uri;" in site
+    assert site.count("default_server") == 4 and site.count("return 444;") == 2
     assert "listen [::]:443 ssl http2;" in site and "http_503" not in texts["nginx/scenesuggest-proxy-params.conf"]
     assert "/etc/letsencrypt/live/study.example.org/fullchain.pem" in site
     unit = texts["systemd/scenesuggest@.service"]
@@ -298,7 +339,8 @@ def test_the_written_files_pass_nginx_and_systemds_own_checks(tmp_path, monkeypa
     assert sourced.returncode == 0, sourced.stderr
     names = {line.split("=", 1)[0] for line in sourced.stdout.splitlines() if line.startswith("SCENESUGGEST_")}
     assert names == {"SCENESUGGEST_ENV", "SCENESUGGEST_SECRET_KEY", "SCENESUGGEST_STUDIES", "SCENESUGGEST_HOME",
-                     "SCENESUGGEST_CACHE", "SCENESUGGEST_PROXY_HOPS", "SCENESUGGEST_ADMIN_PASSWORD_HASH"}
+                     "SCENESUGGEST_CACHE", "SCENESUGGEST_PROXY_HOPS", "SCENESUGGEST_ADMIN_PASSWORD_HASH",
+                     "SCENESUGGEST_SERVER_NAME"}
     assert f"SCENESUGGEST_STUDIES={tmp_path / 'my-study,v2' / 'study.toml'}" in sourced.stdout.splitlines()
     assert checked >= (2 if os.environ.get("CI") == "true" else 0)
 

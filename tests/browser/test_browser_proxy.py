@@ -10,6 +10,7 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from http.client import HTTPException
 
 import pytest
 from conftest import IN_CI, make_app
@@ -37,7 +38,7 @@ def deployment(tmp_path, postgres_db, monkeypatch, demo_resources):
     if problem:
         pytest.fail(problem + " — required under CI=true") if IN_CI else pytest.skip(problem)
     make_app(tmp_path, postgres_db)  # migrated before the app servers start
-    env = {"SCENESUGGEST_PROXY_HOPS": "1", "SCENESUGGEST_ENV": "production",
+    env = {"SCENESUGGEST_PROXY_HOPS": "1", "SCENESUGGEST_ENV": "production", "SCENESUGGEST_SERVER_NAME": "127.0.0.1",
            "SCENESUGGEST_ADMIN_PASSWORD_HASH": generate_password_hash(PASSWORD)}
     apps = [StudyServer(tmp_path / f"instance-{i}", postgres_db, workers=1, migrate=False, env=env)
             for i in range(2)]
@@ -72,6 +73,11 @@ def test_behind_nginx_over_https_on_postgresql(deployment):
     proxy, apps, database = deployment
     status, headers, _ = fetch(f"{proxy.http}/study/demo/start?pid=x")
     assert status == 301 and headers["Location"] == f"{proxy.https}/study/demo/start?pid=x"
+    for base in (proxy.http, proxy.https):  # another host name: closed unanswered, never redirected or linked to
+        with pytest.raises((urllib.error.URLError, ConnectionError, HTTPException)):
+            fetch(f"{base}/study/demo/start?pid=x", {"Host": "evil.example"})
+        status, headers, _ = fetch(f"{base}/study/demo/start?pid=x", {"X-Forwarded-Host": "evil.example"})
+        assert "evil" not in headers.get("Location", ""), headers["Location"]
     status, headers, body = fetch(f"{proxy.https}/healthz")
     assert status == 200 and b'"ok":true' in body.replace(b" ", b"")
     assert headers["Strict-Transport-Security"] == "max-age=31536000"
