@@ -75,7 +75,6 @@ def _log_participant_failure(status: int, e: BaseException) -> str | None:
 def http_error(e):
     """Werkzeug's HTTP errors (unknown URLs, wrong methods, aborts): JSON for the API, a calm page elsewhere."""
     from flask import current_app, jsonify
-
     from werkzeug.exceptions import SecurityError
 
     from .extensions import db

@@ -36,7 +36,7 @@ from scenesuggest.picks import picks
 from scenesuggest.scoring import FORMULA
 
 from .extensions import db
-from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial
+from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial, open_flags
 from .studies import StudyRuntime
 from .study_file import Study
 from .trial_check import target_closeness
@@ -52,7 +52,8 @@ DICTIONARY: dict[str, dict[str, str]] = {
         "excluded_reason": "why an experimenter excluded the participant", "created_at": "arrival (UTC)",
         "last_seen_at": "last request (UTC)", "finished_at": "completion or early end (UTC)",
         "acked_seq": "highest contiguous event seq stored",
-        "flags": "why the experimenter should review this participant (reasons separated by ' | '; empty: none)",
+        "flags": "why the experimenter should review this participant (reasons separated by ' | '; empty: none; "
+                 "flags the experimenter cleared are not listed)",
         "viewport_width": "browser window width at the device check (px)",
         "viewport_height": "height (px)", "user_agent": "browser user agent"},
     "trials": {
@@ -141,7 +142,7 @@ def _rows(rt: StudyRuntime) -> dict[str, list[dict]]:
             "platform_id": p.platform_id, "row": p.row, "status": p.status, "step": p.step,
             "consent_version": p.consent_version or "", "excluded_reason": p.excluded_reason or "",
             "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at), "finished_at": _iso(p.finished_at),
-            "acked_seq": p.acked_seq, "flags": " | ".join(f["reason"] for f in p.flags or []),
+            "acked_seq": p.acked_seq, "flags": " | ".join(f["reason"] for f in open_flags(p)),
             "viewport_width": v.get("width", ""), "viewport_height": v.get("height", ""),
             "user_agent": p.user_agent})
     if not ids:

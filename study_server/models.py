@@ -67,7 +67,9 @@ class Participant(db.Model):
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
-    #: Why the experimenter should look at this participant: [{"reason": text, "at": ISO time}, …].
+    #: Why the experimenter should look at this participant: [{"reason": text, "at": ISO time, "by": the keyed
+    #: address of the request that raised it, "times": how often it was raised, "cleared_at": when the
+    #: experimenter cleared it (absent while open)}, …].
     flags: Mapped[list] = mapped_column(JSON, default=list)
     #: Keyed hash of the client address at arrival (for per-address quotas; the address itself is not kept).
     address: Mapped[str | None] = mapped_column(String(32), nullable=True, index=True)
@@ -192,14 +194,27 @@ def log(kind: str, participant: Participant | None = None, study_id: str | None 
                               detail=detail))
 
 
-def flag(participant: Participant, reason: str) -> None:
-    """Mark a participant for the experimenter's review (shown in the admin, exported), and log it. A reason
-    is recorded once (whoever repeats a refused request cannot grow the list)."""
-    if any(f.get("reason") == reason for f in participant.flags or []):
-        return
-    participant.flags = [*(participant.flags or []), {"reason": reason, "at": utcnow().isoformat()}]
-    log("flagged", participant, reason=reason)
+def flag(participant: Participant, reason: str, by: str | None = None) -> None:
+    """Mark a participant for the experimenter's review (shown in the admin, exported), and log it. ``by``: the
+    keyed address of the request that raised it (another browser's, for a refused attempt on this id). A reason
+    is recorded once while open; raising it again counts (whoever repeats a refused request cannot grow the
+    list)."""
+    flags = [dict(f) for f in participant.flags or []]
+    for f in flags:
+        if f.get("reason") == reason and not f.get("cleared_at"):
+            f["times"] = min(int(f.get("times", 1)) + 1, 10**6)
+            f["last_at"] = utcnow().isoformat()
+            participant.flags = flags
+            return
+    participant.flags = [*flags, {"reason": reason, "at": utcnow().isoformat(), "times": 1,
+                                  **({"by": by} if by else {})}]
+    log("flagged", participant, reason=reason, by=by)
+
+
+def open_flags(participant: Participant) -> list[dict]:
+    """The flags the experimenter has not cleared: what makes a completed participant's decision "review"."""
+    return [f for f in participant.flags or [] if not f.get("cleared_at")]
 
 
 __all__ = ["AdminLink", "AdminSession", "Event", "LoginAttempt", "Participant", "SessionLog", "ShownList",
-           "StudyRecord", "SurveyResponse", "Trial", "flag", "log", "utcnow"]
+           "StudyRecord", "SurveyResponse", "Trial", "flag", "log", "open_flags", "utcnow"]

@@ -11,7 +11,7 @@ from __future__ import annotations
 from sqlalchemy import func, select
 
 from .extensions import db
-from .models import Participant
+from .models import Participant, open_flags
 
 #: The columns of approvals.csv.
 APPROVAL_COLUMNS = ("participant", "platform", "platform_id", "session", "status", "code", "decision", "flags",
@@ -23,7 +23,7 @@ RETURNED = ("no_consent", "screened_out", "returned")
 
 def decision(p: Participant) -> str:
     if p.status == "completed":
-        return "review" if p.flags else "approve"
+        return "review" if open_flags(p) else "approve"
     if p.status == "excluded":
         return "review"
     if p.status in RETURNED:
@@ -45,5 +45,5 @@ def approval_rows(study_id: str) -> list[dict]:
     people = db.session.scalars(select(Participant).where(Participant.study_id == study_id).order_by(Participant.id))
     return [{"participant": p.id, "platform": p.platform, "platform_id": p.platform_id,
              "session": (p.platform_meta or {}).get(SESSION_KEY.get(p.platform, ""), ""), "status": p.status,
-             "code": p.code or "", "decision": decision(p), "flags": len(p.flags or []),
+             "code": p.code or "", "decision": decision(p), "flags": len(open_flags(p)),
              "finished_at": p.finished_at.isoformat() if p.finished_at else ""} for p in people]

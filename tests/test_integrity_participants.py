@@ -11,6 +11,7 @@ import pytest
 from conftest import make_app
 from flowhelp import EXIT, auth, csrf, enter, finish_all_trials, to_trials
 from integrityhelp import PASSWORD, PID, SESSION, STUDY, event, participant_of, post_events, study_copy
+from werkzeug.security import generate_password_hash
 
 from study_server.assignment import row_counts
 from study_server.extensions import db
@@ -47,6 +48,45 @@ def test_a_plain_links_pid_does_not_resume_from_another_browser(client, app):
     r = other.get("/study/demo/start?pid=victim")
     assert r.status_code == 409 and b"already in progress in another browser" in r.data
     assert b["token"].encode() not in other.get("/study/demo/").data
+
+
+def test_a_refused_attempt_on_an_id_says_who_raised_it_and_the_experimenter_can_clear_it(tmp_path, demo_resources):
+    """Someone else opening a participant's link is refused (409); the owner's flag says from which (keyed)
+    address and how often, the decision turns to review, and once the experimenter has looked and cleared it,
+    the participant is approved again (the flag stays on record, cleared)."""
+    from study_server.outcomes import decision
+
+    app = make_app(tmp_path, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
+    owner = app.test_client()
+    owner.environ_base["REMOTE_ADDR"] = "198.51.100.1"
+    b = to_trials(owner, query="pid=guessable-7")
+    finish_all_trials(owner, b)
+    page = owner.get("/study/demo/")
+    owner.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT})
+    for _ in range(3):
+        other = app.test_client()
+        other.environ_base["REMOTE_ADDR"] = "203.0.113.50"
+        assert other.get("/study/demo/start?pid=guessable-7").status_code == 409
+    p = participant_of(app, "guessable-7")
+    [f] = p.flags
+    assert f["times"] == 3 and f["by"] and f["by"] != p.address and decision(p) == "review"
+    admin = app.test_client()
+    page = admin.get("/admin/login")
+    admin.post("/admin/login", data={"csrf_token": csrf(page), "password": PASSWORD})
+    shown = admin.get(f"/admin/demo/participants/{p.id}").get_data(as_text=True)
+    assert f["by"][:12] in shown and "not the address this participant arrived from" in shown and "3 times" in shown
+    assert admin.post(f"/admin/demo/participants/{p.id}/flags/0/clear", data={}).status_code in (400, 403)
+    assert admin.post(f"/admin/demo/participants/{p.id}/flags/5/clear",
+                      data={"csrf_token": csrf(admin.get("/admin/"))}).status_code == 404
+    r = admin.post(f"/admin/demo/participants/{p.id}/flags/0/clear", data={"csrf_token": csrf(admin.get("/admin/"))})
+    assert r.status_code == 302
+    p = participant_of(app, "guessable-7")
+    assert p.flags[0]["cleared_at"] and decision(p) == "approve"
+    approvals = admin.get("/admin/demo/approvals.csv").get_data(as_text=True)
+    assert ",approve,0," in approvals
+    assert "cleared" in admin.get(f"/admin/demo/participants/{p.id}").get_data(as_text=True)
+    anonymous = app.test_client()
+    assert anonymous.post(f"/admin/demo/participants/{p.id}/flags/0/clear").status_code == 302  # to the login
 
 
 def test_a_nul_in_the_entry_links_id_is_refused_calmly(app_on):

@@ -228,6 +228,25 @@ def exclude(study_id: str, pid: int):
     return redirect(url_for(".participant", study_id=study_id, pid=pid))
 
 
+@bp.post("/<study_id>/participants/<row:pid>/flags/<row:number>/clear")
+@admin_required
+def clear_flag(study_id: str, pid: int, number: int):
+    """The experimenter has looked at a flag and clears it: it stays on record (cleared, when), and no longer
+    makes the approval decision "review"."""
+    check_csrf()
+    runtime(study_id)
+    p = db.session.get(Participant, pid)
+    if p is None or p.study_id != study_id or number >= len(p.flags or []):
+        abort(404)
+    flags = [dict(f) for f in p.flags]
+    if not flags[number].get("cleared_at"):
+        flags[number]["cleared_at"] = utcnow().isoformat()
+        p.flags = flags
+        log("flag_cleared", p, reason=flags[number].get("reason"))
+        db.session.commit()
+    return redirect(url_for(".participant", study_id=study_id, pid=pid))
+
+
 @bp.get("/<study_id>/preview")
 @admin_required
 def preview_grid(study_id: str):

@@ -138,7 +138,7 @@ def _resume_elsewhere(study, existing: Participant, meta: dict):
     """A browser without this participant's cookie: it resumes only with the platform's session id."""
     if not _proves(existing, meta):  # someone else's id, or the participant in a new browser: never a takeover
         flag(existing, "the study was opened with this participant's id in another browser without the "
-                       "platform's session id (refused)")
+                       "platform's session id (refused)", by=address_key())
         db.session.commit()
         return _entry_page(study, "This study is already in progress in another browser. Please continue there; "
                                   "if you cannot, contact the researcher through your platform.", 409)
