@@ -7,6 +7,7 @@ from .events import (
     FACES,
     MAX_LIST,
     MAX_SEQ,
+    MAX_STATE_TEXT,
     MAX_STRINGS,
     MAX_TEXT,
     OBJECT_STATE,
@@ -20,7 +21,7 @@ from .events import (
 
 def _state_schema() -> dict:
     number = {"type": "number"}
-    kinds = {"str": {"type": "string", "maxLength": MAX_TEXT}, "face": {"type": "string", "enum": list(FACES)},
+    kinds = {"str": {"type": "string", "maxLength": MAX_STATE_TEXT}, "face": {"type": "string", "enum": list(FACES)},
              "vec3": {"type": "array", "items": number, "minItems": 3, "maxItems": 3},
              "size": {"type": "array", "items": {"type": "number", "minimum": 0}, "minItems": 3,
                       "maxItems": 3},

@@ -27,6 +27,9 @@ MAX_STRINGS = 5000
 MAX_BATCH = 500
 #: Largest seq (the column is a 32-bit integer on PostgreSQL).
 MAX_SEQ = 2**31 - 1
+#: Largest string in an object state (ids, model ids, categories, surface types are tens of characters): every
+#: state is kept, and the admin's replay carries each one, so its size bounds theirs.
+MAX_STATE_TEXT = 200
 SOURCES = ("context", "search", "fixed")
 #: The vocabulary's versions: 2 added ``objects`` (the resulting object states) to the scene-changing events.
 VERSION = 2
@@ -201,7 +204,7 @@ def _check_state(state) -> None:
         if state["removed"] is not True or len(state) != 2 or "id" not in state:
             raise _Bad('a removed object is {"id": …, "removed": true}')
         try:
-            _text(state["id"])
+            _text(state["id"], MAX_STATE_TEXT)
         except _Bad as e:
             raise _Bad(e.message, ".id") from None
         return
@@ -215,7 +218,7 @@ def _check_state(state) -> None:
         if v is None and nullable:
             continue
         try:
-            _text(v)
+            _text(v, MAX_STATE_TEXT)
         except _Bad as e:
             raise _Bad(e.message, f".{key}") from None
     face = state["attachment_face"]

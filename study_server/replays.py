@@ -12,7 +12,8 @@ from .extensions import db
 from .models import Event, Trial
 from .studies import StudyRuntime
 
-#: The most object states a replay page carries (every scene in full, one per change): a bound on its size.
+#: The most object states a replay document carries (the start scene, then the states each step changes): a bound
+#: on its size whatever the trial did.
 MAX_SHOWN_STATES = 200_000
 
 
@@ -47,16 +48,26 @@ def label(event: dict) -> str:
     return kind.replace("_", " ")
 
 
+def step(before: dict, after: dict) -> dict:
+    """What changed from one scene to the next (object id → state): the states set (added or changed) and the ids
+    taken away. A step carries what an event changed, not the whole scene again."""
+    return {"set": [state for oid, state in after.items() if before.get(oid) != state],
+            "removed": [oid for oid in before if oid not in after]}
+
+
 def replay_document(rt: StudyRuntime, t: Trial) -> dict:
     """What the replay page shows: the trial, its start and target, the models, every event (client time, a
-    label, and the index of the scene after it in ``scenes``, the distinct scenes in order, the start first)."""
+    label, and ``scene``: how many steps of ``steps`` rebuild the scene after it from ``start``). Scene ``k`` is
+    ``start`` with steps 1…k applied in order (:func:`step`), as the page rebuilds it; its size grows with what
+    the events changed, not with the scene's size times the number of changes."""
     start = rt.scene(t.scene_id, "start")["objects"]
     events = trial_events(t.participant_id, t.index)
     doc = {"trial": {"participant": t.participant_id, "index": t.index, "kind": t.kind, "condition": t.condition,
                      "scene": t.scene_id, "title": rt.study.scenes[t.scene_id].title,
                      "done": t.done_at is not None, "replay": t.replay, "score": t.score},
-           "target": rt.scene(t.scene_id, "target")["objects"], "scenes": [start], "events": [], "problem": None}
-    scene, shown = start_scene(start), len(start)
+           "target": rt.scene(t.scene_id, "target")["objects"], "start": start, "steps": [], "events": [],
+           "problem": None}
+    scene, shown, used = start_scene(start), len(start), {o["model_id"] for o in start}
     for e in events:
         if doc["problem"] is None:
             try:
@@ -65,18 +76,31 @@ def replay_document(rt: StudyRuntime, t: Trial) -> dict:
                 doc["problem"] = f"this trial cannot be replayed from seq {e['seq']} on: {problem}"
             else:
                 if after is not scene:
-                    shown += len(after)
+                    change = step(scene, after)
+                    shown += len(change["set"]) + len(change["removed"])
                     if shown > MAX_SHOWN_STATES:
                         doc["problem"] = (f"this trial changed its scene too often to show every step here (more "
                                           f"than {MAX_SHOWN_STATES} object states); the steps stop at seq "
                                           f"{e['seq']}")
                     else:
-                        doc["scenes"].append(list(after.values()))
+                        doc["steps"].append(change)
+                        used.update(o["model_id"] for o in change["set"])
                         scene = after
         doc["events"].append({"seq": e["seq"], "t": e["t"], "type": e["type"], "label": label(e),
-                              "scene": len(doc["scenes"]) - 1})
-    used = {o["model_id"] for s in doc["scenes"] for o in s} | {o["model_id"] for o in doc["target"]}
+                              "scene": len(doc["steps"])})
+    used |= {o["model_id"] for o in doc["target"]}
     doc["models"] = [{"id": m.id, "name": m.name, "category": m.category, "size": list(m.size),
                       "asset": url_for("participant.asset", study_id=rt.study.id, filename=m.asset)}
                      for m in rt.library.values() if m.id in used]
     return doc
+
+
+def scene_after(doc: dict, index: int) -> list[dict]:
+    """Scene ``index`` of a replay document (``start`` with its first ``index`` steps applied), as the replay page
+    rebuilds it."""
+    scene = {o["id"]: o for o in doc["start"]}
+    for change in doc["steps"][:index]:
+        for oid in change["removed"]:
+            scene.pop(oid, None)
+        scene.update((o["id"], o) for o in change["set"])
+    return list(scene.values())

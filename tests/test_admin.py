@@ -11,6 +11,7 @@ from werkzeug.security import generate_password_hash
 
 from study_server.extensions import db
 from study_server.models import Participant
+from study_server.replays import scene_after
 
 PASSWORD = "correct horse battery staple"
 
@@ -134,7 +135,8 @@ def test_every_admin_form_needs_its_csrf_token(admin_app):
     posts = [r for r in admin_app.url_map.iter_rules() if r.endpoint.startswith("admin.") and "POST" in r.methods]
     assert {r.endpoint for r in posts} >= {"admin.login", "admin.logout", "admin.exclude"}
     for rule in posts:
-        path = rule.rule.replace("<study_id>", "demo").replace("<int:pid>", "1").replace("<scene_id>", "bedside")
+        path = re.sub(r"<row[^>]*>", "0", rule.rule.replace("<study_id>", "demo").replace("<scene_id>", "bedside")
+                      .replace("<secret>", "x"))
         r = c.post(path, data={"reason": "x", "password": PASSWORD})
         assert r.status_code == 400, (path, r.status_code)
     assert c.get("/admin/").status_code == 200  # still logged in: nothing was done without the token
@@ -161,7 +163,8 @@ def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(monkeypatch
     login(c)
     doc = c.get(path).json
     assert doc["trial"]["done"] is False and doc["problem"] is None and len(doc["events"]) == 2
-    assert [len(doc["scenes"][e["scene"]]) for e in doc["events"]] == [2, 3]  # the room, then one more each
+    assert [len(scene_after(doc, e["scene"])) for e in doc["events"]] == [2, 3]  # the room, then one more each
+    assert [len(s["set"]) for s in doc["steps"]] == [1, 1]  # each step carries what changed, not the scene again
     assert {m["id"] for m in doc["models"]} >= {table["model_id"]}
     assert c.get(f"/admin/demo/participants/{pid}/trials/-1/replay").status_code == 200
     assert c.get(f"/admin/demo/participants/{pid}/trials/7/replay.json").status_code == 200
@@ -169,12 +172,12 @@ def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(monkeypatch
     from study_server import replays
 
     with monkeypatch.context() as m:
-        m.setattr(replays, "MAX_SHOWN_STATES", 4)  # the start's room, then 2 objects: the 3 after is too many
+        m.setattr(replays, "MAX_SHOWN_STATES", 2)  # the start's room, then 1 object: the second is too many
         doc = c.get(path).json
         assert doc["problem"].startswith("this trial changed its scene too often to show every step here")
-        assert [e["scene"] for e in doc["events"]] == [1, 1] and len(doc["scenes"]) == 2
+        assert [e["scene"] for e in doc["events"]] == [1, 1] and len(doc["steps"]) == 1
     old = {"seq": 2, "t": 1.7e12, "type": "delete", "trial": -1, "payload": {"object": "plate"}}
     assert participant.post("/api/events", headers=auth(b), json={"page_id": "p", "events": [old]}).status_code == 200
     doc = c.get(path).json
     assert doc["problem"].startswith("this trial cannot be replayed from seq 2 on: a delete event without object")
-    assert [e["scene"] for e in doc["events"]] == [1, 2, 2] and len(doc["scenes"]) == 3  # the steps before it
+    assert [e["scene"] for e in doc["events"]] == [1, 2, 2] and len(doc["steps"]) == 2  # the steps before it

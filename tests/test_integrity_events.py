@@ -98,6 +98,26 @@ def test_a_whole_librarys_list_is_stored_and_a_longer_one_refused_naming_it(app_
     assert f"at most {MAX_STRINGS} strings" in r.json["error"]
 
 
+@pytest.mark.parametrize("key", ["id", "model_id", "category", "parent", "surface_type"])
+def test_strings_in_object_states_are_bounded_as_they_arrive(app_on, key):
+    """Every object state is kept and the admin's replay carries each: a long string in one (here 201
+    characters) is refused naming it, so no trial's replay grows by what a page chose to send."""
+    from test_replay import insert, obj
+
+    from scenesuggest.events import MAX_STATE_TEXT
+
+    c = app_on.test_client()
+    b = to_trials(c)
+
+    def send(seq, state):
+        return c.post("/api/events", headers=auth(b), json={"page_id": b["page_id"], "vocabulary": 2, "events": [
+            {**insert(seq, state), "trial": b["trial"]["index"]}]})
+    assert send(0, {**obj("a", 1.0), key: "x" * MAX_STATE_TEXT}).status_code == 200
+    r = send(1, {**obj("b", 1.0), key: "x" * (MAX_STATE_TEXT + 1)})
+    assert r.status_code == 422 and r.json["field"] == f"events[0].payload.objects[0].{key}", r.json
+    assert f"at most {MAX_STATE_TEXT} characters" in r.json["error"]
+
+
 def test_the_export_never_crashes_on_what_is_stored(app_on, tmp_path):
     c = app_on.test_client()
     b = to_trials(c)

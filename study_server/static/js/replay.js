@@ -26,7 +26,8 @@ class Replay {
     this.position = 0;  // 0: the start scene; i: the scene after event i − 1
     this.speed = 1;
     this.playing = false;
-    const start = new SceneModel({ objects: data.scenes[0] });
+    this.rebuilt = { index: 0, scene: new Map(data.start.map((o) => [o.id, o])) };
+    const start = new SceneModel({ objects: data.start });
     this.viewer.setRoom(start);
     this.viewer.setTarget(new SceneModel({ objects: data.target }), (o) => this.library.instance(o.modelId, o.size),
       $("target"));
@@ -60,6 +61,22 @@ class Replay {
     return items;
   }
 
+  /** Scene ``index``'s objects: the start with the document's first ``index`` steps applied (each step sets the
+   * states an event changed and takes away what it removed), from the last scene rebuilt when going forward. */
+  sceneObjects(index) {
+    if (index < this.rebuilt.index) {
+      this.rebuilt = { index: 0, scene: new Map(this.data.start.map((o) => [o.id, o])) };
+    }
+    const { scene } = this.rebuilt;
+    for (let k = this.rebuilt.index; k < index; k += 1) {
+      const change = this.data.steps[k];
+      for (const id of change.removed) scene.delete(id);
+      for (const o of change.set) scene.set(o.id, o);
+    }
+    this.rebuilt.index = index;
+    return [...scene.values()];
+  }
+
   /** The scene index and time of a position. */
   sceneAt(position) { return position === 0 ? 0 : this.events[position - 1].scene; }
 
@@ -68,7 +85,7 @@ class Replay {
   /** Show the scene at ``position``: objects added, moved or taken away to match it. */
   go(position) {
     this.position = Math.max(0, Math.min(this.events.length, position));
-    const objects = this.data.scenes[this.sceneAt(this.position)].filter((o) => o.parent !== null);
+    const objects = this.sceneObjects(this.sceneAt(this.position)).filter((o) => o.parent !== null);
     const wanted = new Map(objects.map((o) => [o.id, SceneModel.fromJSON(o)]));
     for (const id of [...this.shown.keys()]) {
       if (!wanted.has(id)) { this.viewer.removeObject(id); this.shown.delete(id); }
