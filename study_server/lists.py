@@ -6,20 +6,51 @@ say what a participant saw at which rank; an admin's preview builds the same lis
 
 from __future__ import annotations
 
+import json
 import uuid
 from collections.abc import Callable
+from datetime import timedelta
+
+from sqlalchemy import func, select
 
 from scenesuggest import frames
 from scenesuggest.suggest import ContextQuery, SuggestionList
 
 from .extensions import db
-from .models import ShownList
+from .models import Participant, ShownList, utcnow
 from .studies import StudyRuntime
 
 #: Suggestions a context list shows (the engine ranks every category; these many are placed and oriented).
 SUGGESTIONS_SHOWN = 40
 #: Models offered per suggested category.
 MODELS_PER_CATEGORY = 12
+#: Lists a participant may have the server store within any ``LIST_WINDOW`` (context suggestions and searches
+#: together): 2.5 a second, sustained — above anyone's pace in the editor (a search is typed, a suggestion asked
+#: for with a click), far below a script's. Beyond it: 429 with Retry-After, which the page waits out.
+LIST_RATE = 300
+LIST_WINDOW = timedelta(minutes=2)
+
+
+class TooManyLists(Exception):
+    """Over the list rate or the participant's storage quota; ``retry_after`` in seconds."""
+
+    def __init__(self, message: str, retry_after: int):
+        super().__init__(message)
+        self.retry_after = retry_after
+
+
+def check_quota(who: Participant, size: int, quota_bytes: int) -> None:
+    """Refuse a list beyond the participant's rate or storage quota (lists count against the same bytes as
+    events: a participant's stored data is bounded whatever they send)."""
+    now = utcnow()
+    recent, oldest = db.session.execute(select(func.count(), func.min(ShownList.created_at)).where(
+        ShownList.participant_id == who.id, ShownList.created_at >= now - LIST_WINDOW)).one()
+    if recent >= LIST_RATE:
+        wait = (oldest + LIST_WINDOW - now).total_seconds() if oldest else LIST_WINDOW.total_seconds()
+        raise TooManyLists(f"more than {LIST_RATE} lists in {int(LIST_WINDOW.total_seconds())} s: wait a moment",
+                           max(1, int(wait) + 1))
+    if (who.bytes_stored or 0) + size > quota_bytes:
+        raise TooManyLists("this session has stored as much as a study allows", 300)
 
 
 def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
@@ -47,10 +78,15 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
     return items, found
 
 
-def record(participant_id: int | None, trial: int | None, source: str, query: dict, items: list[dict]) -> str:
-    """Store a shown list (nothing for a preview, ``participant_id`` None); returns its id. The caller commits."""
+def record(who: Participant | None, trial: int | None, source: str, query: dict, items: list[dict],
+           quota_bytes: int) -> str:
+    """Store a shown list (nothing for a preview, ``who`` None); returns its id. The list counts against the
+    participant's rate and storage quota (:class:`TooManyLists`). The caller commits."""
     list_id = uuid.uuid4().hex
-    if participant_id is not None:
-        db.session.add(ShownList(id=list_id, participant_id=participant_id, trial=trial, source=source, query=query,
-                                 items=items))
+    if who is not None:
+        size = len(json.dumps(query)) + len(json.dumps(items))
+        check_quota(who, size, quota_bytes)
+        who.bytes_stored = (who.bytes_stored or 0) + size
+        db.session.add(ShownList(id=list_id, participant_id=who.id, trial=trial, source=source, query=query,
+                                 items=items, created_at=utcnow()))
     return list_id

@@ -194,6 +194,27 @@ def log(kind: str, participant: Participant | None = None, study_id: str | None 
                               detail=detail))
 
 
+#: How far back :func:`log_again` looks for the same row (a reload and a re-opened link alternate).
+LOG_AGAIN_WINDOW = 8
+
+
+def log_again(kind: str, participant: Participant, **detail) -> None:
+    """Log what a participant can repeat at will (a reload, a re-opened link, a request refused): when one of
+    their last few session-log rows says the same, it counts one more (``times``, ``last_at``) instead of adding a
+    row, so repeating it cannot grow the log."""
+    from sqlalchemy import select
+
+    recent = db.session.scalars(select(SessionLog).where(SessionLog.participant_id == participant.id)
+                                .order_by(SessionLog.id.desc()).limit(LOG_AGAIN_WINDOW))
+    for row in recent:
+        if row.kind == kind and {k: v for k, v in (row.detail or {}).items()
+                                 if k not in ("times", "last_at")} == detail:
+            row.detail = {**row.detail, "times": min(int(row.detail.get("times", 1)) + 1, 10**9),
+                          "last_at": utcnow().isoformat()}
+            return
+    log(kind, participant, **detail)
+
+
 def flag(participant: Participant, reason: str, by: str | None = None) -> None:
     """Mark a participant for the experimenter's review (shown in the admin, exported), and log it. ``by``: the
     keyed address of the request that raised it (another browser's, for a refused attempt on this id). A reason
@@ -217,4 +238,4 @@ def open_flags(participant: Participant) -> list[dict]:
 
 
 __all__ = ["AdminLink", "AdminSession", "Event", "LoginAttempt", "Participant", "SessionLog", "ShownList",
-           "StudyRecord", "SurveyResponse", "Trial", "flag", "log", "open_flags", "utcnow"]
+           "StudyRecord", "SurveyResponse", "Trial", "flag", "log", "log_again", "open_flags", "utcnow"]

@@ -159,8 +159,9 @@ def test_reload_back_button_and_second_tab_resume_and_are_logged(client, app):
     with app.app_context():
         p = db.session.query(Participant).one()
         assert p.status == "in_progress" and p.step == "trial"
-        kinds = [row.kind for row in db.session.query(SessionLog).filter_by(participant_id=p.id)]
-        assert kinds.count("resume") >= 3
+        resumes = [row.detail.get("times", 1) for row in db.session.query(SessionLog).filter_by(participant_id=p.id)
+                   if row.kind == "resume"]
+        assert sum(resumes) >= 3  # reloads of one place count on one row
 
 
 def test_platform_entry_parameters(app):

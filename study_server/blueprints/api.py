@@ -21,7 +21,7 @@ from .. import flow, ingest, lists, trial_check
 from ..authoring import live_scene
 from ..errors import RequestError
 from ..extensions import db, json_value
-from ..models import Participant, Trial, log, utcnow
+from ..models import Participant, Trial, log, log_again, utcnow
 from ..openapi import openapi_document
 from ..security import read_preview_token
 from ..studies import EngineUnavailable, runtime
@@ -198,11 +198,30 @@ def events():
                            f"events[{e.positions[0]}].seq",
                            extra={"conflicts": e.positions, "next_seq": e.next_seq}) from None
     except ingest.OverQuota:
-        log("quota", who, what="events")
+        log_again("quota", who, what="events")
         db.session.commit()
         raise RequestError(429, "this session has stored as many events as a study allows", "events",
                            {"Retry-After": "300"}) from None
     return jsonify({"acked_seq": acked, "stored": True})
+
+
+def _record(who, trial: int | None, source: str, query: dict | None = None, items: list[dict] | None = None
+            ) -> str | None:
+    """Store the list shown (a preview stores nothing); 429 with Retry-After beyond the participant's list rate
+    or storage quota. Without ``items``, only checks that a list may be stored (before the work of making it)."""
+    if not isinstance(who, Participant):
+        return lists.record(None, trial, source, query, items, 0) if items is not None else None
+    quota = int(runtime(who.study_id).study.max_mb_per_participant * 1024 * 1024)
+    try:
+        if items is None:
+            lists.check_quota(who, 0, quota)
+            return None
+        return lists.record(who, trial, source, query, items, quota)
+    except lists.TooManyLists as e:
+        db.session.rollback()
+        log_again("quota", who, what=f"{source} lists", reason=str(e))
+        db.session.commit()
+        raise RequestError(429, str(e), source, {"Retry-After": str(e.retry_after)}) from None
 
 
 @bp.post("/suggest")
@@ -213,6 +232,7 @@ def suggest():
     if condition == "none":
         raise RequestError(403, "this trial's interface has no suggestions", "trial")
     rt = runtime(who.study_id)
+    _record(who, index, "context")  # within the quota, before the engine works
     scene = live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
     try:
         items, found = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
@@ -225,12 +245,12 @@ def suggest():
                            "engine") from None
     participant = who.id if isinstance(who, Participant) else None
     configured = rt.study.condition(condition).engine.name
-    list_id = lists.record(participant, index, "context",
-                           {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),
-                            "surface_type": found.surface_type, "engine": found.engine,
-                            **({"fallback": found.fallback} if found.fallback else {})},
-                           [{"rank": i["rank"], "category": i["category"], "score": i["score"],
-                             "models": [m["id"] for m in i["models"]]} for i in items])
+    list_id = _record(who, index, "context",
+                      {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),
+                       "surface_type": found.surface_type, "engine": found.engine,
+                       **({"fallback": found.fallback} if found.fallback else {})},
+                      [{"rank": i["rank"], "category": i["category"], "score": i["score"],
+                        "models": [m["id"] for m in i["models"]]} for i in items])
     if found.fallback and participant is not None:
         log("engine_fallback", who, condition=condition, trial=index, engine=configured, answered_by=found.engine,
             reason=found.fallback, list_id=list_id)
@@ -258,11 +278,12 @@ def search():
     if not 1 <= limit <= 200:
         raise RequestError(400, "must be between 1 and 200", "limit")
     rt = runtime(who.study_id)
+    _record(who, None, "search")  # within the quota, before the search
     hits = rt.search_index.search(text, limit)
     participant = who.id if isinstance(who, Participant) else None
     trial = flow.current_trial(who) if participant is not None else None
-    list_id = lists.record(participant, trial.index if trial else None, "search", {"text": text},
-                           [{"rank": i + 1, "model": h.model_id, "category": h.category} for i, h in enumerate(hits)])
+    list_id = _record(who, trial.index if trial else None, "search", {"text": text},
+                      [{"rank": i + 1, "model": h.model_id, "category": h.category} for i, h in enumerate(hits)])
     if participant is not None:
         db.session.commit()
     return jsonify({"list_id": list_id, "query": text,

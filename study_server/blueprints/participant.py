@@ -16,7 +16,7 @@ from werkzeug.exceptions import NotFound
 from .. import assignment, flow, trial_check
 from ..boot import trial_boot
 from ..extensions import db
-from ..models import Participant, SessionLog, flag, log, utcnow
+from ..models import Participant, SessionLog, flag, log, log_again, utcnow
 from ..security import address_key, check_csrf
 from ..studies import runtime
 
@@ -107,7 +107,7 @@ def start(study_id: str):
         return _entry_page(study, "Please open this study from the link on your crowdsourcing platform.", 400)
     mine = _participant(study_id)
     if mine is not None and (not platform_id or mine.platform_id == platform_id):
-        log("resume", mine, via="entry link")
+        log_again("resume", mine, via="entry link")
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
     existing = assignment.find(study, study.platform, platform_id) if platform_id else None
@@ -154,7 +154,10 @@ def _log_view(p: Participant) -> None:
     last = db.session.scalar(select(SessionLog).where(SessionLog.participant_id == p.id,
                                                       SessionLog.kind.in_(("view", "resume")))
                              .order_by(SessionLog.id.desc()).limit(1))
-    log("resume" if last is not None and last.detail.get("where") == where else "view", p, where=where)
+    if last is not None and last.detail.get("where") == where:
+        log_again("resume", p, where=where)  # reloads count on one row
+    else:
+        log("view", p, where=where)
 
 
 @bp.get("/")
@@ -220,7 +223,7 @@ def _post_participant(study_id: str) -> Participant | None:
     if p is None:
         raise NotFound()
     if not flow.is_open(p):
-        log("refused", p, path=request.path, status=p.status)
+        log_again("refused", p, path=request.path, status=p.status)
         db.session.commit()
         return None
     p.last_seen_at = utcnow()

@@ -34,10 +34,24 @@ def run_none_trial(page):
     x, y = floor_pixel(page, 0.6, 0.2)
     page.mouse.click(x, y)
     until(page, "window.sceneSuggestTest.objects().length === 2")
-    # by search: a lamp
+    # by search: a lamp; the server's first answer is "too many lists" (429), which the page waits out
+    busy = []
+
+    def once_busy(route):
+        if busy:
+            return route.continue_()
+        busy.append(route.request.url)
+        return route.fulfill(status=429, headers={"Retry-After": "1", "Content-Type": "application/json"},
+                             body='{"error": "more lists than a person asks for: wait a moment", "field": "search"}')
+    page.route("**/api/search?*", once_busy)
     page.fill(".side-panel input[type=search]", "lamp")
     until(page, "document.querySelector('.side-panel .tile[data-model]') && "
                 "document.querySelector('.side-panel .tile[data-model]').dataset.model.includes('Lamp')")
+    page.unroute("**/api/search?*")
+    assert len(busy) == 1  # refused once, asked again after the wait, answered
+    expected = [m for m in page.console_problems if "status of 429" in m]
+    assert len(expected) == 1  # the browser's own line for the refused request, and nothing else
+    page.console_problems.remove(expected[0])
     page.click(".side-panel .tile >> nth=0")
     x, y = floor_pixel(page, -0.6, 0.2)
     page.mouse.click(x, y)

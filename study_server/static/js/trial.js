@@ -46,8 +46,18 @@ const outbox = new Outbox({ api: boot.api, token: boot.token, pageId: boot.page_
     else if (banner.dataset.kind === "transient") say(lasting.text, lasting);
     banner.dataset.state = s;
   } });
-const api = (path, options = {}) => fetch(`${boot.api}${path}`, { ...options,
-  headers: { "Content-Type": "application/json", Authorization: `Bearer ${boot.token}`, ...(options.headers || {}) } });
+/** The JSON API. A 429 (this session asked for more lists than a person does) is waited out as the server says
+ * (Retry-After, up to a minute) and asked again, twice at most; the answer after that is the caller's. */
+const api = async (path, options = {}) => {
+  for (let tries = 0; ; tries += 1) {
+    const r = await fetch(`${boot.api}${path}`, { ...options,
+      headers: { "Content-Type": "application/json", Authorization: `Bearer ${boot.token}`, ...(options.headers || {}) } });
+    const wait = Number(r.headers.get("Retry-After"));
+    if (r.status !== 429 || tries >= 2 || !(wait > 0 && wait <= 60)) return r;
+    say(strings.wait, { transient: true });
+    await new Promise((res) => setTimeout(res, wait * 1000));
+  }
+};
 const log = (type, payload = {}) => {
   const seq = outbox.log(type, payload, trial.index);
   testHook?.logged(seq, type, payload);
