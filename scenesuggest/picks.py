@@ -40,6 +40,10 @@ class Pick:
 
 #: The editor's undoable actions, by the event that logs each (its undo and redo events name the action).
 UNDOABLE = {"insert": "insert", "replace": "replace", "delete": "delete", "move_end": "move", "rotate_end": "rotate"}
+#: The event types :func:`picks` reads (the others can be left out of what it is given).
+PICK_INPUTS = frozenset(UNDOABLE) | {"undo", "redo", "trial_start", "resume"}
+#: Of those, the types whose payload it reads (of the others, only the type and trial count).
+PICK_PAYLOADS = frozenset(PICKS) | {"undo", "redo"}
 
 
 def picks(events: Iterable[Mapping]) -> list[Pick]:

@@ -149,7 +149,9 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
                "SCENESUGGEST_ADMIN_PASSWORD_HASH)")
     sys.stdout.flush()
     os.environ.setdefault("SCENESUGGEST_WARM", "1")  # each worker loads the studies before its first request
-    os.execv(sys.executable, [sys.executable, "-m", "gunicorn", "--workers", str(workers), "--bind",
+    # --timeout: a worker answering one request longer than this is killed; the admin's export streams a large
+    # study for longer than gunicorn's default 30 s (330 MB of events: about a minute)
+    os.execv(sys.executable, [sys.executable, "-m", "gunicorn", "--workers", str(workers), "--timeout", "300", "--bind",
                               f"{host}:{port}", "--access-logfile", "-", "study_server:create_app()"])
 
 

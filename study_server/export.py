@@ -22,9 +22,10 @@ import hashlib
 import io
 import json
 import subprocess
+import tempfile
 import zipfile
+from collections.abc import Iterator
 from datetime import UTC, datetime
-from itertools import groupby
 from pathlib import Path
 
 from sqlalchemy import select, text
@@ -32,7 +33,7 @@ from sqlalchemy import select, text
 import scenesuggest
 from scenesuggest.cells import safe_cell
 from scenesuggest.library import INDEX_FILE
-from scenesuggest.picks import picks
+from scenesuggest.picks import PICK_INPUTS, PICK_PAYLOADS, picks
 from scenesuggest.scoring import FORMULA
 
 from .extensions import db
@@ -129,65 +130,88 @@ def scenes_document(rt: StudyRuntime) -> dict:
             "symmetry_deg": {m: rt.period_of(m) for m in models}, "scoring": FORMULA}
 
 
-def _rows(rt: StudyRuntime) -> dict[str, list[dict]]:
+#: Rows read from the database at a time, and written between two chunks of a streamed export: what the export
+#: holds in memory at once, whatever the study's size.
+BATCH = 1000
+
+
+def _stream(statement):
+    """The rows of ``statement`` read ``BATCH`` at a time (a server-side cursor where the database has one)."""
+    return db.session.scalars(statement.execution_options(yield_per=BATCH))
+
+
+def _pick_rows(participant: int, events: list[dict]) -> Iterator[dict]:
+    for pick in picks(events):
+        yield {"participant": participant, "seq": pick.seq, "trial": "" if pick.trial is None else pick.trial,
+               "client_t_ms": repr(pick.t), "action": pick.action, "object": pick.object, "model": pick.model,
+               "category": pick.category, "rank": "" if pick.rank is None else pick.rank,
+               "reciprocal_rank": "" if pick.reciprocal_rank is None else pick.reciprocal_rank,
+               "source": pick.source, "list_id": pick.list_id or "", "final": "true" if pick.final else "false"}
+
+
+def _table(rt: StudyRuntime, name: str, seen: dict) -> Iterator[dict]:
+    """The rows of the table ``name`` (but ``picks``, found in the events' pass), read as they are written;
+    ``seen`` collects the event vocabularies met, and ``seen["picks"]`` takes each participant's events that
+    picks are made of."""
     study = rt.study
-    s = db.session
-    people = list(s.scalars(select(Participant).where(Participant.study_id == study.id).order_by(Participant.id)))
-    ids = [p.id for p in people]
-    out: dict[str, list[dict]] = {name: [] for name in DICTIONARY}
-    for p in people:
-        v = p.viewport or {}
-        out["participants"].append({
-            "participant": p.id, "study": p.study_id, "study_hash": p.study_hash, "platform": p.platform,
-            "platform_id": p.platform_id, "row": p.row, "status": p.status, "step": p.step,
-            "consent_version": p.consent_version or "", "excluded_reason": p.excluded_reason or "",
-            "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at), "finished_at": _iso(p.finished_at),
-            "acked_seq": p.acked_seq, "flags": " | ".join(f["reason"] for f in open_flags(p)),
-            "viewport_width": v.get("width", ""), "viewport_height": v.get("height", ""),
-            "user_agent": p.user_agent})
-    if not ids:
-        return out
-    for t in s.scalars(select(Trial).where(Trial.participant_id.in_(ids)).order_by(Trial.participant_id,
+    ids = select(Participant.id).where(Participant.study_id == study.id).scalar_subquery()
+    if name == "participants":
+        for p in _stream(select(Participant).where(Participant.study_id == study.id).order_by(Participant.id)):
+            v = p.viewport or {}
+            yield {"participant": p.id, "study": p.study_id, "study_hash": p.study_hash, "platform": p.platform,
+                   "platform_id": p.platform_id, "row": p.row, "status": p.status, "step": p.step,
+                   "consent_version": p.consent_version or "", "excluded_reason": p.excluded_reason or "",
+                   "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at),
+                   "finished_at": _iso(p.finished_at), "acked_seq": p.acked_seq,
+                   "flags": " | ".join(f["reason"] for f in open_flags(p)), "viewport_width": v.get("width", ""),
+                   "viewport_height": v.get("height", ""), "user_agent": p.user_agent}
+    elif name == "trials":
+        for t in _stream(select(Trial).where(Trial.participant_id.in_(ids)).order_by(Trial.participant_id,
                                                                                    Trial.position)):
-        out["trials"].append({
-            "participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
-            "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
-            "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
-            "final_objects": len(t.final_scene["objects"]) if t.final_scene else "", "review": t.review or "",
-            "replay": t.replay or "", **_closeness(rt, t)})
-    events = list(s.scalars(select(Event).where(Event.participant_id.in_(ids)).order_by(Event.participant_id,
-                                                                                          Event.seq)))
-    for e in events:
-        out["events"].append({"participant": e.participant_id, "seq": e.seq, "page_id": e.page_id, "type": e.type,
-                              "trial": "" if e.trial is None else e.trial, "client_t_ms": repr(e.client_t),
-                              "server_t": _iso(e.server_t), "payload": json.dumps(e.payload, sort_keys=True),
-                              "vocabulary": e.vocabulary})
-    for participant, own in groupby(events, key=lambda e: e.participant_id):
-        for pick in picks([{"seq": e.seq, "t": e.client_t, "type": e.type, "trial": e.trial, "payload": e.payload}
-                           for e in own]):
-            out["picks"].append({
-                "participant": participant, "seq": pick.seq, "trial": "" if pick.trial is None else pick.trial,
-                "client_t_ms": repr(pick.t), "action": pick.action, "object": pick.object, "model": pick.model,
-                "category": pick.category, "rank": "" if pick.rank is None else pick.rank,
-                "reciprocal_rank": "" if pick.reciprocal_rank is None else pick.reciprocal_rank,
-                "source": pick.source, "list_id": pick.list_id or "", "final": "true" if pick.final else "false"})
-    for li in s.scalars(select(ShownList).where(ShownList.participant_id.in_(ids)).order_by(ShownList.created_at,
-                                                                                           ShownList.id)):
-        for item in li.items:
-            out["suggestions"].append({
-                "participant": li.participant_id, "list_id": li.id, "trial": "" if li.trial is None else li.trial,
-                "source": li.source, "rank": item.get("rank"), "category": item.get("category", ""),
-                "model": item.get("model") or (item.get("models") or [""])[0], "score": item.get("score", ""),
-                "created_at": _iso(li.created_at), "query": json.dumps(li.query, sort_keys=True)})
-    for r in s.scalars(select(SurveyResponse).where(SurveyResponse.participant_id.in_(ids))
-                       .order_by(SurveyResponse.participant_id, SurveyResponse.survey)):
-        for q, a in r.answers.items():
-            out["survey"].append({"participant": r.participant_id, "survey": r.survey, "question": q,
-                                  "answer": "" if a is None else a})
-    for row in s.scalars(select(SessionLog).where(SessionLog.participant_id.in_(ids)).order_by(SessionLog.id)):
-        out["session_log"].append({"participant": row.participant_id, "kind": row.kind, "at": _iso(row.at),
-                                   "detail": json.dumps(row.detail, sort_keys=True)})
-    return out
+            yield {"participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
+                   "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
+                   "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
+                   "final_objects": len(t.final_scene["objects"]) if t.final_scene else "",
+                   "review": t.review or "", "replay": t.replay or "", **_closeness(rt, t)}
+    elif name == "events":  # the picks are found in the same pass, one participant at a time (see write_export)
+        rows = db.session.execute(select(Event.participant_id, Event.seq, Event.page_id, Event.type, Event.trial,
+                                         Event.client_t, Event.server_t, Event.payload, Event.vocabulary)
+                                  .where(Event.participant_id.in_(ids)).order_by(Event.participant_id, Event.seq)
+                                  .execution_options(yield_per=BATCH))
+        vocabularies, own, current = seen.setdefault("vocabularies", set()), [], None
+        for e in rows:
+            if e.participant_id != current:
+                seen["picks"](current, own)
+                own, current = [], e.participant_id
+            vocabularies.add(int(e.vocabulary))
+            if e.type in PICK_INPUTS:  # what picks need of it (a move's or a turn's object states are not)
+                own.append({"seq": e.seq, "t": e.client_t, "type": e.type, "trial": e.trial,
+                            "payload": e.payload if e.type in PICK_PAYLOADS else {}})
+            yield {"participant": e.participant_id, "seq": e.seq, "page_id": e.page_id, "type": e.type,
+                   "trial": "" if e.trial is None else e.trial, "client_t_ms": repr(e.client_t),
+                   "server_t": _iso(e.server_t), "payload": json.dumps(e.payload, sort_keys=True),
+                   "vocabulary": e.vocabulary}
+        seen["picks"](current, own)
+    elif name == "suggestions":
+        for li in _stream(select(ShownList).where(ShownList.participant_id.in_(ids)).order_by(ShownList.created_at,
+                                                                                             ShownList.id)):
+            for item in li.items:
+                yield {"participant": li.participant_id, "list_id": li.id,
+                       "trial": "" if li.trial is None else li.trial, "source": li.source, "rank": item.get("rank"),
+                       "category": item.get("category", ""),
+                       "model": item.get("model") or (item.get("models") or [""])[0],
+                       "score": item.get("score", ""), "created_at": _iso(li.created_at),
+                       "query": json.dumps(li.query, sort_keys=True)}
+    elif name == "survey":
+        for r in _stream(select(SurveyResponse).where(SurveyResponse.participant_id.in_(ids))
+                         .order_by(SurveyResponse.participant_id, SurveyResponse.survey)):
+            for q, a in r.answers.items():
+                yield {"participant": r.participant_id, "survey": r.survey, "question": q,
+                       "answer": "" if a is None else a}
+    elif name == "session_log":
+        for row in _stream(select(SessionLog).where(SessionLog.participant_id.in_(ids)).order_by(SessionLog.id)):
+            yield {"participant": row.participant_id, "kind": row.kind, "at": _iso(row.at),
+                   "detail": json.dumps(row.detail, sort_keys=True)}
 
 
 def csv_text(rows: list[dict], columns: list[str]) -> str:
@@ -231,14 +255,114 @@ def _engines(rt: StudyRuntime) -> dict:
     return out
 
 
-def export_files(rt: StudyRuntime) -> dict[str, str]:
-    """File name → content of a complete export of the study ``rt`` runs."""
+class _Sink:
+    """Where an export's files go, one at a time, as text; each file's SHA-256 and size are taken as it is
+    written (for the manifest)."""
+
+    def begin(self, name: str) -> None:
+        self.name, self.digest, self.size = name, hashlib.sha256(), 0
+
+    def write(self, text: str) -> None:
+        data = text.encode("utf-8")
+        self.digest.update(data)
+        self.size += len(data)
+        self._put(data)
+
+    def end(self) -> str:
+        self._close()
+        return self.digest.hexdigest()
+
+
+class FolderSink(_Sink):
+    def __init__(self, out: Path):
+        out.mkdir(parents=True, exist_ok=True)
+        self.out = out
+
+    def begin(self, name: str) -> None:
+        super().begin(name)
+        self.file = (self.out / name).open("wb")
+
+    def _put(self, data: bytes) -> None:
+        self.file.write(data)
+
+    def _close(self) -> None:
+        self.file.close()
+
+
+class ZipSink(_Sink):
+    """Into a zip archive on ``stream`` (which may be a pipe: the archive is then written front to back)."""
+
+    def __init__(self, stream, folder: str):
+        self.zip = zipfile.ZipFile(stream, "w", zipfile.ZIP_DEFLATED)
+        self.folder = folder
+
+    def begin(self, name: str) -> None:
+        super().begin(name)
+        self.member = self.zip.open(f"{self.folder}/{name}", "w", force_zip64=True)
+
+    def _put(self, data: bytes) -> None:
+        self.member.write(data)
+
+    def _close(self) -> None:
+        self.member.close()
+
+    def finish(self) -> None:
+        self.zip.close()
+
+
+def write_export(rt: StudyRuntime, sink: _Sink) -> Iterator[dict | None]:
+    """Write a complete export of the study ``rt`` runs into ``sink``, table by table, ``BATCH`` rows at a time;
+    yields after each batch (so a caller can send what is written) and last the manifest."""
     from scenesuggest.event_schema import json_schema
     from scenesuggest.events import VERSION
 
     study = rt.study
-    rows = _rows(rt)
-    files = {f"{name}.csv": csv_text(rows[name], list(columns)) for name, columns in DICTIONARY.items()}
+    hashes, counts = {}, {}
+    # the picks are found while the events are read (one pass over the largest table), kept in a file that stays
+    # in memory while small and spills to disk after, and written at their turn
+    held = tempfile.SpooledTemporaryFile(max_size=8 << 20, mode="w+", encoding="utf-8", newline="")  # noqa: SIM115
+    # (closed once copied; an export abandoned half-way, a download cut off, leaves it to the collector)
+    pick_writer = csv.DictWriter(held, fieldnames=list(DICTIONARY["picks"]), lineterminator="\n")
+    found = {"picks": 0}
+
+    def take(participant, events):
+        for row in _pick_rows(participant, events) if participant is not None else ():
+            pick_writer.writerow({k: safe_cell(v) for k, v in row.items()})
+            found["picks"] += 1
+    seen = {"picks": take}
+
+    def whole(name: str, text: str) -> None:
+        sink.begin(name)
+        sink.write(text)
+        hashes[name] = sink.end()
+
+    for name, columns in DICTIONARY.items():
+        sink.begin(f"{name}.csv")
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n")
+        writer.writeheader()
+        counts[name] = 0
+        if name == "picks":  # written, escaped, while the events were read
+            held.seek(0)
+            while chunk := held.read(1 << 20):
+                buf.write(chunk)
+                sink.write(buf.getvalue())
+                buf.seek(0)
+                buf.truncate()
+                yield None
+            held.close()
+            counts[name] = found["picks"]
+        for row in _table(rt, name, seen):
+            writer.writerow({k: safe_cell(v) for k, v in row.items()})
+            counts[name] += 1
+            if counts[name] % BATCH == 0:
+                sink.write(buf.getvalue())
+                buf.seek(0)
+                buf.truncate()
+                yield None
+        sink.write(buf.getvalue())
+        hashes[f"{name}.csv"] = sink.end()
+        yield None
     try:
         schema_version = db.session.execute(text("SELECT version_num FROM alembic_version")).scalar()
     except Exception:
@@ -254,36 +378,68 @@ def export_files(rt: StudyRuntime) -> dict[str, str]:
                    "(OWASP's advice on CSV injection); numbers are written as they are. Remove that one "
                    "`'` to get the stored value (`analysis.load.read_export` does). Text that was stored without "
                    "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
-    files["data_dictionary.md"] = "\n".join(dictionary)
-    files["event_schema.json"] = json.dumps(json_schema(), indent=1)
-    for version in sorted({int(e["vocabulary"]) for e in rows["events"]} - {VERSION}):  # older pages' events
-        files[f"event_schema_v{version}.json"] = json.dumps(json_schema(version), indent=1)
-    files["scenes.json"] = json.dumps(scenes_document(rt), indent=1, sort_keys=True)
+    whole("data_dictionary.md", "\n".join(dictionary))
+    whole("event_schema.json", json.dumps(json_schema(), indent=1))
+    for version in sorted(seen.get("vocabularies", set()) - {VERSION}):  # older pages' events
+        whole(f"event_schema_v{version}.json", json.dumps(json_schema(version), indent=1))
+    whole("scenes.json", json.dumps(scenes_document(rt), indent=1, sort_keys=True))
     manifest = {
         "study": study.id, "title": study.title, "study_hash": study.hash, "study_file": study.path.name,
         "code_version": _code_version(), "schema_version": schema_version,
-        "exported_at": datetime.now(UTC).isoformat(), "row_counts": {n: len(r) for n, r in rows.items()},
-        "files": {n: hashlib.sha256(c.encode()).hexdigest() for n, c in sorted(files.items())},
+        "exported_at": datetime.now(UTC).isoformat(), "row_counts": counts,
+        "files": dict(sorted(hashes.items())),
         "design": {"kind": study.design, "blocking": study.blocking, "rows": study.n_rows,
                    "conditions": [c.id for c in study.conditions], "periods": [list(p) for p in study.periods]},
         "resources": _resources(study),
         "engines": _engines(rt),
     }
-    files["manifest.json"] = json.dumps(manifest, indent=1)
-    return files
+    whole("manifest.json", json.dumps(manifest, indent=1))
+    yield manifest
 
 
 def export_to(rt: StudyRuntime, out: Path) -> dict:
-    out.mkdir(parents=True, exist_ok=True)
-    files = export_files(rt)
-    for name, content in files.items():
-        (out / name).write_text(content, encoding="utf-8")
-    return json.loads(files["manifest.json"])
+    """Write the export into the folder ``out``; returns its manifest."""
+    *_, manifest = write_export(rt, FolderSink(out))
+    return manifest
+
+
+class _Pipe:
+    """A write-only stream whose bytes are taken away as they come (no ``tell``: zipfile then writes front to
+    back, sizes after each member)."""
+
+    def __init__(self):
+        self.chunks: list[bytes] = []
+
+    def write(self, data: bytes) -> int:
+        self.chunks.append(bytes(data))
+        return len(data)
+
+    def flush(self) -> None:
+        pass
+
+    def take(self) -> bytes:
+        data, self.chunks = b"".join(self.chunks), []
+        return data
+
+
+def export_stream(rt: StudyRuntime) -> Iterator[bytes]:
+    """The export as a zip archive (one folder named for the study), in pieces as it is written: what is held in
+    memory at once is a batch of rows, whatever the study's size."""
+    pipe = _Pipe()
+    sink = ZipSink(pipe, rt.study.id)
+    for _ in write_export(rt, sink):
+        if piece := pipe.take():
+            yield piece
+    sink.finish()
+    yield pipe.take()
 
 
 def export_zip(rt: StudyRuntime) -> bytes:
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
-        for name, content in export_files(rt).items():
-            z.writestr(f"{rt.study.id}/{name}", content)
-    return buf.getvalue()
+    """The whole export as one zip archive in memory (tests; the admin streams :func:`export_stream`)."""
+    return b"".join(export_stream(rt))
+
+
+def export_files(rt: StudyRuntime) -> dict[str, str]:
+    """File name → content of a complete export (tests)."""
+    with zipfile.ZipFile(io.BytesIO(export_zip(rt))) as z:
+        return {n.split("/", 1)[1]: z.read(n).decode("utf-8") for n in z.namelist()}

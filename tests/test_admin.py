@@ -102,9 +102,10 @@ def test_preview_and_export(admin_app):
     assert grid.count(b"/admin/demo/preview/") == 12  # 3 conditions × 4 scenes
     page = c.get("/admin/demo/preview/basic/bedside")
     assert page.status_code == 200 and b'"preview": true' in page.data
-    r = c.get("/admin/demo/export.zip")
+    r = c.get("/admin/demo/export.zip", buffered=False)
     assert r.status_code == 200 and r.mimetype == "application/zip"
-    z = zipfile.ZipFile(io.BytesIO(r.data))
+    assert r.is_streamed and "Content-Length" not in r.headers  # sent as it is written
+    z = zipfile.ZipFile(io.BytesIO(b"".join(r.response)))
     names = {n.split("/", 1)[1] for n in z.namelist()}
     assert {"participants.csv", "trials.csv", "events.csv", "suggestions.csv", "picks.csv", "survey.csv",
             "manifest.json", "data_dictionary.md", "event_schema.json"} <= names

@@ -16,6 +16,7 @@ from flask import (
     render_template,
     request,
     send_file,
+    stream_with_context,
     url_for,
 )
 from sqlalchemy import func, select
@@ -28,7 +29,7 @@ from ..authoring import checked_png, checked_scene, image_path
 from ..boot import trial_boot
 from ..config import part_of_the_package
 from ..errors import RequestError
-from ..export import csv_text, export_zip
+from ..export import csv_text, export_stream
 from ..extensions import db
 from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
 from ..outcomes import APPROVAL_COLUMNS, approval_rows, issued_codes
@@ -352,9 +353,10 @@ def author_image(study_id: str, scene_id: str):
 @bp.get("/<study_id>/export.zip")
 @admin_required
 def export(study_id: str):
-    data = export_zip(runtime(study_id))
+    rt = runtime(study_id)
     stamp = utcnow().strftime("%Y%m%dT%H%M%SZ")
-    return Response(data, mimetype="application/zip",
+    # streamed as it is written: a batch of rows in memory at a time, whatever the study's size
+    return Response(stream_with_context(export_stream(rt)), mimetype="application/zip",
                     headers={"Content-Disposition": f"attachment; filename={study_id}-{stamp}.zip"})
 
 
