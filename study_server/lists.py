@@ -11,7 +11,7 @@ import uuid
 from collections.abc import Callable
 from datetime import timedelta
 
-from sqlalchemy import func, select
+from sqlalchemy import select
 
 from scenesuggest import frames
 from scenesuggest.suggest import ContextQuery, SuggestionList
@@ -39,16 +39,20 @@ class TooManyLists(Exception):
         self.retry_after = retry_after
 
 
-def check_quota(who: Participant, size: int, quota_bytes: int) -> None:
-    """Refuse a list beyond the participant's rate or storage quota (lists count against the same bytes as
-    events: a participant's stored data is bounded whatever they send)."""
+def check_rate(who: Participant) -> None:
+    """Refuse (:class:`TooManyLists`) a participant who has had ``LIST_RATE`` lists stored within the last
+    ``LIST_WINDOW``: one look at the ``LIST_RATE``-th newest of their lists (by the index on participant and time)."""
     now = utcnow()
-    recent, oldest = db.session.execute(select(func.count(), func.min(ShownList.created_at)).where(
-        ShownList.participant_id == who.id, ShownList.created_at >= now - LIST_WINDOW)).one()
-    if recent >= LIST_RATE:
-        wait = (oldest + LIST_WINDOW - now).total_seconds() if oldest else LIST_WINDOW.total_seconds()
+    nth = db.session.scalar(select(ShownList.created_at).where(ShownList.participant_id == who.id)
+                            .order_by(ShownList.created_at.desc()).offset(LIST_RATE - 1).limit(1))
+    if nth is not None and nth > now - LIST_WINDOW:
         raise TooManyLists(f"more than {LIST_RATE} lists in {int(LIST_WINDOW.total_seconds())} s: wait a moment",
-                           max(1, int(wait) + 1))
+                           max(1, int((nth + LIST_WINDOW - now).total_seconds()) + 1))
+
+
+def check_room(who: Participant, size: int, quota_bytes: int) -> None:
+    """Refuse a list of ``size`` bytes that would take the participant beyond their storage quota (lists count
+    against the same bytes as events: a participant's stored data is bounded whatever they send)."""
     if (who.bytes_stored or 0) + size > quota_bytes:
         raise TooManyLists("this session has stored as much as a study allows", 300)
 
@@ -81,11 +85,12 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
 def record(who: Participant | None, trial: int | None, source: str, query: dict, items: list[dict],
            quota_bytes: int) -> str:
     """Store a shown list (nothing for a preview, ``who`` None); returns its id. The list counts against the
-    participant's rate and storage quota (:class:`TooManyLists`). The caller commits."""
+    participant's storage quota (:class:`TooManyLists`; the rate is checked before the list is made,
+    :func:`check_rate`). The caller commits."""
     list_id = uuid.uuid4().hex
     if who is not None:
         size = len(json.dumps(query)) + len(json.dumps(items))
-        check_quota(who, size, quota_bytes)
+        check_room(who, size, quota_bytes)
         who.bytes_stored = (who.bytes_stored or 0) + size
         db.session.add(ShownList(id=list_id, participant_id=who.id, trial=trial, source=source, query=query,
                                  items=items, created_at=utcnow()))

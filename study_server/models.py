@@ -13,6 +13,7 @@ from sqlalchemy import (
     DateTime,
     Float,
     ForeignKey,
+    Index,
     Integer,
     SmallInteger,
     String,
@@ -124,8 +125,10 @@ class ShownList(db.Model):
     """Every list the server gave a participant (context suggestions, search results), with its ranks."""
 
     __tablename__ = "lists"
+    #: A participant's lists by time: the export's order and the list rate's one look (lists.check_rate).
+    __table_args__ = (Index("ix_lists_participant_created", "participant_id", "created_at"),)
     id: Mapped[str] = mapped_column(String(32), primary_key=True)
-    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), index=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"))
     trial: Mapped[int | None] = mapped_column(Integer, nullable=True)
     source: Mapped[str] = mapped_column(String(16))
     query: Mapped[dict] = mapped_column(JSON)

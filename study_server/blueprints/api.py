@@ -214,7 +214,8 @@ def _record(who, trial: int | None, source: str, query: dict | None = None, item
     quota = int(runtime(who.study_id).study.max_mb_per_participant * 1024 * 1024)
     try:
         if items is None:
-            lists.check_quota(who, 0, quota)
+            lists.check_rate(who)
+            lists.check_room(who, 0, quota)
             return None
         return lists.record(who, trial, source, query, items, quota)
     except lists.TooManyLists as e:

@@ -1,6 +1,8 @@
-"""One-time admin sign-in links (``scenesuggest study admin-link``)
+"""One-time admin sign-in links; a participant's lists indexed by time
 
-The operator's way in that failed logins from an anonymous crowd cannot close.
+admin_links: the operator's way in that failed logins from an anonymous crowd cannot close
+(``scenesuggest study admin-link``). lists: the index on participant_id becomes one on (participant_id,
+created_at), which the list rate reads (the newest lists of a participant) and the export orders by.
 
 Revision ID: 5c1e7d9a3f20
 Revises: 3b9d2c41e7a5
@@ -24,7 +26,11 @@ def upgrade():
                     sa.Column('expires_at', sa.DateTime(), nullable=False),
                     sa.Column('used_at', sa.DateTime(), nullable=True),
                     sa.PrimaryKeyConstraint('id'))
+    op.drop_index('ix_lists_participant_id', table_name='lists')
+    op.create_index('ix_lists_participant_created', 'lists', ['participant_id', 'created_at'], unique=False)
 
 
 def downgrade():
+    op.drop_index('ix_lists_participant_created', table_name='lists')
+    op.create_index('ix_lists_participant_id', 'lists', ['participant_id'], unique=False)
     op.drop_table('admin_links')
