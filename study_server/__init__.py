@@ -95,7 +95,7 @@ def create_app(config: dict | None = None) -> Flask:
     app.register_blueprint(admin.bp)
     app.register_blueprint(health.bp)
     hops = app.config.get("PROXY_HOPS", 0)
-    if hops:  # behind that many reverse proxies: their X-Forwarded-* say the client's address, scheme and host
+    if hops:  # behind that many reverse proxies: their X-Forwarded-* say the client's address, scheme and port
         from werkzeug.middleware.proxy_fix import ProxyFix
 
         # never X-Forwarded-Host: the proxy sets Host (to the one name it serves), and a client's own claim of a

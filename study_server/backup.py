@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import glob
 import os
+import re
 import shutil
 import sqlite3
 import subprocess
@@ -149,7 +150,8 @@ def _pg_dump(url: str, tmp: Path) -> dict:
             snapshot = con.execute(text("SELECT pg_export_snapshot()")).scalar()
             summary = _counts(con)
             uri, env = _libpq(url)
-            _run([_pg_tool("pg_dump"), "--format=custom", "--no-owner", "--no-password", f"--snapshot={snapshot}",
+            _run([_pg_tool("pg_dump"), "--format=custom", "--no-owner", "--no-privileges", "--no-password",
+                  f"--snapshot={snapshot}",
                   f"--file={tmp}", f"--dbname={uri}"], env, "pg_dump")
             return summary
     except SQLAlchemyError as e:
@@ -249,6 +251,12 @@ def _restore_sqlite(source: Path, url: str) -> dict:
         if differences:
             raise BackupError("holds what the migrations do not create, so nothing was restored: "
                               + "; ".join(differences), file=str(source))
+        held = _summary(f"sqlite:///{copy}")
+        for key in ("revision", "participants", "events"):
+            if held[key] != manifest[key]:
+                raise BackupError(f"the backup's database holds {key} {held[key]!r}, its manifest says "
+                                  f"{manifest[key]!r}: the backup is not what it claims; nothing was restored",
+                                  file=str(source))
         created = not path.exists()
         if created:
             _private_file(path)
@@ -326,18 +334,88 @@ def _restore_pg(source: Path, url: str) -> dict:
                 raise BackupError("holds what the migrations do not create, so nothing was restored: "
                                   + "; ".join(refused), file=str(source))
             order = {t: i for i, t in enumerate(_table_order(url))}
-            rows = sorted(((order.get(name, len(order)), line) for line, kind, _s, name in entries
-                           if kind == "TABLE DATA" and name in order and name not in (*SIGN_INS, "alembic_version")
-                           or kind == "SEQUENCE SET"), key=lambda r: r[0])
+            rows = sorted(((order[name], line) for line, kind, _s, name in entries
+                           if kind == "TABLE DATA" and name in order and name not in (*SIGN_INS, "alembic_version")),
+                          key=lambda r: r[0])
             chosen = Path(scratch) / "rows.list"
             chosen.write_text("".join(line + "\n" for _o, line in rows))
-            _run([tool, "--data-only", "--no-owner", "--no-privileges", "--no-password", "--exit-on-error",
-                  "--single-transaction", f"--use-list={chosen}", f"--dbname={uri}", str(archive)], env,
-                 "pg_restore")
+            done = _copy_rows(tool, archive, chosen, url, env)
+            for key in ("participants", "events"):
+                if done[key] != manifest[key]:
+                    raise BackupError(f"the archive holds {done[key]} {key}, its manifest says {manifest[key]}: "
+                                      "the backup is not what it claims; nothing was kept", file=str(source))
         except BaseException:
             _drop_everything(url)
             raise
-    return {**_summary(url), "integrity": "ok"}  # pg_restore checked every row in one transaction
+    return {**_summary(url), "integrity": "ok"}  # PostgreSQL checked every row in one transaction
+
+
+_COPY = re.compile(r'^COPY public\.("?)([a-z_]+)\1 \((.*)\) FROM stdin;$')
+
+
+def _copy_rows(tool: str, archive: Path, chosen: Path, url: str, env: dict) -> dict:
+    """Load the archive's rows of the tables listed in ``chosen`` into the migrated database at ``url``, in one
+    transaction, and set each table's id sequence after its largest id. Nothing of the archive runs: pg_restore
+    only renders it as text (no connection), and of that text only COPY blocks of our tables, with columns they
+    have, are read; the COPY statements sent are ours. Returns the participants and events counted before the
+    transaction commits."""
+    from psycopg import sql
+
+    engine = create_engine(url)
+    render = subprocess.Popen([tool, "--data-only", "--no-owner", "--no-privileges", f"--use-list={chosen}",
+                               "--file=-", str(archive)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    try:
+        with engine.connect() as con:
+            found = {t: inspect(con).get_columns(t) for t in inspect(con).get_table_names()}
+            columns = {t: {c["name"] for c in cols} for t, cols in found.items()}
+            counted = [t for t, cols in found.items()  # tables whose id a sequence gives
+                       if any(c["name"] == "id" and str(c["type"]) in ("INTEGER", "BIGINT") for c in cols)]
+            raw = con.connection.dbapi_connection
+            with raw.cursor() as cur:
+                lines = iter(render.stdout)
+                for line in lines:
+                    match = _COPY.match(line.decode("utf-8", "replace").rstrip("\n"))
+                    if not match:
+                        continue  # SET, comments, anything else: never run
+                    table = match.group(2)
+                    names = [c.strip().strip('"') for c in match.group(3).split(",")]
+                    if table not in columns or table in (*SIGN_INS, "alembic_version") or \
+                            not set(names) <= columns[table]:
+                        raise BackupError(f"the archive's rows of {table!r} do not fit the migrations' table")
+                    statement = sql.SQL("COPY {} ({}) FROM STDIN").format(
+                        sql.Identifier("public", table), sql.SQL(", ").join(map(sql.Identifier, names)))
+                    with cur.copy(statement) as copy:
+                        for row in lines:
+                            if row == b"\\.\n":
+                                break
+                            copy.write(row)
+                for table in counted:
+                    if table != "alembic_version":
+                        cur.execute(sql.SQL("SELECT setval(pg_get_serial_sequence({}, 'id'), "
+                                            "COALESCE(MAX(id), 0) + 1, false) FROM {} "
+                                            "WHERE pg_get_serial_sequence({}, 'id') IS NOT NULL").format(
+                            sql.Literal(f"public.{table}"), sql.Identifier("public", table),
+                            sql.Literal(f"public.{table}")))
+                cur.execute("SELECT (SELECT COUNT(*) FROM participants), (SELECT COUNT(*) FROM events)")
+                participants, events = cur.fetchone()
+            if render.wait() != 0:
+                last = (render.stderr.read().decode(errors="replace").strip().splitlines() or ["no message"])[-1]
+                raise BackupError(f"pg_restore cannot read the archive's rows: {last}")
+            con.commit()
+    except SQLAlchemyError as e:
+        raise BackupError(f"the archive's rows cannot be stored ({type(e).__name__}: {str(e).splitlines()[0]}); "
+                          "nothing was kept") from None
+    except Exception as e:  # psycopg's own errors (a COPY row that does not fit)
+        if isinstance(e, BackupError):
+            raise
+        raise BackupError(f"the archive's rows cannot be stored ({type(e).__name__}: "
+                          f"{str(e).splitlines()[0] if str(e) else ''}); nothing was kept") from None
+    finally:
+        if render.poll() is None:
+            render.kill()
+        render.wait()
+        engine.dispose()
+    return {"participants": participants, "events": events}
 
 
 def _table_order(url: str) -> list[str]:

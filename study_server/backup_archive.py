@@ -24,9 +24,6 @@ FORMAT = "scenesuggest-backup/1"
 MANIFEST = "MANIFEST.json"
 PAYLOAD = {"sqlite": "database.sqlite3", "postgresql": "database.pgdump"}
 MAX_MANIFEST = 64 * 1024  # bytes; a manifest is a few hundred
-#: A file whose allocated blocks fall this far short of its length is sparse: a backup is written whole, and a
-#: sparse one (a forged length of mostly holes) would make the restore write gigabytes before its digest failed.
-SPARSE_SLACK = 1 << 20  # bytes
 CHUNK = 1 << 20
 
 
@@ -93,57 +90,76 @@ def read_manifest(source: Path) -> dict:
 
 def _whole_file(source: Path) -> None:
     try:
-        st = source.stat()
+        source.stat()
     except OSError as e:
         raise BackupError(f"cannot read: {e.strerror}", file=str(source)) from None
     if not source.is_file():
         raise BackupError("not a file", file=str(source))
-    if hasattr(st, "st_blocks") and st.st_blocks * 512 + SPARSE_SLACK < st.st_size:
-        raise BackupError(f"a sparse file ({st.st_size} bytes long, {st.st_blocks * 512} written): backups are "
-                          "written whole, so this one was made or changed by something else; nothing was restored",
-                          file=str(source))
+
+
+def _payload(source: Path, check_head=None):
+    """(manifest, the payload's blocks) of the backup ``source``, its members checked for form; the blocks are
+    read as they are taken."""
+    where = str(source)
+    tar = tarfile.open(source, "r:")  # noqa: SIM115 - closed here on a refusal, else when the blocks are read
+    try:
+        manifest = _manifest(tar, where)
+        member = tar.next()
+        if member is None or member.name != manifest["payload"]:
+            raise BackupError(f"the backup holds no {manifest['payload']} (is it cut short?)", file=where)
+        if not member.isreg() or member.issparse() or member.size != manifest["bytes"]:
+            raise BackupError(f"{member.name} is not the regular file of {manifest['bytes']} bytes the manifest "
+                              "names", file=where)
+        if member.size > source.stat().st_size:
+            raise BackupError(f"{member.name} claims more bytes than the file holds", file=where)
+    except BaseException:
+        tar.close()
+        raise
+
+    def blocks():
+        try:
+            stream, left, first = tar.extractfile(member), member.size, True
+            while left:
+                block = stream.read(min(CHUNK, left))
+                if not block:
+                    raise BackupError(f"the backup is cut short ({left} bytes of {member.name} missing)",
+                                      file=where)
+                if first and check_head is not None:
+                    check_head(block[:4096], member.size)
+                first = False
+                left -= len(block)
+                yield block
+            if tar.next() is not None:
+                raise BackupError(f"the backup holds more than {MANIFEST} and {member.name}", file=where)
+        finally:
+            tar.close()
+    return manifest, blocks()
 
 
 def extract_payload(source: Path, into: Path, check_head=None) -> dict:
-    """Copy the backup's database out of ``source`` into the existing private file ``into``, checking its size
-    and SHA-256 against the manifest as it goes; ``check_head(first_bytes, size)`` may refuse the payload from
-    its first 4 kB before the rest is written. Returns the manifest."""
+    """Copy the backup's database out of ``source`` into the existing private file ``into``, after a first,
+    read-only pass has checked its size and SHA-256 against the manifest (so a damaged, changed or forged file
+    writes nothing); ``check_head(first_bytes, size)`` may refuse the payload from its first 4 kB. Returns the
+    manifest."""
     where = str(source)
     _whole_file(source)
     try:
-        with tarfile.open(source, "r:") as tar:
-            manifest = _manifest(tar, where)
-            member = tar.next()
-            if member is None or member.name != manifest["payload"]:
-                raise BackupError(f"the backup holds no {manifest['payload']} (is it cut short?)", file=where)
-            if not member.isreg() or member.issparse() or member.size != manifest["bytes"]:
-                raise BackupError(f"{member.name} is not the regular file of {manifest['bytes']} bytes the "
-                                  f"manifest names", file=where)
-            if member.size > source.stat().st_size:
-                raise BackupError(f"{member.name} claims more bytes than the file holds", file=where)
-            digest, left = hashlib.sha256(), member.size
-            stream = tar.extractfile(member)
-            with into.open("r+b") as out:
-                first = True
-                while left:
-                    block = stream.read(min(CHUNK, left))
-                    if not block:
-                        raise BackupError(f"the backup is cut short ({left} bytes of {member.name} missing)",
-                                          file=where)
-                    if first and check_head is not None:
-                        check_head(block[:4096], member.size)
-                    first = False
-                    digest.update(block)
-                    out.write(block)
-                    left -= len(block)
-                out.truncate()
-                out.flush()
-                os.fsync(out.fileno())
-            if tar.next() is not None:
-                raise BackupError(f"the backup holds more than {MANIFEST} and {member.name}", file=where)
-    except (tarfile.TarError, EOFError, ValueError):
+        manifest, blocks = _payload(source, check_head)
+        digest = hashlib.sha256()
+        for block in blocks:
+            digest.update(block)
+        if digest.hexdigest() != manifest["sha256"]:
+            raise BackupError(f"{manifest['payload']} does not match its SHA-256 in {MANIFEST}: the backup was "
+                              "changed or damaged after it was written; nothing was restored", file=where)
+        manifest, blocks = _payload(source)
+        with into.open("r+b") as out:
+            for block in blocks:
+                out.write(block)
+            out.truncate()
+            out.flush()
+            os.fsync(out.fileno())
+    except (tarfile.TarError, EOFError, ValueError, OSError) as e:
+        if isinstance(e, OSError) and not isinstance(e, tarfile.TarError) and e.errno is not None:
+            raise BackupError(f"cannot read: {e.strerror}", file=where) from None
         raise BackupError("not a backup written by 'study backup' (not a whole tar archive)", file=where) from None
-    if digest.hexdigest() != manifest["sha256"]:
-        raise BackupError(f"{member.name} does not match its SHA-256 in {MANIFEST}: the backup was changed or "
-                          "damaged after it was written; nothing was restored", file=where)
     return manifest

@@ -14,6 +14,8 @@ import sqlite3
 import subprocess
 from pathlib import Path
 
+from sqlalchemy.exc import SQLAlchemyError
+
 from .backup_archive import BackupError
 from .config import MIGRATIONS
 
@@ -49,23 +51,34 @@ def migrate_to(url: str, revision: str) -> None:
     root.addHandler(silent)
     try:
         with app.app_context():
-            upgrade(directory=str(MIGRATIONS), revision=revision)
-            db.engine.dispose()
+            try:
+                upgrade(directory=str(MIGRATIONS), revision=revision)
+            except SQLAlchemyError as e:
+                raise BackupError(f"cannot build the schema there ({type(e).__name__}: "
+                                  f"{str(e).splitlines()[0]}); does the role own the database?", field="--db"
+                                  ) from None
+            finally:
+                db.engine.dispose()
     finally:
         root.removeHandler(silent)
 
 
 # --- SQLite ------------------------------------------------------------------------------------------------------
+#: SQLite's own bookkeeping tables (ANALYZE's statistics, AUTOINCREMENT's counters): the only schema rows a
+#: database may hold that the migrations do not make. Anything else named ``sqlite_…`` (a trigger, say) is not.
+SQLITE_OWN = ("sqlite_sequence", "sqlite_stat1", "sqlite_stat4")
+
+
 def sqlite_objects(path: Path) -> dict[str, tuple[str, str, str]]:
     """Every schema object of the SQLite file ``path`` (name → type, table, SQL with its spaces collapsed), but
-    SQLite's own bookkeeping (``sqlite_sequence``, the statistics tables)."""
+    SQLite's own bookkeeping tables (:data:`SQLITE_OWN`)."""
     con = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
     try:
         rows = con.execute("SELECT type, name, tbl_name, sql FROM sqlite_master").fetchall()
     finally:
         con.close()
     return {name: (kind, table, " ".join((sql or "").split())) for kind, name, table, sql in rows
-            if not (name == "sqlite_sequence" or name.startswith("sqlite_stat"))}
+            if not (kind == "table" and name in SQLITE_OWN)}
 
 
 def sqlite_differences(backup: dict, reference: dict) -> list[str]:

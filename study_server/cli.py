@@ -238,6 +238,14 @@ def study_admin_link_cmd(minutes: int, base: str, as_json: bool) -> None:
         raise SceneSuggestError("expected the server's address, like https://study.example.org", field="--base")
     app = create_app({"CHECK_RESOURCES": False, "WARM_STUDIES": False})
     with app.app_context():
+        from sqlalchemy import inspect
+
+        from .extensions import db
+
+        if not inspect(db.engine).has_table("admin_links"):
+            raise SceneSuggestError(f"the database {db.engine.url.render_as_string(hide_password=True)} has no "
+                                    "admin_links table: run this where the server runs, with its environment "
+                                    "(DATABASE_URL), after 'scenesuggest study migrate'", field="DATABASE_URL")
         secret = new_admin_link(timedelta(minutes=minutes))
     url = f"{base.rstrip('/')}/admin/link/{secret}"
     emit({"url": url, "minutes": minutes}, as_json,

@@ -84,6 +84,8 @@ class Deployment:
                 safe_path(value, name)
         for study in config.study_files():
             safe_path(str(study.resolve()), "SCENESUGGEST_STUDIES")
+        safe_path(str(config.PACKAGE / "static"), "the installed package's static folder")
+        safe_path(str(three_folder()), "the installed three.js folder")
         ports = [self.http_port, self.https_port, *self.app_ports]
         if not self.app_ports or any(not 0 < p < 65536 for p in ports) or len(set(ports)) != len(ports):
             raise DeployError("expected distinct ports from 1 to 65535, one or more for app servers", field="--app")

@@ -11,7 +11,7 @@ import uuid
 from collections.abc import Callable
 from datetime import timedelta
 
-from sqlalchemy import select
+from sqlalchemy import func, select, update
 
 from scenesuggest import frames
 from scenesuggest.suggest import ContextQuery, SuggestionList
@@ -90,8 +90,13 @@ def record(who: Participant | None, trial: int | None, source: str, query: dict,
     list_id = uuid.uuid4().hex
     if who is not None:
         size = len(json.dumps(query)) + len(json.dumps(items))
-        check_room(who, size, quota_bytes)
-        who.bytes_stored = (who.bytes_stored or 0) + size
+        # one UPDATE that adds and checks at once: an event batch stored meanwhile is counted, never overwritten
+        counted = db.session.execute(update(Participant).where(
+            Participant.id == who.id, func.coalesce(Participant.bytes_stored, 0) + size <= quota_bytes)
+            .values(bytes_stored=func.coalesce(Participant.bytes_stored, 0) + size)
+            .execution_options(synchronize_session=False))
+        if counted.rowcount != 1:
+            raise TooManyLists("this session has stored as much as a study allows", 300)
         db.session.add(ShownList(id=list_id, participant_id=who.id, trial=trial, source=source, query=query,
                                  items=items, created_at=utcnow()))
     return list_id

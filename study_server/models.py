@@ -125,7 +125,7 @@ class ShownList(db.Model):
     """Every list the server gave a participant (context suggestions, search results), with its ranks."""
 
     __tablename__ = "lists"
-    #: A participant's lists by time: the export's order and the list rate's one look (lists.check_rate).
+    #: A participant's lists by time: what the list rate's one look reads (lists.check_rate).
     __table_args__ = (Index("ix_lists_participant_created", "participant_id", "created_at"),)
     id: Mapped[str] = mapped_column(String(32), primary_key=True)
     participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"))

@@ -93,6 +93,9 @@ def test_the_command_prints_a_link_that_works(app, tmp_path):
                        (["--base", "study.example.org"], "--base")):
         refused = CliRunner().invoke(main, ["study", "admin-link", *bad], env=env)
         assert refused.exit_code == 2 and named in refused.output, refused.output
+    elsewhere = {**env, "DATABASE_URL": f"sqlite:///{tmp_path / 'never-migrated.sqlite3'}"}
+    refused = CliRunner().invoke(main, ["study", "admin-link"], env=elsewhere)
+    assert refused.exit_code == 2 and "no admin_links table" in refused.output, refused.output
 
 
 @pytest.mark.parametrize("number", ["2147483648", "9223372036854775808", "99999999999999999999999"])
@@ -102,7 +105,7 @@ def test_numbers_too_big_for_the_database_in_admin_urls_are_404(app_on, number):
     admin.post("/admin/login", data={"csrf_token": csrf(page), "password": PASSWORD})
     for path in (f"/admin/demo/participants/{number}", f"/admin/demo/participants/1/trials/{number}/replay",
                  f"/admin/demo/participants/{number}/trials/0/replay.json",
-                 f"/admin/demo/participants/1/trials/-{number}/replay.json"):
+                 f"/admin/demo/participants/1/trials/-{int(number) + 1}/replay.json"):
         assert admin.get(path).status_code == 404, path
     page = admin.get("/admin/")
     assert admin.post(f"/admin/demo/participants/{number}/exclude",

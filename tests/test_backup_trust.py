@@ -79,6 +79,21 @@ def test_a_sqlite_backup_with_triggers_or_a_view_is_refused_naming_each(study_db
     assert not list(tmp_path.glob(".restore-*"))  # the scratch copies are gone
 
 
+def test_a_trigger_named_like_sqlites_own_tables_is_refused(study_db, tmp_path):
+    import sqlite3 as lite
+
+    path = study_db.removeprefix("sqlite:///")
+    with lite.connect(path) as con:
+        con.execute("PRAGMA writable_schema = ON")
+        con.execute("INSERT INTO sqlite_master (type, name, tbl_name, rootpage, sql) VALUES ('trigger', "
+                    "'sqlite_stat9', 'participants', 0, 'CREATE TRIGGER sqlite_stat9 AFTER INSERT ON participants "
+                    "BEGIN UPDATE participants SET token = ''known'' WHERE id = NEW.id; END')")
+    backup(study_db, tmp_path / "b.backup")
+    with pytest.raises(BackupError, match="trigger 'sqlite_stat9' on participants"):
+        restore(tmp_path / "b.backup", f"sqlite:///{tmp_path / 'r.sqlite3'}")
+    assert not (tmp_path / "r.sqlite3").exists()
+
+
 def test_a_changed_table_or_an_extra_index_is_refused(study_db, tmp_path):
     run(study_db, "ALTER TABLE surveys ADD COLUMN note TEXT", "CREATE INDEX ix_extra ON events (type)")
     backup(study_db, tmp_path / "b.backup")
@@ -115,8 +130,10 @@ def test_a_forged_page_count_is_refused_before_the_rest_is_written(study_db, tmp
 
 
 def test_a_sparse_file_claiming_gigabytes_is_refused_before_anything_is_written(tmp_path):
+    from study_server.backup_schema import known_revisions
+
     manifest = json.dumps({"format": "scenesuggest-backup/1", "kind": "sqlite", "payload": "database.sqlite3",
-                           "revision": "x", "participants": 0, "events": 0, "app_version": "0",
+                           "revision": sorted(known_revisions())[0], "participants": 0, "events": 0, "app_version": "0",
                            "bytes": 4 << 30, "sha256": "0" * 64}).encode()
     out = tmp_path / "sparse.backup"
     with tarfile.open(out, "w") as tar:
@@ -126,7 +143,7 @@ def test_a_sparse_file_claiming_gigabytes_is_refused_before_anything_is_written(
     with out.open("r+b") as f:
         f.truncate(4 << 30)  # holes: gigabytes long, nothing written
     target = tmp_path / "r.sqlite3"
-    with pytest.raises(BackupError, match="a sparse file"):
+    with pytest.raises(BackupError, match="holds no database.sqlite3"):
         restore(out, f"sqlite:///{target}")
     assert not target.exists()
 

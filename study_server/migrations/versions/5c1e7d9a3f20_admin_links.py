@@ -2,7 +2,7 @@
 
 admin_links: the operator's way in that failed logins from an anonymous crowd cannot close
 (``scenesuggest study admin-link``). lists: the index on participant_id becomes one on (participant_id,
-created_at), which the list rate reads (the newest lists of a participant) and the export orders by.
+created_at), which the list rate reads (the newest lists of a participant).
 
 Revision ID: 5c1e7d9a3f20
 Revises: 3b9d2c41e7a5

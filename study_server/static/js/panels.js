@@ -39,8 +39,10 @@ function searchBox(placeholder, api, onResults, log) {
       last = text;
       log("search", { text });
       if (!text) { onResults(null); return; }
-      const r = await api(`/search?q=${encodeURIComponent(text)}`).then((x) => x.json()).catch(() => null);
-      if (r && input.value.trim() === text) onResults(r);
+      const r = await api(`/search?q=${encodeURIComponent(text)}`).then((x) => (x.ok ? x.json() : null))
+        .catch(() => null);
+      if (!r) { last = ""; return; }  // not answered (offline, or still too many lists): typing asks again
+      if (input.value.trim() === text) onResults(r);
     }, 250);
   });
   return input;
