@@ -22,6 +22,7 @@ import shutil
 import sqlite3
 import subprocess
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 from sqlalchemy import MetaData, create_engine, inspect, text
@@ -69,25 +70,29 @@ def _counts(con) -> dict:
             "events": con.execute(text("SELECT COUNT(*) FROM events")).scalar()}
 
 
-def _summary(url: str) -> dict:
+@contextmanager
+def _connected(url: str, begin: bool = False):
+    """A connection to the database at ``url`` (in a transaction committed at the end with ``begin``), its engine
+    disposed after; a database that cannot be reached is a :class:`BackupError` naming ``--db``."""
     engine = create_engine(url)
     try:
-        with engine.connect() as con:
-            return _counts(con)
-    finally:
-        engine.dispose()
-
-
-def _tables(url: str) -> list[str]:
-    engine = create_engine(url)
-    try:
-        with engine.connect() as con:
-            return inspect(con).get_table_names()
+        with engine.begin() if begin else engine.connect() as con:
+            yield con
     except SQLAlchemyError as e:
         raise BackupError(f"cannot open the database ({type(e).__name__}: {str(e).splitlines()[0]})",
                           field="--db") from None
     finally:
         engine.dispose()
+
+
+def _summary(url: str) -> dict:
+    with _connected(url) as con:
+        return _counts(con)
+
+
+def _tables(url: str) -> list[str]:
+    with _connected(url) as con:
+        return inspect(con).get_table_names()
 
 
 def _sqlite_path(url: str) -> Path:
@@ -281,27 +286,20 @@ def _restore_sqlite(source: Path, url: str) -> dict:
 
 
 def _superuser(url: str) -> bool:
-    engine = create_engine(url)
-    try:
-        with engine.connect() as con:
-            return bool(con.execute(text("SELECT rolsuper FROM pg_roles WHERE rolname = current_user")).scalar())
-    except SQLAlchemyError as e:
-        raise BackupError(f"cannot open the database ({type(e).__name__}: {str(e).splitlines()[0]})",
-                          field="--db") from None
-    finally:
-        engine.dispose()
+    with _connected(url) as con:
+        return bool(con.execute(text("SELECT rolsuper FROM pg_roles WHERE rolname = current_user")).scalar())
+
+
+def _reflected(con) -> MetaData:
+    metadata = MetaData()
+    metadata.reflect(con)
+    return metadata
 
 
 def _drop_everything(url: str) -> None:
     """Undo a refused restore: drop every table of ours (the database had none before it)."""
-    engine = create_engine(url)
-    try:
-        with engine.begin() as con:
-            metadata = MetaData()
-            metadata.reflect(con)
-            metadata.drop_all(con)
-    finally:
-        engine.dispose()
+    with _connected(url, begin=True) as con:
+        _reflected(con).drop_all(con)
 
 
 def _restore_pg(source: Path, url: str) -> dict:
@@ -420,11 +418,5 @@ def _copy_rows(tool: str, archive: Path, chosen: Path, url: str, env: dict) -> d
 
 def _table_order(url: str) -> list[str]:
     """Our tables, each after the tables its foreign keys name (the order rows are restored in)."""
-    engine = create_engine(url)
-    try:
-        with engine.connect() as con:
-            metadata = MetaData()
-            metadata.reflect(con)
-            return [t.name for t in metadata.sorted_tables]
-    finally:
-        engine.dispose()
+    with _connected(url) as con:
+        return [t.name for t in _reflected(con).sorted_tables]

@@ -65,7 +65,7 @@ def test_a_link_without_a_csrf_token_an_expired_or_an_invented_link_signs_nobody
             row.expires_at = utcnow() - timedelta(seconds=1)
         db.session.commit()
     assert c.post(url, data={"csrf_token": csrf(page)}).status_code == 410
-    for invented in ("/admin/link/abc", "/admin/link/" + "x" * 5000):
+    for invented in ("/admin/link/abc", "/admin/link/" + "x" * 5000, "/admin/link/a%00b", "/admin/link/%ED%B2%80"):
         assert c.get(invented).status_code == 410
         assert c.post(invented, data={"csrf_token": csrf(c.get("/admin/login"))}).status_code == 410
     assert c.get("/admin/").status_code == 302

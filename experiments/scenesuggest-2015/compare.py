@@ -277,6 +277,17 @@ def predictions(sim: dict) -> list[dict]:
     return rows
 
 
+def _prediction_row(r: dict, with_role: bool) -> str:
+    """One row of a predictions table: the paper's cell and the simulated one, with their intervals."""
+    key = "rank1_share" if r["table"] == 2 else r["measure"]
+    label = LABELS[r["measure"]] if r["table"] == 1 else f"Rank {r['measure'].split('_')[1]} picks"
+    role = f" {r['role']} |" if with_role else ""
+    return (f"| {r['table']} | {label} | {r['condition']} |{role} "
+            f"{_cell(key, r['paper'], r['paper_low'], r['paper_high'])} | "
+            f"{_cell(key, r['simulated'], r['simulated_low'], r['simulated_high'])} | "
+            f"{'yes' if r['matched'] else 'no'} |")
+
+
 def prediction_lines(rows: list[dict]) -> list[str]:
     lines = ["", "## Every cell of Table 1 and Table 2: calibrated on `none`, predicted for `basic` and `full`", "",
              "The simulated participants' free parameters were fitted to the paper's `none` row only "
@@ -285,13 +296,7 @@ def prediction_lines(rows: list[dict]) -> list[str]:
              f"{100 * RANK_SHARE_TOLERANCE:.0f} points of the paper's (the paper gives no interval).", "",
              "| Table | Measure | Condition | Role | Paper | Simulated [95% interval] | Matched |",
              "|---:|---|---|---|---:|---:|:---:|"]
-    for r in rows:
-        key = "rank1_share" if r["table"] == 2 else r["measure"]
-        label = LABELS[r["measure"]] if r["table"] == 1 else f"Rank {r['measure'].split('_')[1]} picks"
-        lines.append(f"| {r['table']} | {label} | {r['condition']} | {r['role']} | "
-                     f"{_cell(key, r['paper'], r['paper_low'], r['paper_high'])} | "
-                     f"{_cell(key, r['simulated'], r['simulated_low'], r['simulated_high'])} | "
-                     f"{'yes' if r['matched'] else 'no'} |")
+    lines += [_prediction_row(r, with_role=True) for r in rows]
     predicted = [r for r in rows if r["role"] == "predicted"]
     lines += ["", f"Predictions matched: {sum(r['matched'] for r in predicted)} of {len(predicted)}.", ""]
     return lines
@@ -417,13 +422,7 @@ def variant_lines(sim: dict) -> list[str]:
              "changes. What moves is what the engine's ranking decides.", "",
              "| Table | Measure | Condition | Paper | Simulated [95% interval] | Matched |",
              "|---:|---|---|---:|---:|:---:|"]
-    for r in rows:
-        key = "rank1_share" if r["table"] == 2 else r["measure"]
-        label = LABELS[r["measure"]] if r["table"] == 1 else f"Rank {r['measure'].split('_')[1]} picks"
-        lines.append(f"| {r['table']} | {label} | {r['condition']} | "
-                     f"{_cell(key, r['paper'], r['paper_low'], r['paper_high'])} | "
-                     f"{_cell(key, r['simulated'], r['simulated_low'], r['simulated_high'])} | "
-                     f"{'yes' if r['matched'] else 'no'} |")
+    lines += [_prediction_row(r, with_role=False) for r in rows]
     lines += ["", f"Predictions matched with the learned engine: {sum(r['matched'] for r in rows)} of {len(rows)}.",
               ""]
     return lines

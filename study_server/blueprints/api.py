@@ -7,6 +7,7 @@ preview token and writes nothing. Errors are ``{"error": message, "field": name}
 from __future__ import annotations
 
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 from flask import Blueprint, current_app, jsonify, request, url_for
@@ -205,24 +206,37 @@ def events():
     return jsonify({"acked_seq": acked, "stored": True})
 
 
-def _record(who, trial: int | None, source: str, query: dict | None = None, items: list[dict] | None = None
-            ) -> str | None:
-    """Store the list shown (a preview stores nothing); 429 with Retry-After beyond the participant's list rate
-    or storage quota. Without ``items``, only checks that a list may be stored (before the work of making it)."""
-    if not isinstance(who, Participant):
-        return lists.record(None, trial, source, query, items, 0) if items is not None else None
-    quota = int(runtime(who.study_id).study.max_mb_per_participant * 1024 * 1024)
+@contextmanager
+def _list_quota(who, source: str):
+    """A participant over the list rate or storage quota (:mod:`study_server.lists`): 429 with Retry-After,
+    the refusal counted on one session-log row."""
     try:
-        if items is None:
-            lists.check_rate(who)
-            lists.check_room(who, 0, quota)
-            return None
-        return lists.record(who, trial, source, query, items, quota)
+        yield
     except lists.TooManyLists as e:
         db.session.rollback()
         log_again("quota", who, what=f"{source} lists", reason=str(e))
         db.session.commit()
         raise RequestError(429, str(e), source, {"Retry-After": str(e.retry_after)}) from None
+
+
+def _admit(who, source: str) -> None:
+    """Before a list is made (the engine's or the search's work): within the participant's list rate and room."""
+    if isinstance(who, Participant):
+        with _list_quota(who, source):
+            lists.check_rate(who)
+            lists.check_room(who, 0, _quota_bytes(who))
+
+
+def _record(who, trial: int | None, source: str, query: dict, items: list[dict]) -> str:
+    """Store the list shown (a preview stores nothing); returns its id."""
+    if not isinstance(who, Participant):
+        return lists.record(None, trial, source, query, items, 0)
+    with _list_quota(who, source):
+        return lists.record(who, trial, source, query, items, _quota_bytes(who))
+
+
+def _quota_bytes(who: Participant) -> int:
+    return int(runtime(who.study_id).study.max_mb_per_participant * 1024 * 1024)
 
 
 @bp.post("/suggest")
@@ -233,7 +247,7 @@ def suggest():
     if condition == "none":
         raise RequestError(403, "this trial's interface has no suggestions", "trial")
     rt = runtime(who.study_id)
-    _record(who, index, "context")  # within the quota, before the engine works
+    _admit(who, "context")
     scene = live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
     try:
         items, found = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
@@ -279,7 +293,7 @@ def search():
     if not 1 <= limit <= 200:
         raise RequestError(400, "must be between 1 and 200", "limit")
     rt = runtime(who.study_id)
-    _record(who, None, "search")  # within the quota, before the search
+    _admit(who, "search")
     hits = rt.search_index.search(text, limit)
     participant = who.id if isinstance(who, Participant) else None
     trial = flow.current_trial(who) if participant is not None else None
