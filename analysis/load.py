@@ -68,7 +68,17 @@ def _decode(payload) -> dict:
     return value if isinstance(value, dict) else {}
 
 
+def _answer_text(answer) -> str | None:
+    """A survey answer as the export writes it: text (a number as Python prints it), None when not given."""
+    if answer is None or (isinstance(answer, float) and answer != answer):
+        return None
+    return answer if isinstance(answer, str) else str(answer)
+
+
 def _normalise(data: StudyData) -> StudyData:
+    """One shape whichever source the data came from: payloads as dicts, times and trial numbers as numbers,
+    participants as text, survey answers as text."""
+    data.survey["answer"] = data.survey["answer"].map(_answer_text, na_action="ignore").astype("str")
     ev = data.events
     ev["payload"] = [_decode(p) for p in ev["payload"]]
     ev["client_t_ms"] = pd.to_numeric(ev["client_t_ms"], errors="coerce")

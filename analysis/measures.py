@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from scenesuggest.events import as_event
 from scenesuggest.picks import picks
 
 from .load import StudyData
@@ -202,9 +203,8 @@ def trials_table(data: StudyData) -> pd.DataFrame:
 def event_dicts(events: pd.DataFrame) -> list[dict]:
     """Event rows as the shared functions of :mod:`scenesuggest` read them (``seq``, ``t``, ``type``, ``trial``,
     ``payload``), in the frame's order."""
-    return [{"seq": s, "t": t, "type": k, "trial": None if tr != tr else int(tr), "payload": p}
-            for s, t, k, tr, p in zip(events["seq"], events["client_t_ms"], events["type"], events["trial"],
-                                      events["payload"], strict=True)]
+    return [as_event(*row) for row in zip(events["seq"], events["client_t_ms"], events["type"], events["trial"],
+                                          events["payload"], strict=True)]
 
 
 PICK_COLUMNS = ["participant", "trial", "seq", "action", "model", "category", "source", "rank", "final"]

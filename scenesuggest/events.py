@@ -283,7 +283,17 @@ def _check_field(spec: Field, value) -> None:
         raise _Bad(f"must be at least {spec.minimum:g}")
 
 
-_EVENT_KEYS = frozenset(("seq", "t", "type", "trial", "payload"))
+#: The keys of an event, as the page sends it and as every reader takes it back (:func:`as_event`).
+EVENT_KEYS = ("seq", "t", "type", "trial", "payload")
+_KEYS = frozenset(EVENT_KEYS)
+
+
+def as_event(seq, t, kind: str, trial, payload) -> dict:
+    """A stored event (a database row's or an export row's fields) in the shape the page sent it and every reader
+    of events takes it: ``seq`` and ``trial`` integers (a missing trial — None, or NaN as pandas reads an empty
+    cell — is None), ``t`` the client clock in ms since the epoch, ``payload`` as stored."""
+    return {"seq": int(seq), "t": t, "type": kind, "trial": None if trial is None or trial != trial else int(trial),
+            "payload": payload}
 
 
 def validate_event(event, path: str = "event", version: int = VERSION) -> dict:
@@ -291,8 +301,8 @@ def validate_event(event, path: str = "event", version: int = VERSION) -> dict:
     null)."""
     if not isinstance(event, dict):
         raise EventError("expected an object", path)
-    if not _EVENT_KEYS.issuperset(event):
-        raise EventError("unknown field", f"{path}.{sorted(set(event) - _EVENT_KEYS)[0]}")
+    if not _KEYS.issuperset(event):
+        raise EventError("unknown field", f"{path}.{sorted(set(event) - _KEYS)[0]}")
     seq = event.get("seq")
     if type(seq) is not int or not 0 <= seq <= MAX_SEQ:
         raise EventError(f"expected an integer from 0 to {MAX_SEQ}", f"{path}.seq")

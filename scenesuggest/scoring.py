@@ -74,6 +74,10 @@ class Closeness:
         """Mean orientation error of the matched objects (NaN when none matched)."""
         return float(np.mean([m.orientation_error_deg for m in self.matches])) if self.matches else float("nan")
 
+    def record(self) -> dict:
+        """:meth:`to_dict` as JSON can hold it: the mean errors None (not NaN) when nothing matched."""
+        return {k: None if isinstance(v, float) and v != v else v for k, v in self.to_dict().items()}
+
     def to_dict(self) -> dict:
         return {"score": self.score, "matched": len(self.matches), "missing": len(self.missing),
                 "extra": len(self.extra), "position_error_m": self.position_error_m,

@@ -32,6 +32,7 @@ from sqlalchemy import select, text
 
 import scenesuggest
 from scenesuggest.cells import safe_cell
+from scenesuggest.events import as_event
 from scenesuggest.library import INDEX_FILE
 from scenesuggest.picks import PICK_INPUTS, PICK_PAYLOADS, picks
 from scenesuggest.scoring import FORMULA
@@ -69,7 +70,8 @@ DICTIONARY: dict[str, dict[str, str]] = {
                   "pending: (events the page logged before 'done' not stored yet; made at the next 'done' or at "
                   "completion, then with '(events after seq N never arrived)' if some never did), or "
                   "unavailable: why (events of vocabulary 1 carry no object states, or the check failed)",
-        "score": f"how close the final scene came to the target, 0..1: {FORMULA}",
+        "score": f"how close the final scene came to the target, 0..1, as the server found it when the trial was "
+                 f"done (this and the next five columns are stored then and exported as stored): {FORMULA}",
         "matched": "target objects matched by an object of the final scene",
         "missing": "target objects nothing matched", "extra": "objects of the final scene that match nothing",
         "position_error_m": "mean distance of the matched objects from their targets (metres)",
@@ -108,14 +110,16 @@ def _iso(t) -> str:
     return t.isoformat() if t else ""
 
 
+CLOSENESS = ("score", "matched", "missing", "extra", "position_error_m", "orientation_error_deg")
+
+
 def _closeness(rt: StudyRuntime, t: Trial) -> dict:
-    """How close the trial's final scene came to its target (empty cells without a final scene)."""
-    if not t.final_scene:
-        return dict.fromkeys(("score", "matched", "missing", "extra", "position_error_m", "orientation_error_deg"),
-                             "")
-    c = target_closeness(rt, t.scene_id, t.final_scene["objects"]).to_dict()
-    c.pop("matches")
-    return {k: ("" if isinstance(v, float) and v != v else v) for k, v in c.items()}
+    """How close the trial's final scene came to its target, as the server found it at "done" (computed now only
+    for a trial done before the result was stored); empty cells without a final scene or when the check failed."""
+    found = t.closeness
+    if found is None and t.final_scene:
+        found = target_closeness(rt, t.scene_id, t.final_scene["objects"]).record()
+    return {k: "" if (found or {}).get(k) is None else found[k] for k in CLOSENESS}
 
 
 def scenes_document(rt: StudyRuntime) -> dict:
@@ -185,8 +189,7 @@ def _table(rt: StudyRuntime, name: str, seen: dict) -> Iterator[dict]:
                 own, current = [], e.participant_id
             vocabularies.add(int(e.vocabulary))
             if e.type in PICK_INPUTS:  # what picks need of it (a move's or a turn's object states are not)
-                own.append({"seq": e.seq, "t": e.client_t, "type": e.type, "trial": e.trial,
-                            "payload": e.payload if e.type in PICK_PAYLOADS else {}})
+                own.append(as_event(e.seq, e.client_t, e.type, e.trial, e.payload if e.type in PICK_PAYLOADS else {}))
             yield {"participant": e.participant_id, "seq": e.seq, "page_id": e.page_id, "type": e.type,
                    "trial": "" if e.trial is None else e.trial, "client_t_ms": repr(e.client_t),
                    "server_t": _iso(e.server_t), "payload": json.dumps(e.payload, sort_keys=True),

@@ -100,8 +100,15 @@ class Trial(db.Model):
     #: "mismatch: …" (what differs), "pending: …" (waiting for events the page logged before "done"), or
     #: "unavailable: …" (events without object states, or the check failed); empty before "done".
     replay: Mapped[str | None] = mapped_column(Text, nullable=True)
+    #: The last seq the page logged before "done" while the replay check waits for it to be stored (None: the
+    #: check is not waiting); trial_check.settle makes the check when it arrives.
+    replay_waits_for: Mapped[int | None] = mapped_column(Integer, nullable=True)
     #: How close the final scene came to the target (scenesuggest.scoring), 0..1; empty before "done".
     score: Mapped[float | None] = mapped_column(Float, nullable=True)
+    #: The whole closeness result found at "done" (scenesuggest.scoring.Closeness.record: score, matched, missing,
+    #: extra, errors in metres and degrees, the matched pairs), exported as stored; {"unavailable": why} when the
+    #: check failed, None before "done" or for trials done before it was stored (the export computes those).
+    closeness: Mapped[dict | None] = mapped_column(JSON, nullable=True)
 
 
 class Event(db.Model):

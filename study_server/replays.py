@@ -6,6 +6,7 @@ from __future__ import annotations
 from flask import url_for
 from sqlalchemy import select
 
+from scenesuggest.events import as_event
 from scenesuggest.replay import ReplayUnavailable, apply, start_scene
 
 from .extensions import db
@@ -21,8 +22,7 @@ def trial_events(participant_id: int, index: int) -> list[dict]:
     """A trial's stored events, in seq order, as the replay reads them."""
     rows = db.session.scalars(select(Event).where(Event.participant_id == participant_id, Event.trial == index)
                               .order_by(Event.seq))
-    return [{"seq": e.seq, "t": e.client_t, "type": e.type, "trial": e.trial, "payload": e.payload,
-             "vocabulary": e.vocabulary} for e in rows]
+    return [as_event(e.seq, e.client_t, e.type, e.trial, e.payload) for e in rows]
 
 
 def label(event: dict) -> str:

@@ -5,8 +5,6 @@ for review."""
 
 from __future__ import annotations
 
-import re
-
 from flask import current_app
 from sqlalchemy.exc import SQLAlchemyError
 
@@ -62,30 +60,33 @@ def _replay(rt: StudyRuntime, t: Trial) -> str:
 
 
 def check_trial(rt: StudyRuntime, p: Participant, t: Trial, last_seq: int | None = None) -> None:
-    """Record on ``p``'s trial just done whether its events rebuild its final scene, and its score; below the study's
-    ``min_target_score`` the trial is flagged for review. While the server lacks events up to ``last_seq`` (the
-    last the page logged) the check is ``pending`` and :func:`settle` makes it later. A check that fails is
-    recorded as unavailable (the score: left empty) and logged: the participant goes on. The caller commits."""
+    """Record on ``p``'s trial just done whether its events rebuild its final scene, and how close it came to the
+    target (the whole result, as the export gives it); below the study's ``min_target_score`` the trial is flagged
+    for review. While the server lacks events up to ``last_seq`` (the last the page logged) the check waits
+    (``replay_waits_for``) and :func:`settle` makes it later. A check that fails is recorded as unavailable (the
+    score: left empty) and logged: the participant goes on. The caller commits."""
     if last_seq is not None and p.acked_seq < last_seq:
-        t.replay = f"{PENDING} {last_seq} not stored yet"
+        t.replay, t.replay_waits_for = f"{PENDING} {last_seq} not stored yet", last_seq
     else:
         t.replay = _replay(rt, t)
     if t.final_scene is None:
         return
-    t.score = _guarded("score", t, lambda: target_closeness(rt, t.scene_id, t.final_scene["objects"]).score)
+    found = _guarded("score", t, lambda: target_closeness(rt, t.scene_id, t.final_scene["objects"]))
+    t.closeness = found.record() if found is not None else {"unavailable": "the check failed"}
+    t.score = found.score if found is not None else None
     below = below_target(rt.study, t)
     if below:
         t.review = f"{t.review}; {below}" if t.review else below
 
 
 def settle(rt: StudyRuntime, p: Participant, final: bool = False) -> None:
-    """Make the pending replay checks of ``p``'s trials whose events have all arrived since; ``final`` (at
-    completion) makes every pending check on what is stored, noting the events that never arrived. The caller
+    """Make the waiting replay checks of ``p``'s trials whose events have all arrived since; ``final`` (at
+    completion) makes every waiting check on what is stored, noting the events that never arrived. The caller
     commits."""
     for t in trials(p):
-        waiting = re.fullmatch(rf"{PENDING} (\d+) not stored yet", t.replay or "")
-        if not waiting:
+        if t.replay_waits_for is None:
             continue
-        arrived = p.acked_seq >= int(waiting.group(1))
+        arrived = p.acked_seq >= t.replay_waits_for
         if arrived or final:
             t.replay = _replay(rt, t) + ("" if arrived else f" (events after seq {p.acked_seq} never arrived)")
+            t.replay_waits_for = None

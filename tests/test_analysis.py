@@ -11,16 +11,17 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import SHARED_DATA, require
-from flowhelp import finish_all_trials, to_trials
 from scipy import stats
 
 from analysis import AnalysisError
 from analysis.bootstrap import bootstrap_by, bootstrap_mean
 from analysis.load import read_database, read_export
-from analysis.measures import text_queries, trial_measures, trials_table
+from analysis.measures import picks_table, text_queries, trial_measures, trials_table
 from analysis.report import build_report
 from analysis.synthetic import write_export
 from analysis.tables import table1, table2
+from simulation.participant import Bot
+from simulation.transport import FlaskTransport
 
 
 def _events(rows):
@@ -176,8 +177,7 @@ def test_bad_exports_get_messages_and_the_report_keeps_what_it_can(synthetic, tm
 def test_report_reads_the_database_directly_like_the_export(app, tmp_path):
     from study_server.export import export_to
 
-    c = app.test_client()
-    finish_all_trials(c, to_trials(c))
+    assert Bot(FlaskTransport(app.test_client()), "demo", "bot-a", np.random.default_rng(1)).run().code
     url = app.config["SQLALCHEMY_DATABASE_URI"]
     with app.app_context():
         export_to(app.extensions["studies"]["demo"], tmp_path / "export")
@@ -186,6 +186,15 @@ def test_report_reads_the_database_directly_like_the_export(app, tmp_path):
     a, b = trials_table(from_db), trials_table(from_export)
     assert a["complete"].all() and len(a) == 9
     pd.testing.assert_series_equal(a["total_time"], b["total_time"])
+    assert a["score"].notna().all()  # stored at "done", exported as stored
+    pd.testing.assert_series_equal(a["score"], b["score"])
+    picked = picks_table(from_db, a)
+    assert len(picked) > 0
+    pd.testing.assert_frame_equal(picked, picks_table(from_export, b))
+    answers = [d.survey.sort_values(["participant", "survey", "question"]).reset_index(drop=True)
+               for d in (from_db, from_export)]
+    assert len(answers[0]) > 0
+    pd.testing.assert_frame_equal(*answers, check_dtype=False)
     with pytest.raises(AnalysisError, match="no study 'nope'"):
         read_database(url, "nope")
 

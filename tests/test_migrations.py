@@ -46,3 +46,24 @@ def test_upgrade_from_empty_and_from_every_revision(tmp_path, request, backend, 
             downgrade(directory=str(MIGRATIONS), revision=rev)
             upgrade(directory=str(MIGRATIONS))
     assert_schema_matches_models(app)
+
+
+def test_a_waiting_replay_check_written_as_prose_moves_into_its_column(tmp_path, backend_url):
+    """Trials stored before the check's wait had a column of its own said it in ``replay``; the migration reads
+    it from there, on both databases."""
+    from flowhelp import auth, to_trials
+
+    from study_server.models import Trial
+
+    app = make_app(tmp_path, backend_url)
+    c = app.test_client()
+    b = to_trials(c)
+    assert c.post("/api/trial/done", headers=auth(b), json={"trial": -1, "last_seq": 7}).status_code == 200
+    with app.app_context():
+        db.session.query(Trial).filter_by(index=-1).one().replay_waits_for = None
+        db.session.commit()
+        downgrade(directory=str(MIGRATIONS), revision="5c1e7d9a3f20")
+        upgrade(directory=str(MIGRATIONS))
+        waiting = db.session.query(Trial).filter_by(index=-1).one()
+        assert (waiting.replay, waiting.replay_waits_for) == ("pending: events up to seq 7 not stored yet", 7)
+        assert db.session.query(Trial).filter(Trial.replay_waits_for.is_not(None)).count() == 1

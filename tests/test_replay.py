@@ -168,12 +168,14 @@ def test_a_check_waits_for_late_events_and_a_low_score_stays_flagged_after_compl
     with app.app_context():
         done = db.session.query(Trial).filter_by(index=t["index"]).one()
         assert done.replay == "pending: events up to seq 1 not stored yet" and done.score == 0.0
+        assert done.replay_waits_for == 1
     late = {**event(1, "camera", action="orbit"), "trial": t["index"]}
     assert client.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2,
                                                             "events": [late]}).status_code == 200
     finish_all_trials(client, boot(client.get("/study/demo/")), first_seq=2)  # the next 'done' makes the check
     with app.app_context():
-        assert db.session.query(Trial).filter_by(index=t["index"]).one().replay == "match"
+        settled = db.session.query(Trial).filter_by(index=t["index"]).one()
+        assert settled.replay == "match" and settled.replay_waits_for is None
     page = client.get("/study/demo/")
     r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "25", "attempt": "0"})
     assert r.status_code == 302
@@ -182,6 +184,33 @@ def test_a_check_waits_for_late_events_and_a_low_score_stays_flagged_after_compl
         done = db.session.query(Trial).filter_by(index=t["index"]).one()
         assert done.replay == "match"
         assert done.review == "1 s of events < 10 s, scene 0.00 close to the target < 0.3"
+
+
+def test_the_export_gives_the_closeness_found_at_done_and_scores_older_trials_itself(client, app, monkeypatch):
+    """What the database holds and what an export gives cannot drift apart when the scoring code changes: the whole
+    closeness result is stored at "done" and exported as stored; a trial done before it was stored (no result) is
+    scored by the export."""
+    from study_server import export, trial_check
+
+    b = to_trials(client)
+    rt = app.extensions["studies"]["demo"]
+    start = rt.scene(b["trial"]["scene"], "start")["objects"]
+    target = [o for o in rt.scene(b["trial"]["scene"], "target")["objects"] if o["parent"] is not None]
+    _finish(client, b, [{**insert(i, o), "trial": -1} for i, o in enumerate(target)], start + target)
+    with app.app_context():
+        t = db.session.query(Trial).filter_by(index=-1).one()
+        assert t.closeness["score"] == t.score == pytest.approx(1.0)
+        assert t.closeness["matched"] == len(target) and len(t.closeness["matches"]) == len(target)
+        monkeypatch.setattr(trial_check, "closeness", lambda *_: pytest.fail("the export rescored a stored trial"))
+        row = next(r for r in export._table(rt, "trials", {}) if r["trial"] == -1)
+        assert (row["score"], row["matched"], row["missing"]) == (pytest.approx(1.0), len(target), 0)
+        t.closeness = None  # as a trial done before the result was stored
+        monkeypatch.undo()
+        row = next(r for r in export._table(rt, "trials", {}) if r["trial"] == -1)
+        assert row["score"] == pytest.approx(1.0) and row["position_error_m"] == pytest.approx(0.0, abs=1e-9)
+        t.closeness = {"unavailable": "the check failed"}
+        row = next(r for r in export._table(rt, "trials", {}) if r["trial"] == -1)
+        assert row["score"] == row["matched"] == row["orientation_error_deg"] == ""
 
 
 def test_a_check_that_fails_never_holds_the_participant_up(client, app, monkeypatch):
@@ -198,6 +227,7 @@ def test_a_check_that_fails_never_holds_the_participant_up(client, app, monkeypa
     with app.app_context():
         practice = db.session.query(Trial).filter_by(index=-1).one()
         assert practice.replay == "match" and practice.score is None  # the replay check stands; no score
+        assert practice.closeness == {"unavailable": "the check failed"}
 
 
 def test_a_check_waiting_for_events_that_never_come_is_made_at_completion(client, app, monkeypatch):
