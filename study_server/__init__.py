@@ -58,6 +58,25 @@ def _check_driver(url: str) -> None:
                                    field="DATABASE_URL")
 
 
+def _trust_proxies(app: Flask, hops: int) -> None:
+    """Take the client's address, scheme and port from the X-Forwarded-* headers of ``hops`` reverse proxies."""
+    from werkzeug.middleware.proxy_fix import ProxyFix
+
+    # never X-Forwarded-Host: the proxy sets Host (to the one name it serves), and a client's own claim of a
+    # host would otherwise name it in the links the app writes
+    app.wsgi_app = ProxyFix(app.wsgi_app, x_for=hops, x_proto=hops, x_host=0, x_port=hops)
+
+
+def _warm_studies(app: Flask) -> None:
+    """Load every study's resources now, then exempt them from the garbage collector's full collections."""
+    for study_runtime in app.extensions["studies"].values():
+        study_runtime.warm()
+    # what is loaded now lives as long as the process: the collector need never walk it again (a full
+    # collection over it took ~0.1 s, a pause in whichever request set it off); garbage goes first
+    gc.collect()
+    gc.freeze()
+
+
 def create_app(config: dict | None = None) -> Flask:
     """Build the app. ``config`` overrides the environment (tests pass a database URL and study files)."""
     instance = Path((config or {}).get("INSTANCE_PATH") or settings.instance_path())
@@ -96,27 +115,18 @@ def create_app(config: dict | None = None) -> Flask:
     app.register_blueprint(health.bp)
     hops = app.config.get("PROXY_HOPS", 0)
     if hops:  # behind that many reverse proxies: their X-Forwarded-* say the client's address, scheme and port
-        from werkzeug.middleware.proxy_fix import ProxyFix
-
-        # never X-Forwarded-Host: the proxy sets Host (to the one name it serves), and a client's own claim of a
-        # host would otherwise name it in the links the app writes
-        app.wsgi_app = ProxyFix(app.wsgi_app, x_for=hops, x_proto=hops, x_host=0, x_port=hops)
+        _trust_proxies(app, hops)
     app.session_interface = CookieSessions()
     app.after_request(security_headers)
     app.jinja_env.globals["csrf_token"] = csrf_token
     app.jinja_env.globals["api_base"] = api_base
     app.jinja_env.globals["import_map"] = IMPORT_MAP
     app.jinja_env.globals["mturk_submit_hosts"] = participant.MTURK_SUBMIT
-    app.register_error_handler(errors.RequestError, errors.answer)
+    app.register_error_handler(errors.StudyError, errors.answer)
     app.register_error_handler(HTTPException, errors.http_error)
     app.register_error_handler(Exception, errors.unexpected)
     if app.config.get("WARM_STUDIES") and app.config.get("CHECK_RESOURCES", True):  # a server, not a command
-        for study_runtime in app.extensions["studies"].values():
-            study_runtime.warm()
-        # what is loaded now lives as long as the process: the collector need never walk it again (a full
-        # collection over it took ~0.1 s, a pause in whichever request set it off); garbage goes first
-        gc.collect()
-        gc.freeze()
+        _warm_studies(app)
     return app
 
 

@@ -17,6 +17,7 @@ from datetime import datetime, timedelta
 from sqlalchemy import func, or_, select, update
 from sqlalchemy.exc import IntegrityError
 
+from .errors import StudyError
 from .extensions import db, insert_ignore
 from .models import Participant, StudyRecord, Trial, log, utcnow
 from .study_file import Study
@@ -55,8 +56,13 @@ def find(study: Study, platform: str, platform_id: str) -> Participant | None:
         Participant.study_id == study.id, Participant.platform == platform, Participant.platform_id == platform_id))
 
 
-class QuotaExceeded(Exception):
+class QuotaExceeded(StudyError):
     """Too many new participants from one client address within the hour."""
+
+    status = 429
+
+    def __init__(self):
+        super().__init__("too many people have started this study from this network in the last hour")
 
 
 def arrivals_from(study: Study, address: str, now: datetime) -> int:

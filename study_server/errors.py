@@ -1,8 +1,19 @@
-"""The one error a request can end with on purpose: a status, a message and the field it is about.
+"""How the study server fails on purpose, in one convention.
 
-Raised by services and routes alike; ``create_app`` maps it once — ``{"error": message, "field": name, …}`` as
-JSON under ``/api/`` and for JSON requests (the admin's scene editor), the calm message page everywhere else. The
-same place answers HTTP errors and unexpected failures (never a stack trace; participant pages get a reference
+Services (everything outside ``blueprints/``) raise a :class:`StudyError` subclass named for what happened in the
+study's words — :class:`study_server.lists.TooManyLists`, :class:`study_server.ingest.Conflict`,
+:class:`study_server.flow.NotCurrentTrial`, … — with a message a person can act on and the input ``field`` it
+is about. Each class says once, as ``status``, what it means to a client (409 a state the request does not fit,
+410 a session that has ended, 429 a quota, 503 something the server lacks just now); services never build HTTP
+answers. Routes raise :class:`RequestError` (a StudyError whose status is given) for what they parse themselves,
+and turn the engine's :class:`scenesuggest.errors.SceneSuggestError` and
+:class:`scenesuggest.events.EventError` into it where a request carries engine input. ``create_app`` answers
+every StudyError in one place (:func:`answer`): ``{"error": message, "field": name, …}`` as JSON under ``/api/``
+and for JSON requests (the admin's scene editor), the calm message page everywhere else; what the request had
+changed is rolled back. A route catches a StudyError only to do more than answer it (log a refusal, show a
+page of its own).
+
+The same place answers HTTP errors and unexpected failures (never a stack trace; participant pages get a reference
 that is in the session log). A database that cannot store anything right now (read-only, full, locked or
 unreachable) is no bug to hide behind a 500: the API answers 503 with ``Retry-After`` (the browser's outbox keeps
 the events and sends them again) and participant pages say that the work is kept and to wait a moment.
@@ -19,21 +30,37 @@ _UNAVAILABLE_MARKERS = ("readonly database", "read-only", "read only", "disk is 
                         "could not connect", "server closed the connection", "connection refused")
 
 
-class RequestError(Exception):
-    """A request that cannot be applied: ``status`` (4xx), ``message``, the ``field`` it names, extra response
-    ``headers`` (e.g. Retry-After) and ``extra`` keys for the JSON answer."""
+class StudyError(Exception):
+    """What a service could not do, and why: ``message``, the ``field`` it is about, extra response ``headers``
+    (e.g. Retry-After) and ``extra`` keys for the JSON answer; ``status`` (class attribute) is what it means to a
+    client."""
 
-    def __init__(self, status: int, message: str, field: str | None = None, headers: dict | None = None,
+    status = 409
+
+    def __init__(self, message: str, field: str | None = None, headers: dict | None = None,
                  extra: dict | None = None):
         super().__init__(message)
-        self.status, self.message, self.field = status, message, field
+        self.message, self.field = message, field
         self.headers, self.extra = headers or {}, extra or {}
 
 
-def answer(e: RequestError):
-    """The response for ``e``: JSON for the API and JSON requests, the calm page otherwise."""
+class RequestError(StudyError):
+    """A request a route cannot apply, with its ``status`` (4xx) given where it is raised."""
+
+    def __init__(self, status: int, message: str, field: str | None = None, headers: dict | None = None,
+                 extra: dict | None = None):
+        super().__init__(message, field, headers, extra)
+        self.status = status
+
+
+def answer(e: StudyError):
+    """The response for ``e``: JSON for the API and JSON requests, the calm page otherwise; nothing the request
+    changed is kept."""
     from flask import jsonify
 
+    from .extensions import db
+
+    db.session.rollback()
     if _is_api():
         return jsonify({"error": e.message, "field": e.field, **e.extra}), e.status, e.headers
     return (*_page(e.status, e.message), e.headers)

@@ -16,6 +16,7 @@ from urllib.parse import quote
 
 from sqlalchemy import case, func, select, update
 
+from .errors import StudyError
 from .extensions import db
 from .models import Event, Participant, SurveyResponse, Trial, flag, log, utcnow
 from .study_file import Question, Study
@@ -38,8 +39,20 @@ def current_trial(p: Participant) -> Trial | None:
 OPEN = "in_progress"
 
 
-class SessionEnded(ValueError):
+class SessionEnded(StudyError):
     """The session ended (completed, excluded, …) before this step could end it."""
+
+    status = 410
+
+    def __init__(self):
+        super().__init__("this session has ended", "status")
+
+
+class NotCurrentTrial(StudyError):
+    """A trial finished that is neither the current one nor one finished before."""
+
+    def __init__(self, index: int):
+        super().__init__(f"trial {index} is not the current trial", "trial")
 
 
 def is_open(p: Participant) -> bool:
@@ -176,7 +189,7 @@ def finish_trial(p: Participant, study: Study, index: int, scene: dict | None) -
         done = db.session.scalar(select(Trial).where(Trial.participant_id == p.id, Trial.index == index))
         if done is not None and done.done_at is not None:
             return done  # a retried request: nothing to do
-        raise ValueError(f"trial {index} is not the current trial")
+        raise NotCurrentTrial(index)
     now = utcnow()
     t.started_at = t.started_at or now
     t.done_at = now

@@ -1,4 +1,5 @@
-"""The lists the server shows a participant — context suggestions and search results — built and recorded.
+"""The lists the server shows a participant — context suggestions and search results — built and recorded, each
+by one call (:func:`suggest`, :func:`search`).
 
 Every list is stored (``lists``: its query and its items with ranks) before it is answered, so the export can
 say what a participant saw at which rank; an admin's preview builds the same lists and stores nothing.
@@ -9,16 +10,21 @@ from __future__ import annotations
 import json
 import uuid
 from collections.abc import Callable
+from contextlib import contextmanager
 from datetime import timedelta
 
+from flask import current_app
 from sqlalchemy import func, select, update
 
 from scenesuggest import frames
+from scenesuggest.errors import SceneSuggestError
 from scenesuggest.suggest import ContextQuery, SuggestionList
 
+from .authoring import live_scene
+from .errors import StudyError
 from .extensions import db
-from .models import Participant, ShownList, utcnow
-from .studies import StudyRuntime
+from .models import Participant, ShownList, log, log_again, utcnow
+from .studies import EngineUnavailable, StudyRuntime
 
 #: Suggestions a context list shows (the engine ranks every category; these many are placed and oriented).
 SUGGESTIONS_SHOWN = 40
@@ -31,11 +37,28 @@ LIST_RATE = 300
 LIST_WINDOW = timedelta(minutes=2)
 
 
-class TooManyLists(Exception):
+class QueryRejected(StudyError):
+    """A click the engine cannot answer (an unknown parent object, a point that is not three numbers, …)."""
+
+    status = 400
+
+
+class SuggestionsUnavailable(StudyError):
+    """The condition's engine cannot be loaded just now (why is in the server's log, not told to the participant)."""
+
+    status = 503
+
+    def __init__(self):
+        super().__init__("suggestions are unavailable just now: try again, or place objects from the list", "engine")
+
+
+class TooManyLists(StudyError):
     """Over the list rate or the participant's storage quota; ``retry_after`` in seconds."""
 
-    def __init__(self, message: str, retry_after: int):
-        super().__init__(message)
+    status = 429
+
+    def __init__(self, message: str, retry_after: int, field: str | None = None):
+        super().__init__(message, field, {"Retry-After": str(retry_after)})
         self.retry_after = retry_after
 
 
@@ -82,21 +105,91 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
     return items, found
 
 
-def record(who: Participant | None, trial: int | None, source: str, query: dict, items: list[dict],
+def _store(who: Participant, trial: int | None, source: str, query: dict, items: list[dict],
            quota_bytes: int) -> str:
-    """Store a shown list (nothing for a preview, ``who`` None); returns its id. The list counts against the
-    participant's storage quota (:class:`TooManyLists`; the rate is checked before the list is made,
-    :func:`check_rate`). The caller commits."""
+    """Store a shown list for ``who``; returns its id. The list counts against the participant's storage quota
+    (:class:`TooManyLists`; the rate is checked before the list is made, :func:`check_rate`)."""
     list_id = uuid.uuid4().hex
-    if who is not None:
-        size = len(json.dumps(query)) + len(json.dumps(items))
-        # one UPDATE that adds and checks at once: an event batch stored meanwhile is counted, never overwritten
-        counted = db.session.execute(update(Participant).where(
-            Participant.id == who.id, func.coalesce(Participant.bytes_stored, 0) + size <= quota_bytes)
-            .values(bytes_stored=func.coalesce(Participant.bytes_stored, 0) + size)
-            .execution_options(synchronize_session=False))
-        if counted.rowcount != 1:
-            raise TooManyLists("this session has stored as much as a study allows", 300)
-        db.session.add(ShownList(id=list_id, participant_id=who.id, trial=trial, source=source, query=query,
-                                 items=items, created_at=utcnow()))
+    size = len(json.dumps(query)) + len(json.dumps(items))
+    # one UPDATE that adds and checks at once: an event batch stored meanwhile is counted, never overwritten
+    counted = db.session.execute(update(Participant).where(
+        Participant.id == who.id, func.coalesce(Participant.bytes_stored, 0) + size <= quota_bytes)
+        .values(bytes_stored=func.coalesce(Participant.bytes_stored, 0) + size)
+        .execution_options(synchronize_session=False))
+    if counted.rowcount != 1:
+        raise TooManyLists("this session has stored as much as a study allows", 300, source)
+    db.session.add(ShownList(id=list_id, participant_id=who.id, trial=trial, source=source, query=query,
+                             items=items, created_at=utcnow()))
     return list_id
+
+
+@contextmanager
+def _refusals_logged(who: Participant | None, source: str):
+    """A participant over the list rate or storage quota: the refusal counted on one session-log row (committed:
+    it outlives the refused request) and raised on (429 with Retry-After)."""
+    try:
+        yield
+    except TooManyLists as e:
+        if who is None:
+            raise
+        db.session.rollback()
+        log_again("quota", who, what=f"{source} lists", reason=str(e))
+        db.session.commit()
+        e.field = source
+        raise
+
+
+def _quota_bytes(rt: StudyRuntime) -> int:
+    return int(rt.study.max_mb_per_participant * 1024 * 1024)
+
+
+def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id: str, trial: int,
+            data: dict) -> dict:
+    """A participant's click asking for suggestions (``data``: the editor's live ``scene``, the clicked ``parent``
+    object, ``point`` and ``normal``, metres, world frame), answered as the API gives it: the list built, stored
+    under an id (nothing stored for an admin's preview, ``who`` None), a stand-in engine logged. Refuses a
+    participant over the list rate or quota before the engine runs (:class:`TooManyLists`), a query the engine
+    cannot answer (:class:`QueryRejected`) and an engine that cannot be loaded (:class:`SuggestionsUnavailable`).
+    The caller commits."""
+    with _refusals_logged(who, "context"):
+        if who is not None:
+            check_rate(who)
+            check_room(who, 0, _quota_bytes(rt))
+        scene = live_scene(data.get("scene"), rt.scene_type(scene_id))
+        try:
+            items, found = context_list(rt, condition, scene, data.get("parent"), data.get("point"),
+                                        data.get("normal"), rt.describe)
+        except SceneSuggestError as e:
+            raise QueryRejected(e.message, e.field) from None
+        except EngineUnavailable as e:
+            current_app.logger.error("%s", e)
+            raise SuggestionsUnavailable() from None
+        query = {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),
+                 "surface_type": found.surface_type, "engine": found.engine,
+                 **({"fallback": found.fallback} if found.fallback else {})}
+        shown = [{"rank": i["rank"], "category": i["category"], "score": i["score"],
+                  "models": [m["id"] for m in i["models"]]} for i in items]
+        list_id = _store(who, trial, "context", query, shown, _quota_bytes(rt)) if who else uuid.uuid4().hex
+    if who is not None:
+        if found.fallback:
+            log("engine_fallback", who, condition=condition, trial=trial,
+                engine=rt.study.condition(condition).engine.name, answered_by=found.engine, reason=found.fallback,
+                list_id=list_id)
+        who.last_seen_at = utcnow()
+    return {"list_id": list_id, "condition": condition, "mode": "full" if condition == "full" else "basic",
+            "surface_type": found.surface_type, "engine": found.engine, "suggestions": items}
+
+
+def search(rt: StudyRuntime, who: Participant | None, trial: int | None, text: str, limit: int) -> dict:
+    """A participant's text search (at most ``limit`` hits, best first), answered as the API gives it and stored
+    like a suggestion list (nothing for a preview, ``who`` None). Refuses a participant over the list rate or
+    quota before searching (:class:`TooManyLists`). The caller commits."""
+    with _refusals_logged(who, "search"):
+        if who is not None:
+            check_rate(who)
+            check_room(who, 0, _quota_bytes(rt))
+        hits = rt.search_index.search(text, limit)
+        shown = [{"rank": i + 1, "model": h.model_id, "category": h.category} for i, h in enumerate(hits)]
+        list_id = _store(who, trial, "search", {"text": text}, shown, _quota_bytes(rt)) if who else uuid.uuid4().hex
+    return {"list_id": list_id, "query": text,
+            "hits": [dict(rt.describe(rt.library[h.model_id]), rank=i + 1) for i, h in enumerate(hits)]}

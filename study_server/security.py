@@ -16,6 +16,7 @@ from itsdangerous import BadSignature, URLSafeTimedSerializer
 from sqlalchemy import delete, func, or_, select, update
 from werkzeug.security import check_password_hash
 
+from .errors import StudyError
 from .extensions import db
 from .importmap import IMPORT_MAP_HASH
 from .models import AdminLink, AdminSession, LoginAttempt, utcnow
@@ -109,8 +110,13 @@ def read_preview_token(token: str) -> tuple[str, str, str] | None:
     return study_id, condition, scene
 
 
-class LoginBlocked(Exception):
+class LoginBlocked(StudyError):
     """Too many failed logins from this client within the window."""
+
+    status = 429
+
+    def __init__(self):
+        super().__init__("too many failed attempts", "password")
 
 
 def _client_key() -> str:

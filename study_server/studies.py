@@ -8,6 +8,7 @@ that creating the app stays cheap and each gunicorn worker holds one copy.
 
 from __future__ import annotations
 
+import copy
 import json
 import threading
 from functools import cached_property
@@ -23,11 +24,16 @@ from scenesuggest.search import SearchIndex
 from scenesuggest.symmetry import NONE, corpus_periods
 from scenesuggest.taxonomy import Taxonomy
 
+from .errors import StudyError
 from .study_file import Study, StudyFileError, load_study
 
 
-class EngineUnavailable(Exception):
-    """A condition's engine cannot be loaded (its file is damaged, say): the server's fault, not the caller's."""
+class EngineUnavailable(StudyError):
+    """A condition's engine cannot be loaded (its file is damaged, say): the server's fault, not the caller's. The
+    message names the file and is for the server's log (:class:`study_server.lists.SuggestionsUnavailable` is
+    what a participant is told)."""
+
+    status = 503
 
 
 def load_studies(files: list[Path], check: bool = True) -> dict[str, StudyRuntime]:
@@ -68,6 +74,8 @@ class StudyRuntime:
         #: size is computed from its bounding box and its URLs by routing (a sixth of a suggestion request's CPU).
         #: Bounded by the library: one entry per model.
         self.model_descriptions: dict[str, dict] = {}
+        #: Scene files as parsed JSON, by path, with the (mtime_ns, size) they were read at (:meth:`_document`).
+        self._documents: dict[Path, tuple[tuple[int, int], dict]] = {}
 
     def describe(self, m: ModelInfo) -> dict:
         """What the API says of model ``m`` (size in metres, asset and thumbnail URLs), in a request context: a
@@ -219,18 +227,42 @@ class StudyRuntime:
                 self._periods[model_id] = known
         return known
 
+    def _document(self, path: Path) -> dict:
+        """The scene file at ``path`` as parsed JSON, read again only when the file has changed since (its
+        modification time or size: an admin may author a target while the server runs, in any of its processes).
+        Shared: callers copy before changing it."""
+        stat = path.stat()
+        version = (stat.st_mtime_ns, stat.st_size)
+        with self._lock:
+            known = self._documents.get(path)
+        if known is not None and known[0] == version:
+            return known[1]
+        doc = json.loads(path.read_text())
+        with self._lock:
+            self._documents[path] = (version, doc)
+        return doc
+
     def scene(self, scene_id: str, which: str = "target") -> dict:
-        """A target (or start) scene as native JSON; the start defaults to the target's room alone."""
+        """A target (or start) scene as native JSON, a copy the caller may change; the start defaults to the
+        target's room alone."""
         s = self.study.scenes[scene_id]
         if which == "start" and s.start is not None:
-            return json.loads(Path(s.start).read_text())
-        doc = json.loads(Path(s.target).read_text())
+            return copy.deepcopy(self._document(Path(s.start)))
+        doc = copy.deepcopy(self._document(Path(s.target)))
         if which == "start":
             doc["objects"] = [o for o in doc["objects"] if o.get("parent") is None]
         return doc
 
+    def scene_type(self, scene_id: str) -> str:
+        """The scene type of a scene (its target's ``scene_type``; ``Room`` when it names none): what the
+        engine's occurrence priors are conditioned on."""
+        return self._document(Path(self.study.scenes[scene_id].target)).get("scene_type", "Room")
+
     def validate_scenes(self) -> None:
+        """Parse every scene file (a bad one stops the start-up naming it), and keep them parsed."""
         for s in self.study.scenes.values():
             scene_json.load(s.target)
+            self._document(Path(s.target))
             if s.start:
                 scene_json.load(s.start)
+                self._document(Path(s.start))

@@ -145,3 +145,23 @@ def test_a_study_that_ships_with_the_installed_package_is_read_only(tmp_path, de
     r = post(c, "/admin/demo/author/bedside", {"scene": json.loads(before)})
     assert r.status_code == 409 and "installed package" in r.json["error"] and target.read_bytes() == before
     assert post(c, "/admin/demo/author/bedside/image", {"png": png()}).status_code == 409
+
+
+def test_scenes_are_parsed_once_and_read_again_when_their_file_changes(admin, study_copy):
+    """The server keeps each scene file parsed (a click needs its scene type; no disk read per request) and reads it
+    again when it has changed, whichever process changed it; callers get copies."""
+    import os
+
+    rt = admin.app_.extensions["studies"]["demo"]
+    target = study_copy / "scenes" / "bedside.json"
+    first = rt.scene("bedside")
+    first["objects"].clear()  # a caller's copy
+    assert rt.scene("bedside")["objects"] and rt.scene_type("bedside") == json.loads(target.read_text())["scene_type"]
+    text = target.read_text()
+    kind = json.loads(text)["scene_type"]
+    changed = text.replace(f'"scene_type": "{kind}"', f'"scene_type": "{kind[::-1]}"')  # the same size
+    assert changed != text and len(changed) == len(text)
+    stat = target.stat()
+    target.write_text(changed)
+    os.utime(target, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1))
+    assert rt.scene_type("bedside") == kind[::-1] and rt.scene("bedside")["scene_type"] == kind[::-1]

@@ -220,7 +220,7 @@ def test_an_exclusion_committed_while_the_exit_survey_is_submitted_wins(app_on):
         p = db.session.query(Participant).one()  # loaded as in progress …
         with db.engine.begin() as other:  # … while the experimenter's exclusion commits
             other.execute(Participant.__table__.update().values(status="excluded"))
-        with pytest.raises(ValueError):
+        with pytest.raises(flow.SessionEnded):
             flow.submit_exit(p, study, {})
         db.session.rollback()
         assert db.session.query(Participant).one().status == "excluded"

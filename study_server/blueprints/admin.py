@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import re
-from collections import Counter
 
 from flask import (
     Blueprint,
@@ -19,19 +18,16 @@ from flask import (
     stream_with_context,
     url_for,
 )
-from sqlalchemy import func, select
+from sqlalchemy import select
 
-from scenesuggest import scene_json
-from scenesuggest.atomic import write_atomically
-
+from .. import authoring, decisions
 from ..assignment import fresh_after
-from ..authoring import checked_png, checked_scene, image_path
+from ..authoring import image_path
 from ..boot import trial_boot
-from ..config import part_of_the_package
 from ..errors import RequestError
 from ..export import csv_text, export_stream
 from ..extensions import db
-from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, log, utcnow
+from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, utcnow
 from ..outcomes import APPROVAL_COLUMNS, approval_rows, issued_codes
 from ..replays import replay_document
 from ..security import (
@@ -108,48 +104,10 @@ def logout():
     return redirect(url_for(".login"))
 
 
-def progress(study) -> dict:
-    """Counts per schedule row and per condition of completed / in progress / stale / excluded / other."""
-    fresh = fresh_after(study, utcnow())
-    people = db.session.execute(select(Participant.row, Participant.status, Participant.last_seen_at)
-                                .where(Participant.study_id == study.id)).all()
-    rows = [Counter() for _ in range(study.n_rows)]
-    totals = Counter()
-    for row, status, seen in people:
-        state = "in_progress" if status == "in_progress" and seen >= fresh else (
-            "stale" if status == "in_progress" else status)
-        if 0 <= row < len(rows):
-            rows[row][state] += 1
-        totals[state] += 1
-    trials = db.session.execute(
-        select(Trial.condition, Trial.done_at.is_not(None), Participant.status, func.count())
-        .join(Participant).where(Participant.study_id == study.id, Trial.kind == "trial")
-        .group_by(Trial.condition, Trial.done_at.is_not(None), Participant.status)).all()
-    conditions = {c.id: Counter() for c in study.conditions}
-    for condition, done, status, n in trials:  # not done: open while the session goes on, else never finished
-        state = "done" if done else "open" if status == "in_progress" else "unfinished"
-        conditions.setdefault(condition, Counter())[state] += n
-    return {"rows": rows, "totals": totals, "conditions": conditions, "engines": engine_use(study)}
-
-
-def engine_use(study) -> list[dict]:
-    """Per condition that suggests: its engine, and how often another engine stood in for it (and why, the
-    commonest reasons first)."""
-    reasons: dict[str, Counter] = {}
-    condition, reason = SessionLog.detail["condition"].as_string(), SessionLog.detail["reason"].as_string()
-    for c, r, n in db.session.execute(select(condition, reason, func.count()).where(
-            SessionLog.study_id == study.id, SessionLog.kind == "engine_fallback").group_by(condition, reason)):
-        reasons.setdefault(str(c), Counter())[str(r)[:120]] += n
-    return [{"condition": c.id, "engine": c.engine.name, "version": c.engine.kind.version,
-             "fallback": c.engine.config.fallback.name if c.engine.name == "http" else None,
-             "fallbacks": sum(reasons.get(c.id, Counter()).values()),
-             "reasons": reasons.get(c.id, Counter()).most_common(3)} for c in study.conditions if c.id != "none"]
-
-
 @bp.get("/")
 @admin_required
 def dashboard():
-    studies = [(rt.study, progress(rt.study)) for rt in current_app.extensions["studies"].values()]
+    studies = [(rt.study, decisions.progress(rt.study)) for rt in current_app.extensions["studies"].values()]
     codes = {rt.study.id: issued_codes(rt.study.id) for rt in current_app.extensions["studies"].values()}
     return render_template("admin/dashboard.html", studies=studies, codes=codes)
 
@@ -219,12 +177,7 @@ def exclude(study_id: str, pid: int):
     p = db.session.get(Participant, pid)
     if p is None or p.study_id != study_id:
         abort(404)
-    reason = request.form.get("reason", "").strip()[:1000]
-    if not reason:
-        abort(400, "A reason is required to exclude a participant.")
-    p.status = "excluded"
-    p.excluded_reason = reason
-    log("excluded", p, reason=reason)
+    decisions.exclude(p, request.form.get("reason", ""))
     db.session.commit()
     return redirect(url_for(".participant", study_id=study_id, pid=pid))
 
@@ -239,11 +192,7 @@ def clear_flag(study_id: str, pid: int, number: int):
     p = db.session.get(Participant, pid)
     if p is None or p.study_id != study_id or number >= len(p.flags or []):
         abort(404)
-    flags = [dict(f) for f in p.flags]
-    if not flags[number].get("cleared_at"):
-        flags[number]["cleared_at"] = utcnow().isoformat()
-        p.flags = flags
-        log("flag_cleared", p, reason=flags[number].get("reason"))
+    if decisions.clear_flag(p, number):
         db.session.commit()
     return redirect(url_for(".participant", study_id=study_id, pid=pid))
 
@@ -293,15 +242,9 @@ def author(study_id: str, scene_id: str):
     target = study.scenes[scene_id].target
     boot["author"] = {"save": url_for(".author_save", study_id=study_id, scene_id=scene_id),
                       "image": url_for(".author_image", study_id=study_id, scene_id=scene_id),
-                      "csrf": csrf_token(), "file": target.name, "frozen": _frozen(study_id)}
+                      "csrf": csrf_token(), "file": target.name, "frozen": authoring.started(study_id)}
     return render_template("trial.html", study=study, p=None, trial=None, condition=study.condition(condition),
                            boot=boot, scene_title=study.scenes[scene_id].title, preview=True, author=True)
-
-
-def _frozen(study_id: str) -> int:
-    """How many participants have consented (hold a schedule row): the study's targets are then frozen."""
-    return db.session.scalar(select(func.count()).select_from(Participant)
-                             .where(Participant.study_id == study_id, Participant.row >= 0)) or 0
 
 
 def _authoring_request(study_id: str, scene_id: str, key: str):
@@ -310,13 +253,7 @@ def _authoring_request(study_id: str, scene_id: str, key: str):
     rt = runtime(study_id)
     if scene_id not in rt.study.scenes:
         raise RequestError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
-    if part_of_the_package(rt.study.path):
-        raise RequestError(409, "this study ships with the installed package, whose files are read-only: author on "
-                                "a copy of the study", "scene_id")
-    started = _frozen(study_id)
-    if started:
-        raise RequestError(409, f"{started} participant(s) have started this study: its target scenes are frozen "
-                                  "(author on a copy of the study)", "scene_id")
+    authoring.may_author(rt)
     doc = request.get_json(silent=True)
     if not isinstance(doc, dict) or key not in doc:
         raise RequestError(400, f"expected a JSON object with {key!r}", key)
@@ -327,11 +264,9 @@ def _authoring_request(study_id: str, scene_id: str, key: str):
 @admin_required
 def author_save(study_id: str, scene_id: str):
     rt, doc = _authoring_request(study_id, scene_id, "scene")
-    scene = checked_scene(doc, scene_id, rt.library)
-    target = rt.study.scenes[scene_id].target
-    scene_json.save(scene, target)
+    target, objects = authoring.save_target(rt, scene_id, doc)
     current_app.logger.info("target scene %s of %s saved by the admin", scene_id, study_id)
-    return jsonify({"saved": str(target), "objects": len(scene) - 1})
+    return jsonify({"saved": str(target), "objects": objects})
 
 
 @bp.route("/<study_id>/author/<scene_id>/image", methods=["GET", "POST"])
@@ -345,8 +280,7 @@ def author_image(study_id: str, scene_id: str):
             abort(404)
         return send_file(path, mimetype="image/png", max_age=0)
     rt, data_url = _authoring_request(study_id, scene_id, "png")
-    data, (width, height) = checked_png(data_url)
-    path = write_atomically(image_path(rt.study.scenes[scene_id].target), data)
+    path, width, height = authoring.save_image(rt, scene_id, data_url)
     return jsonify({"saved": str(path), "width": width, "height": height})
 
 

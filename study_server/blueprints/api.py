@@ -7,14 +7,12 @@ preview token and writes nothing. Errors are ``{"error": message, "field": name}
 from __future__ import annotations
 
 import re
-from contextlib import contextmanager
 from dataclasses import dataclass
 
-from flask import Blueprint, current_app, jsonify, request, url_for
+from flask import Blueprint, jsonify, request, url_for
 from sqlalchemy import bindparam, select
 
 from scenesuggest import scene_json
-from scenesuggest.errors import SceneSuggestError
 from scenesuggest.event_schema import json_schema
 from scenesuggest.events import MAX_SEQ, EventError, text_problem
 
@@ -22,10 +20,10 @@ from .. import flow, ingest, lists, trial_check
 from ..authoring import live_scene
 from ..errors import RequestError
 from ..extensions import db, json_value
-from ..models import Participant, Trial, log, log_again, utcnow
+from ..models import Participant, Trial, log_again, utcnow
 from ..openapi import openapi_document
 from ..security import read_preview_token
-from ..studies import EngineUnavailable, runtime
+from ..studies import runtime
 
 bp = Blueprint("api", __name__, url_prefix="/api")
 
@@ -194,49 +192,16 @@ def events():
     except EventError as e:
         db.session.rollback()
         raise RequestError(422, e.message, e.field) from None
-    except ingest.Conflict as e:
-        raise RequestError(409, f"{e}: send these events again from seq {e.next_seq}",
-                           f"events[{e.positions[0]}].seq",
-                           extra={"conflicts": e.positions, "next_seq": e.next_seq}) from None
     except ingest.OverQuota:
         log_again("quota", who, what="events")
         db.session.commit()
-        raise RequestError(429, "this session has stored as many events as a study allows", "events",
-                           {"Retry-After": "300"}) from None
+        raise
     return jsonify({"acked_seq": acked, "stored": True})
 
 
-@contextmanager
-def _list_quota(who, source: str):
-    """A participant over the list rate or storage quota (:mod:`study_server.lists`): 429 with Retry-After,
-    the refusal counted on one session-log row."""
-    try:
-        yield
-    except lists.TooManyLists as e:
-        db.session.rollback()
-        log_again("quota", who, what=f"{source} lists", reason=str(e))
-        db.session.commit()
-        raise RequestError(429, str(e), source, {"Retry-After": str(e.retry_after)}) from None
-
-
-def _admit(who, source: str) -> None:
-    """Before a list is made (the engine's or the search's work): within the participant's list rate and room."""
-    if isinstance(who, Participant):
-        with _list_quota(who, source):
-            lists.check_rate(who)
-            lists.check_room(who, 0, _quota_bytes(who))
-
-
-def _record(who, trial: int | None, source: str, query: dict, items: list[dict]) -> str:
-    """Store the list shown (a preview stores nothing); returns its id."""
-    if not isinstance(who, Participant):
-        return lists.record(None, trial, source, query, items, 0)
-    with _list_quota(who, source):
-        return lists.record(who, trial, source, query, items, _quota_bytes(who))
-
-
-def _quota_bytes(who: Participant) -> int:
-    return int(runtime(who.study_id).study.max_mb_per_participant * 1024 * 1024)
+def _participant(who) -> Participant | None:
+    """The participant calling, None for an admin's preview (which stores nothing)."""
+    return who if isinstance(who, Participant) else None
 
 
 @bp.post("/suggest")
@@ -246,35 +211,9 @@ def suggest():
     condition, scene_id, index = _check_trial(who, data)
     if condition == "none":
         raise RequestError(403, "this trial's interface has no suggestions", "trial")
-    rt = runtime(who.study_id)
-    _admit(who, "context")
-    scene = live_scene(data.get("scene"), rt.scene(scene_id).get("scene_type", "Room"))
-    try:
-        items, found = lists.context_list(rt, condition, scene, data.get("parent"), data.get("point"),
-                                          data.get("normal"), lambda m: rt.describe(m))
-    except SceneSuggestError as e:
-        raise RequestError(400, e.message, e.field) from None
-    except EngineUnavailable as e:
-        current_app.logger.error("%s", e)
-        raise RequestError(503, "suggestions are unavailable just now: try again, or place objects from the list",
-                           "engine") from None
-    participant = who.id if isinstance(who, Participant) else None
-    configured = rt.study.condition(condition).engine.name
-    list_id = _record(who, index, "context",
-                      {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),
-                       "surface_type": found.surface_type, "engine": found.engine,
-                       **({"fallback": found.fallback} if found.fallback else {})},
-                      [{"rank": i["rank"], "category": i["category"], "score": i["score"],
-                        "models": [m["id"] for m in i["models"]]} for i in items])
-    if found.fallback and participant is not None:
-        log("engine_fallback", who, condition=condition, trial=index, engine=configured, answered_by=found.engine,
-            reason=found.fallback, list_id=list_id)
-    if participant is not None:
-        who.last_seen_at = utcnow()
-        db.session.commit()
-    mode = "full" if condition == "full" else "basic"
-    return jsonify({"list_id": list_id, "condition": condition, "mode": mode, "surface_type": found.surface_type,
-                    "engine": found.engine, "suggestions": items})
+    answer = lists.suggest(runtime(who.study_id), _participant(who), condition, scene_id, index, data)
+    db.session.commit()
+    return jsonify(answer)
 
 
 @bp.get("/search")
@@ -292,18 +231,11 @@ def search():
         raise RequestError(400, "expected an integer", "limit") from None
     if not 1 <= limit <= 200:
         raise RequestError(400, "must be between 1 and 200", "limit")
-    rt = runtime(who.study_id)
-    _admit(who, "search")
-    hits = rt.search_index.search(text, limit)
-    participant = who.id if isinstance(who, Participant) else None
-    trial = flow.current_trial(who) if participant is not None else None
-    list_id = _record(who, trial.index if trial else None, "search", {"text": text},
-                      [{"rank": i + 1, "model": h.model_id, "category": h.category} for i, h in enumerate(hits)])
-    if participant is not None:
-        db.session.commit()
-    return jsonify({"list_id": list_id, "query": text,
-                    "hits": [dict(rt.describe(rt.library[h.model_id]), rank=i + 1)
-                             for i, h in enumerate(hits)]})
+    participant = _participant(who)
+    trial = flow.current_trial(participant) if participant is not None else None
+    answer = lists.search(runtime(who.study_id), participant, trial.index if trial else None, text, limit)
+    db.session.commit()
+    return jsonify(answer)
 
 
 @bp.get("/models")
@@ -348,11 +280,8 @@ def trial_done():
     rt = runtime(who.study_id)
     final = data.get("scene")
     if final is not None:
-        final = scene_json.scene_to_dict(live_scene(final, rt.scene(t.scene_id).get("scene_type", "Room")))
-    try:
-        finished = flow.finish_trial(who, rt.study, index, final)
-    except ValueError as e:
-        raise RequestError(409, str(e), "trial") from None
+        final = scene_json.scene_to_dict(live_scene(final, rt.scene_type(t.scene_id)))
+    finished = flow.finish_trial(who, rt.study, index, final)
     trial_check.settle(rt, who)
     if finished.replay is None:  # just finished (a retried request finds it checked)
         trial_check.check_trial(rt, who, finished, last_seq)

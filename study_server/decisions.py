@@ -1,0 +1,87 @@
+"""What the experimenter decides and watches while a study runs: its progress per schedule row and condition, the
+engines that answered, excluding a participant, clearing a flag. Each function changes the current transaction
+and leaves committing to the caller; a decision is logged in the participant's session log."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+from sqlalchemy import func, select
+
+from .assignment import fresh_after
+from .errors import StudyError
+from .extensions import db
+from .models import Participant, SessionLog, Trial, log, utcnow
+from .study_file import Study
+
+#: The longest reason for an exclusion kept (characters).
+MAX_REASON = 1000
+
+
+class ReasonMissing(StudyError):
+    status = 400
+
+    def __init__(self):
+        super().__init__("A reason is required to exclude a participant.", "reason")
+
+
+def progress(study: Study) -> dict:
+    """Counts per schedule row and per condition of completed / in progress / stale / excluded / other, and the
+    engines' use (:func:`engine_use`)."""
+    fresh = fresh_after(study, utcnow())
+    people = db.session.execute(select(Participant.row, Participant.status, Participant.last_seen_at)
+                                .where(Participant.study_id == study.id)).all()
+    rows = [Counter() for _ in range(study.n_rows)]
+    totals = Counter()
+    for row, status, seen in people:
+        state = "in_progress" if status == "in_progress" and seen >= fresh else (
+            "stale" if status == "in_progress" else status)
+        if 0 <= row < len(rows):
+            rows[row][state] += 1
+        totals[state] += 1
+    trials = db.session.execute(
+        select(Trial.condition, Trial.done_at.is_not(None), Participant.status, func.count())
+        .join(Participant).where(Participant.study_id == study.id, Trial.kind == "trial")
+        .group_by(Trial.condition, Trial.done_at.is_not(None), Participant.status)).all()
+    conditions = {c.id: Counter() for c in study.conditions}
+    for condition, done, status, n in trials:  # not done: open while the session goes on, else never finished
+        state = "done" if done else "open" if status == "in_progress" else "unfinished"
+        conditions.setdefault(condition, Counter())[state] += n
+    return {"rows": rows, "totals": totals, "conditions": conditions, "engines": engine_use(study)}
+
+
+def engine_use(study: Study) -> list[dict]:
+    """Per condition that suggests: its engine, and how often another engine stood in for it (and why, the
+    commonest reasons first)."""
+    reasons: dict[str, Counter] = {}
+    condition, reason = SessionLog.detail["condition"].as_string(), SessionLog.detail["reason"].as_string()
+    for c, r, n in db.session.execute(select(condition, reason, func.count()).where(
+            SessionLog.study_id == study.id, SessionLog.kind == "engine_fallback").group_by(condition, reason)):
+        reasons.setdefault(str(c), Counter())[str(r)[:120]] += n
+    return [{"condition": c.id, "engine": c.engine.name, "version": c.engine.kind.version,
+             "fallback": c.engine.config.fallback.name if c.engine.name == "http" else None,
+             "fallbacks": sum(reasons.get(c.id, Counter()).values()),
+             "reasons": reasons.get(c.id, Counter()).most_common(3)} for c in study.conditions if c.id != "none"]
+
+
+def exclude(p: Participant, reason: str) -> None:
+    """Exclude ``p`` from the analysis, saying why (:class:`ReasonMissing` without a reason; the first
+    :data:`MAX_REASON` characters are kept)."""
+    reason = reason.strip()[:MAX_REASON]
+    if not reason:
+        raise ReasonMissing()
+    p.status = "excluded"
+    p.excluded_reason = reason
+    log("excluded", p, reason=reason)
+
+
+def clear_flag(p: Participant, number: int) -> bool:
+    """The experimenter has looked at flag ``number`` of ``p`` and clears it: it stays on record (cleared, when)
+    and no longer makes the approval decision "review". False when it was cleared before."""
+    flags = [dict(f) for f in p.flags]
+    if flags[number].get("cleared_at"):
+        return False
+    flags[number]["cleared_at"] = utcnow().isoformat()
+    p.flags = flags
+    log("flag_cleared", p, reason=flags[number].get("reason"))
+    return True
