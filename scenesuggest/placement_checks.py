@@ -14,6 +14,8 @@ its position term is highest — clicking next to a monitor's ideal spot still p
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from . import poses
@@ -53,15 +55,27 @@ def _problems(lo, hi, prep, parent, siblings) -> tuple[np.ndarray, np.ndarray, n
     return collides, first, beyond.max(axis=1)
 
 
-def check_fit(engine, scores, faces, alphas, headings, points, total, notes, mode: str) -> np.ndarray:
-    """Re-orient (``full``) or penalise candidates whose box collides or overhangs; returns new scores and
-    updates ``alphas``, ``headings`` and ``notes`` in place."""
+class Fit(NamedTuple):
+    """Candidates after :func:`check_fit`: their scores, turns about the surface normal and headings (radians),
+    and the notes that explain what was changed, each indexed like the engine's candidates."""
+
+    total: np.ndarray
+    alphas: np.ndarray
+    headings: np.ndarray
+    notes: list[list[str]]
+
+
+def check_fit(engine, scores, faces, alphas, headings, points, total, notes, mode: str) -> Fit:
+    """Re-orient (``full``) or penalise candidates whose box collides or overhangs, for candidates attached by
+    ``faces``, turned by ``alphas`` to ``headings`` (radians) at ``points`` (metres, world frame) with scores
+    ``total`` and ``notes`` so far; returns them as changed (the arguments are left as they were)."""
     prep = scores.prepared
     scene = prep.query.scene
     parent = scene.objects[prep.query.parent_id]
     siblings = scene.children(parent.id)
     sizes = engine.size
-    total = total.copy()
+    total, alphas, headings = total.copy(), np.array(alphas, dtype=float), np.array(headings, dtype=float)
+    notes = [list(n) for n in notes]
     n = len(sizes)
     zero = headings - alphas
     tries = [np.zeros(n, dtype=int)]  # offsets from the chosen heading, best orientation score first
@@ -96,7 +110,7 @@ def check_fit(engine, scores, faces, alphas, headings, points, total, notes, mod
             notes[i].append(f"collides with {s.category} {s.id!r}")
         else:
             notes[i].append(f"overhangs {parent.category} {parent.id!r} by {overhang[i]:.2f} m")
-    return total
+    return Fit(total, alphas, headings, notes)
 
 
 def plane_samples(point, normal, radius: float) -> np.ndarray:

@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -136,9 +137,59 @@ class Scores:
     features: np.ndarray | None = None
 
 
+class Resolution(NamedTuple):
+    """One reference key (reference category, scene type, relation, surface type) resolved for every candidate
+    (:meth:`Engine.resolve`): the KDE samples of the candidates' relative positions, and each candidate's pair
+    segment of the priors."""
+
+    #: (samples, 2) offsets from the reference on the support plane, in its frame (metres).
+    xy: np.ndarray
+    #: (samples,) 1 / the sample's kernel bandwidth (1/metres).
+    inv_bandwidth: np.ndarray
+    #: (samples,) the sample's weight: its segment's weight × the back-off trust of its candidate.
+    weight: np.ndarray
+    #: (samples,) the candidate (engine index) each sample belongs to.
+    owner: np.ndarray
+    #: (candidates,) each candidate's pair segment of the priors, −1 where it has none.
+    segment: np.ndarray
+
+
 class Engine:
     """Answers context queries from a :class:`Priors` (the ``paper`` engine of :mod:`scenesuggest.engines`).
-    Pure: answers depend only on priors and query."""
+    Pure: answers depend only on priors and query. Everything below is derived from the priors and the options
+    once, at construction; candidates are indexed 0..n-1 in the order of ``priors.candidate_categories``.
+
+    Attributes
+    ----------
+    priors : Priors
+        What the engine answers from.
+    options : EngineOptions
+        Its weights and switches.
+    candidates : ndarray of shape (n,), int
+        The priors' category index of each candidate.
+    names : list of str, length n
+        Each candidate's category; ``index`` maps a category back to its candidate.
+    name_order : ndarray of shape (n,), int
+        Each candidate's rank by name (ties in score are broken by name).
+    stat_entity : ndarray of shape (n,), int64
+        The priors' entity whose statistics each candidate uses after taxonomy back-off.
+    members : list of tuple of str, length n
+        Each candidate's models, the most used first (the first is its representative).
+    size : ndarray of shape (n, 3), float
+        The representative model's bounding-box size (metres, its canonical frame).
+    surface_prob : ndarray of shape (n, surface types)
+        P_sup(t | C), with the geometric fallback where a category was never seen supported.
+    face_prob : ndarray of shape (n, surface types, faces)
+        P_att(f | C, t); rows of zeros where never observed.
+    geometric_faces : dict of str to ndarray of shape (n,), int
+        Per surface normal (up, down, vertical): the attachment face the bounding box suggests.
+    share : ndarray of shape (n,)
+        A backed-off candidate's share of its ancestor's occurrences (1 where it has its own statistics).
+    base_rate : ndarray of shape (n,)
+        How often each candidate rests on anything at all (for a parent never seen).
+    weights : ndarray of shape (n, surface types, evidence kinds), float
+        The learned orientation evidence weights (:mod:`.orientation`).
+    """
 
     name = "paper"
 
@@ -171,7 +222,7 @@ class Engine:
         self.share = np.where(pooled > 0, own / np.maximum(pooled, 1.0), 1.0)
         self.base_rate = own / max(total, 1.0)
         self.weights = p.orient_weights[self.candidates].astype(float)  # (n, surface types, kinds)
-        self._cache: dict[tuple, tuple] = {}
+        self._cache: dict[tuple, Resolution] = {}
         self._categories: dict[str, tuple[str, ...]] | None = None
 
     @property
@@ -227,8 +278,9 @@ class Engine:
             k[self.priors.entity_chain(child.category)] += 1
         return dense[self.stat_entity, np.minimum(k[self.stat_entity], K_MAX)] * self.share
 
-    def _resolved(self, ref_category: str, scene_type: str, relation: str, surface_type: str) -> tuple:
-        """For one reference key: the KDE samples of every candidate and its segment (memoised; pure)."""
+    def resolve(self, ref_category: str, scene_type: str, relation: str, surface_type: str) -> Resolution:
+        """One reference key resolved for every candidate: the KDE samples of their relative positions and their
+        pair segments (memoised; pure)."""
         key = (ref_category, scene_type, relation, surface_type)
         hit = self._cache.get(key)
         if hit is not None:
@@ -241,8 +293,8 @@ class Engine:
         owner = np.repeat(has, counts)
         segs_rep = np.repeat(seg[has], counts)
         sample = np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
-        value = (p.pair_xy[sample].astype(float), 1.0 / p.seg_bandwidth[segs_rep].astype(float),
-                 p.seg_weight[segs_rep].astype(float) * trust[owner], owner, seg)
+        value = Resolution(p.pair_xy[sample].astype(float), 1.0 / p.seg_bandwidth[segs_rep].astype(float),
+                           p.seg_weight[segs_rep].astype(float) * trust[owner], owner, seg)
         self._cache[key] = value
         return value
 
@@ -253,19 +305,19 @@ class Engine:
         n = len(self.candidates)
         if not refs:
             return []
-        resolved = [self._resolved(ref.category, prep.scene_type, relation, prep.surface_type)
+        resolved = [self.resolve(ref.category, prep.scene_type, relation, prep.surface_type)
                     for ref, relation in refs]
         delta = poses.plane_offsets(prep.point if point is None else point, prep.normal,
                                     np.array([ref.transform for ref, _ in refs]),
                                     np.array([is_radial(ref.size) for ref, _ in refs]))
-        sizes = [len(r[3]) for r in resolved]
+        sizes = [len(r.owner) for r in resolved]
         if not sum(sizes):
             return [np.zeros(n) for _ in refs]
         which = np.repeat(np.arange(len(refs)), sizes)
-        xy = np.concatenate([r[0] for r in resolved])
-        inv_bw = np.concatenate([r[1] for r in resolved])
-        weight = np.concatenate([r[2] for r in resolved])
-        owner = np.concatenate([r[3] for r in resolved])
+        xy = np.concatenate([r.xy for r in resolved])
+        inv_bw = np.concatenate([r.inv_bandwidth for r in resolved])
+        weight = np.concatenate([r.weight for r in resolved])
+        owner = np.concatenate([r.owner for r in resolved])
         q = (((delta[which] - xy) * inv_bw) ** 2).sum(axis=1)
         out = np.bincount(which * n + owner, weights=weight * np.exp(-0.5 * q), minlength=len(refs) * n)
         return list(out.reshape(len(refs), n) * self.share)
@@ -346,7 +398,8 @@ class Engine:
             return SuggestionList((), prep.surface_type, prep.scene_type, prep.parent_category, self.name)
         if self.options.collision_aware:  # every candidate needs its pose before the ranking is known
             faces, alphas, headings = self.choose_poses(scores, mode)
-            total = check_fit(self, scores, faces, alphas, headings, points, total.copy(), notes, mode)
+            total, alphas, headings, notes = check_fit(self, scores, faces, alphas, headings, points, total, notes,
+                                                       mode)
             order = self._ranking(total, allowed)[: top or n]
             faces, alphas, headings = [faces[i] for i in order], alphas[order], headings[order]
         else:

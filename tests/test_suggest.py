@@ -154,11 +154,12 @@ def test_a_candidate_that_does_not_fit_is_turned_to_its_next_best_heading(engine
     faces, alphas, headings = engine.choose_poses(scores, "full")
     assert headings[i] == 0.0
     notes = [[] for _ in engine.names]
-    total = check_fit(engine, scores, faces, alphas, headings, np.tile(scores.prepared.point, (len(faces), 1)),
-                      scores.total, notes, "full")
-    assert headings[i] == pytest.approx(math.pi / 2) and notes[i] == ["turned 90° to fit"]
-    assert total[i] == scores.total[i]
-    placed = poses.placement(scores.prepared.point, (0, 1, 0), faces[i], engine.size[i], alphas[i])
+    fit = check_fit(engine, scores, faces, alphas, headings, np.tile(scores.prepared.point, (len(faces), 1)),
+                    scores.total, notes, "full")
+    assert fit.headings[i] == pytest.approx(math.pi / 2) and fit.notes[i] == ["turned 90° to fit"]
+    assert fit.total[i] == scores.total[i]
+    assert headings[i] == 0.0 and notes[i] == []  # the arguments are left as they were
+    placed = poses.placement(scores.prepared.point, (0, 1, 0), faces[i], engine.size[i], fit.alphas[i])
     assert frames.world_bbox(placed, engine.size[i])[1][0] <= 2.5 + 1e-9
 
 
