@@ -153,68 +153,87 @@ def _pick_rows(participant: int, events: list[dict]) -> Iterator[dict]:
                "source": pick.source, "list_id": pick.list_id or "", "final": "true" if pick.final else "false"}
 
 
+def _participants(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
+    for p in _stream(select(Participant).where(Participant.study_id == rt.study.id).order_by(Participant.id)):
+        v = p.viewport or {}
+        yield {"participant": p.id, "study": p.study_id, "study_hash": p.study_hash, "platform": p.platform,
+               "platform_id": p.platform_id, "row": p.row, "status": p.status, "step": p.step,
+               "consent_version": p.consent_version or "", "excluded_reason": p.excluded_reason or "",
+               "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at),
+               "finished_at": _iso(p.finished_at), "acked_seq": p.acked_seq,
+               "flags": " | ".join(f["reason"] for f in open_flags(p)), "viewport_width": v.get("width", ""),
+               "viewport_height": v.get("height", ""), "user_agent": p.user_agent}
+
+
+def _trials(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
+    for t in _stream(select(Trial).where(Trial.participant_id.in_(ids)).order_by(Trial.participant_id,
+                                                                               Trial.position)):
+        yield {"participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
+               "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
+               "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
+               "final_objects": len(t.final_scene["objects"]) if t.final_scene else "",
+               "review": t.review or "", "replay": t.replay or "", **_closeness(rt, t)}
+
+
+def _events(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
+    """The events; ``seen["vocabularies"]`` collects the vocabularies met, and ``seen["picks"]`` takes each
+    participant's events that picks are made of (one pass over the largest table)."""
+    rows = db.session.execute(select(Event.participant_id, Event.seq, Event.page_id, Event.type, Event.trial,
+                                     Event.client_t, Event.server_t, Event.payload, Event.vocabulary)
+                              .where(Event.participant_id.in_(ids)).order_by(Event.participant_id, Event.seq)
+                              .execution_options(yield_per=BATCH))
+    vocabularies, own, current = seen.setdefault("vocabularies", set()), [], None
+    for e in rows:
+        if e.participant_id != current:
+            seen["picks"](current, own)
+            own, current = [], e.participant_id
+        vocabularies.add(int(e.vocabulary))
+        if e.type in PICK_INPUTS:  # what picks need of it (a move's or a turn's object states are not)
+            own.append(as_event(e.seq, e.client_t, e.type, e.trial, e.payload if e.type in PICK_PAYLOADS else {}))
+        yield {"participant": e.participant_id, "seq": e.seq, "page_id": e.page_id, "type": e.type,
+               "trial": "" if e.trial is None else e.trial, "client_t_ms": repr(e.client_t),
+               "server_t": _iso(e.server_t), "payload": json.dumps(e.payload, sort_keys=True),
+               "vocabulary": e.vocabulary}
+    seen["picks"](current, own)
+
+
+def _suggestions(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
+    for li in _stream(select(ShownList).where(ShownList.participant_id.in_(ids)).order_by(ShownList.created_at,
+                                                                                         ShownList.id)):
+        for item in li.items:
+            yield {"participant": li.participant_id, "list_id": li.id,
+                   "trial": "" if li.trial is None else li.trial, "source": li.source, "rank": item.get("rank"),
+                   "category": item.get("category", ""),
+                   "model": item.get("model") or (item.get("models") or [""])[0],
+                   "score": item.get("score", ""), "created_at": _iso(li.created_at),
+                   "query": json.dumps(li.query, sort_keys=True)}
+
+
+def _survey(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
+    for r in _stream(select(SurveyResponse).where(SurveyResponse.participant_id.in_(ids))
+                     .order_by(SurveyResponse.participant_id, SurveyResponse.survey)):
+        for q, a in r.answers.items():
+            yield {"participant": r.participant_id, "survey": r.survey, "question": q,
+                   "answer": "" if a is None else a}
+
+
+def _session_log(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
+    for row in _stream(select(SessionLog).where(SessionLog.participant_id.in_(ids)).order_by(SessionLog.id)):
+        yield {"participant": row.participant_id, "kind": row.kind, "at": _iso(row.at),
+               "detail": json.dumps(row.detail, sort_keys=True)}
+
+
+#: Each table's rows, read from the database as they are written (``picks`` is found in the events' pass).
+_TABLES = {"participants": _participants, "trials": _trials, "events": _events, "suggestions": _suggestions,
+           "survey": _survey, "session_log": _session_log}
+
+
 def _table(rt: StudyRuntime, name: str, seen: dict) -> Iterator[dict]:
-    """The rows of the table ``name`` (but ``picks``, found in the events' pass), read as they are written;
-    ``seen`` collects the event vocabularies met, and ``seen["picks"]`` takes each participant's events that
-    picks are made of."""
-    study = rt.study
-    ids = select(Participant.id).where(Participant.study_id == study.id).scalar_subquery()
-    if name == "participants":
-        for p in _stream(select(Participant).where(Participant.study_id == study.id).order_by(Participant.id)):
-            v = p.viewport or {}
-            yield {"participant": p.id, "study": p.study_id, "study_hash": p.study_hash, "platform": p.platform,
-                   "platform_id": p.platform_id, "row": p.row, "status": p.status, "step": p.step,
-                   "consent_version": p.consent_version or "", "excluded_reason": p.excluded_reason or "",
-                   "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at),
-                   "finished_at": _iso(p.finished_at), "acked_seq": p.acked_seq,
-                   "flags": " | ".join(f["reason"] for f in open_flags(p)), "viewport_width": v.get("width", ""),
-                   "viewport_height": v.get("height", ""), "user_agent": p.user_agent}
-    elif name == "trials":
-        for t in _stream(select(Trial).where(Trial.participant_id.in_(ids)).order_by(Trial.participant_id,
-                                                                                   Trial.position)):
-            yield {"participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
-                   "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
-                   "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
-                   "final_objects": len(t.final_scene["objects"]) if t.final_scene else "",
-                   "review": t.review or "", "replay": t.replay or "", **_closeness(rt, t)}
-    elif name == "events":  # the picks are found in the same pass, one participant at a time (see write_export)
-        rows = db.session.execute(select(Event.participant_id, Event.seq, Event.page_id, Event.type, Event.trial,
-                                         Event.client_t, Event.server_t, Event.payload, Event.vocabulary)
-                                  .where(Event.participant_id.in_(ids)).order_by(Event.participant_id, Event.seq)
-                                  .execution_options(yield_per=BATCH))
-        vocabularies, own, current = seen.setdefault("vocabularies", set()), [], None
-        for e in rows:
-            if e.participant_id != current:
-                seen["picks"](current, own)
-                own, current = [], e.participant_id
-            vocabularies.add(int(e.vocabulary))
-            if e.type in PICK_INPUTS:  # what picks need of it (a move's or a turn's object states are not)
-                own.append(as_event(e.seq, e.client_t, e.type, e.trial, e.payload if e.type in PICK_PAYLOADS else {}))
-            yield {"participant": e.participant_id, "seq": e.seq, "page_id": e.page_id, "type": e.type,
-                   "trial": "" if e.trial is None else e.trial, "client_t_ms": repr(e.client_t),
-                   "server_t": _iso(e.server_t), "payload": json.dumps(e.payload, sort_keys=True),
-                   "vocabulary": e.vocabulary}
-        seen["picks"](current, own)
-    elif name == "suggestions":
-        for li in _stream(select(ShownList).where(ShownList.participant_id.in_(ids)).order_by(ShownList.created_at,
-                                                                                             ShownList.id)):
-            for item in li.items:
-                yield {"participant": li.participant_id, "list_id": li.id,
-                       "trial": "" if li.trial is None else li.trial, "source": li.source, "rank": item.get("rank"),
-                       "category": item.get("category", ""),
-                       "model": item.get("model") or (item.get("models") or [""])[0],
-                       "score": item.get("score", ""), "created_at": _iso(li.created_at),
-                       "query": json.dumps(li.query, sort_keys=True)}
-    elif name == "survey":
-        for r in _stream(select(SurveyResponse).where(SurveyResponse.participant_id.in_(ids))
-                         .order_by(SurveyResponse.participant_id, SurveyResponse.survey)):
-            for q, a in r.answers.items():
-                yield {"participant": r.participant_id, "survey": r.survey, "question": q,
-                       "answer": "" if a is None else a}
-    elif name == "session_log":
-        for row in _stream(select(SessionLog).where(SessionLog.participant_id.in_(ids)).order_by(SessionLog.id)):
-            yield {"participant": row.participant_id, "kind": row.kind, "at": _iso(row.at),
-                   "detail": json.dumps(row.detail, sort_keys=True)}
+    """The rows of the table ``name`` of the study ``rt`` runs (none for ``picks``, found in the events' pass);
+    ``seen`` collects what the events' pass finds (:func:`_events`)."""
+    ids = select(Participant.id).where(Participant.study_id == rt.study.id).scalar_subquery()
+    rows = _TABLES.get(name)
+    return rows(rt, ids, seen) if rows else iter(())
 
 
 def csv_text(rows: list[dict], columns: list[str]) -> str:
@@ -313,82 +332,88 @@ class ZipSink(_Sink):
         self.zip.close()
 
 
-def write_export(rt: StudyRuntime, sink: _Sink) -> Iterator[dict | None]:
-    """Write a complete export of the study ``rt`` runs into ``sink``, table by table, ``BATCH`` rows at a time;
-    yields after each batch (so a caller can send what is written) and last the manifest."""
-    from scenesuggest.event_schema import json_schema
-    from scenesuggest.events import VERSION
+class _HeldPicks:
+    """The picks, found while the events are read (one pass over the largest table), kept in a file that stays in
+    memory while small and spills to disk after, and written at their turn."""
 
-    study = rt.study
-    hashes, counts = {}, {}
-    # the picks are found while the events are read (one pass over the largest table), kept in a file that stays
-    # in memory while small and spills to disk after, and written at their turn
-    held = tempfile.SpooledTemporaryFile(max_size=8 << 20, mode="w+", encoding="utf-8", newline="")  # noqa: SIM115
-    # (closed once copied; an export abandoned half-way, a download cut off, leaves it to the collector)
-    pick_writer = csv.DictWriter(held, fieldnames=list(DICTIONARY["picks"]), lineterminator="\n")
-    found = {"picks": 0}
+    def __init__(self):
+        # closed once copied; an export abandoned half-way, a download cut off, leaves it to the collector
+        self.file = tempfile.SpooledTemporaryFile(max_size=8 << 20, mode="w+", encoding="utf-8",  # noqa: SIM115
+                                                  newline="")
+        self.writer = csv.DictWriter(self.file, fieldnames=list(DICTIONARY["picks"]), lineterminator="\n")
+        self.count = 0
 
-    def take(participant, events):
+    def take(self, participant: int | None, events: list[dict]) -> None:
+        """Keep the picks of ``participant``'s events (None: nothing, before the first participant)."""
         for row in _pick_rows(participant, events) if participant is not None else ():
-            pick_writer.writerow({k: safe_cell(v) for k, v in row.items()})
-            found["picks"] += 1
-    seen = {"picks": take}
+            self.writer.writerow({k: safe_cell(v) for k, v in row.items()})
+            self.count += 1
 
-    def whole(name: str, text: str) -> None:
-        sink.begin(name)
-        sink.write(text)
-        hashes[name] = sink.end()
+    def copy(self, buf: io.StringIO, sink: _Sink) -> Iterator[None]:
+        """Write the held rows into ``sink`` after what ``buf`` holds, a chunk at a time."""
+        self.file.seek(0)
+        while chunk := self.file.read(1 << 20):
+            buf.write(chunk)
+            _flush(buf, sink)
+            yield None
+        self.file.close()
 
+
+def _flush(buf: io.StringIO, sink: _Sink) -> None:
+    sink.write(buf.getvalue())
+    buf.seek(0)
+    buf.truncate()
+
+
+def _write_table(rt: StudyRuntime, name: str, sink: _Sink, seen: dict, picks: _HeldPicks) -> Iterator[None]:
+    """Write ``name``.csv into ``sink``, ``BATCH`` rows at a time (yielding after each); returns its row count."""
+    sink.begin(f"{name}.csv")
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(DICTIONARY[name]), lineterminator="\n")
+    writer.writeheader()
+    count = 0
+    if name == "picks":  # written, escaped, while the events were read
+        yield from picks.copy(buf, sink)
+        count = picks.count
+    for row in _table(rt, name, seen):
+        writer.writerow({k: safe_cell(v) for k, v in row.items()})
+        count += 1
+        if count % BATCH == 0:
+            _flush(buf, sink)
+            yield None
+    sink.write(buf.getvalue())
+    return count
+
+
+def _dictionary() -> str:
+    """``data_dictionary.md``: every table's columns and what they mean, and how text cells are written."""
+    lines = ["# Data dictionary", ""]
     for name, columns in DICTIONARY.items():
-        sink.begin(f"{name}.csv")
-        buf = io.StringIO()
-        writer = csv.DictWriter(buf, fieldnames=list(columns), lineterminator="\n")
-        writer.writeheader()
-        counts[name] = 0
-        if name == "picks":  # written, escaped, while the events were read
-            held.seek(0)
-            while chunk := held.read(1 << 20):
-                buf.write(chunk)
-                sink.write(buf.getvalue())
-                buf.seek(0)
-                buf.truncate()
-                yield None
-            held.close()
-            counts[name] = found["picks"]
-        for row in _table(rt, name, seen):
-            writer.writerow({k: safe_cell(v) for k, v in row.items()})
-            counts[name] += 1
-            if counts[name] % BATCH == 0:
-                sink.write(buf.getvalue())
-                buf.seek(0)
-                buf.truncate()
-                yield None
-        sink.write(buf.getvalue())
-        hashes[f"{name}.csv"] = sink.end()
-        yield None
+        lines += [f"## {name}.csv", "", "| column | meaning |", "|---|---|"]
+        lines += [f"| {c} | {m} |" for c, m in columns.items()] + [""]
+    lines += ["## Text cells", "",
+              "A text cell beginning with `=`, `+`, `-`, `@`, a tab, a carriage return or `'` is written "
+              "with one leading `'` so that spreadsheets show it as text instead of running it as a formula "
+              "(OWASP's advice on CSV injection); numbers are written as they are. Remove that one "
+              "`'` to get the stored value (`analysis.load.read_export` does). Text that was stored without "
+              "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
+    return "\n".join(lines)
+
+
+def _schema_version() -> str | None:
+    """The database's schema revision (None where it has no Alembic table)."""
     try:
-        schema_version = db.session.execute(text("SELECT version_num FROM alembic_version")).scalar()
+        return db.session.execute(text("SELECT version_num FROM alembic_version")).scalar()
     except Exception:
         db.session.rollback()
-        schema_version = None
-    dictionary = ["# Data dictionary", ""]
-    for name, columns in DICTIONARY.items():
-        dictionary += [f"## {name}.csv", "", "| column | meaning |", "|---|---|"]
-        dictionary += [f"| {c} | {m} |" for c, m in columns.items()] + [""]
-    dictionary += ["## Text cells", "",
-                   "A text cell beginning with `=`, `+`, `-`, `@`, a tab, a carriage return or `'` is written "
-                   "with one leading `'` so that spreadsheets show it as text instead of running it as a formula "
-                   "(OWASP's advice on CSV injection); numbers are written as they are. Remove that one "
-                   "`'` to get the stored value (`analysis.load.read_export` does). Text that was stored without "
-                   "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
-    whole("data_dictionary.md", "\n".join(dictionary))
-    whole("event_schema.json", json.dumps(json_schema(), indent=1))
-    for version in sorted(seen.get("vocabularies", set()) - {VERSION}):  # older pages' events
-        whole(f"event_schema_v{version}.json", json.dumps(json_schema(version), indent=1))
-    whole("scenes.json", json.dumps(scenes_document(rt), indent=1, sort_keys=True))
-    manifest = {
+        return None
+
+
+def _manifest(rt: StudyRuntime, counts: dict, hashes: dict) -> dict:
+    study = rt.study
+    return {
         "study": study.id, "title": study.title, "study_hash": study.hash, "study_file": study.path.name,
-        "code_version": _code_version(), "schema_version": schema_version,
+        "code_version": _code_version(), "schema_version": _schema_version(),
         "exported_at": datetime.now(UTC).isoformat(), "row_counts": counts,
         "files": dict(sorted(hashes.items())),
         "design": {"kind": study.design, "blocking": study.blocking, "rows": study.n_rows,
@@ -396,6 +421,32 @@ def write_export(rt: StudyRuntime, sink: _Sink) -> Iterator[dict | None]:
         "resources": _resources(study),
         "engines": _engines(rt),
     }
+
+
+def write_export(rt: StudyRuntime, sink: _Sink) -> Iterator[dict | None]:
+    """Write a complete export of the study ``rt`` runs into ``sink``, table by table, ``BATCH`` rows at a time;
+    yields after each batch (so a caller can send what is written) and last the manifest."""
+    from scenesuggest.event_schema import json_schema
+    from scenesuggest.events import VERSION
+
+    hashes, counts, picks = {}, {}, _HeldPicks()
+    seen = {"picks": picks.take}
+
+    def whole(name: str, text: str) -> None:
+        sink.begin(name)
+        sink.write(text)
+        hashes[name] = sink.end()
+
+    for name in DICTIONARY:
+        counts[name] = yield from _write_table(rt, name, sink, seen, picks)
+        hashes[f"{name}.csv"] = sink.end()
+        yield None
+    whole("data_dictionary.md", _dictionary())
+    whole("event_schema.json", json.dumps(json_schema(), indent=1))
+    for version in sorted(seen.get("vocabularies", set()) - {VERSION}):  # older pages' events
+        whole(f"event_schema_v{version}.json", json.dumps(json_schema(version), indent=1))
+    whole("scenes.json", json.dumps(scenes_document(rt), indent=1, sort_keys=True))
+    manifest = _manifest(rt, counts, hashes)
     whole("manifest.json", json.dumps(manifest, indent=1))
     yield manifest
 
