@@ -23,7 +23,17 @@ from .load import StudyData
 from .measures import TRIAL_MEASURES, participants_table, picks_table, trials_table
 from .reproduce import FILE_NAME as REPRODUCE_R
 from .reproduce import write_reproduce_r
-from .tables import MEASURES, Table, condition_tests, contrasts_table, survey_table, table1, table2, tests_table
+from .tables import (
+    MEASURES,
+    Table,
+    TestResult,
+    condition_tests,
+    contrasts_table,
+    survey_table,
+    table1,
+    table2,
+    tests_table,
+)
 
 
 def select(data: StudyData, completed_only: bool = False
@@ -84,22 +94,20 @@ def _design_text(data: StudyData, conditions: list[str]) -> list[str]:
     return lines
 
 
-def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, seed: int = 0, unit: str = "trial",
-                 completed_only: bool = False,
-                 progress: Callable[[str], None] = lambda label: None) -> dict:
-    """Write the report into ``out``; returns its machine-readable summary (also ``results.json``)."""
-    out = Path(out)
-    (out / "tables").mkdir(parents=True, exist_ok=True)
-    progress("measures")
-    trials, picks, people, conditions, notes = select(data, completed_only)
-    done = trials[trials["complete"]]
+def _write_measures(out: Path, trials: pd.DataFrame, picks: pd.DataFrame, people: pd.DataFrame) -> Path:
+    """Write the per-trial, per-pick and per-participant measures as CSV into ``out/measures``; returns that folder."""
     measures_dir = out / "measures"
     measures_dir.mkdir(exist_ok=True)
     trials.to_csv(measures_dir / "trials.csv", index=False)
     picks.to_csv(measures_dir / "picks.csv", index=False)
     people.to_csv(measures_dir / "participants.csv", index=False)
+    return measures_dir
 
-    progress("bootstrap intervals")
+
+def _tables_and_tests(out: Path, trials: pd.DataFrame, picks: pd.DataFrame, people: pd.DataFrame,
+                      conditions: list[str], notes: list[str], resamples: int, seed: int, unit: str,
+                      progress: Callable[[str], None]) -> tuple[list[Table], Table | None, list[TestResult]]:
+    """(tables, closeness table or None, tests) written into ``out/tables`` and ``out``, what failed added to notes."""
     tables: list[Table] = [table1(trials, picks, conditions, resamples, seed, unit), table2(picks, conditions)]
     close = closeness_table(trials, conditions, resamples, seed, unit)
     scored = close is not None
@@ -120,13 +128,12 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
     for t in tables:
         for ext, text in (("md", t.markdown()), ("tex", t.latex()), ("csv", t.csv())):
             (out / "tables" / f"{t.name}.{ext}").write_text(text, encoding="utf-8")
+    return tables, close, results
 
-    progress("score over time")
-    over_time, time_notes = score_over_time(data, trials)
-    notes += time_notes
-    over_time.to_csv(measures_dir / "score_over_time.csv", index=False)
 
-    progress("figures")
+def _figures(out: Path, trials: pd.DataFrame, done: pd.DataFrame, picks: pd.DataFrame, over_time: pd.DataFrame,
+             conditions: list[str], notes: list[str]) -> list[Path]:
+    """The figure files written into ``out/figures``; a figure without data is a note instead."""
     figure_files = []
     for make, frame in ((figures.time_by_scene, trials), (figures.rank_distribution, picks),
                         (figures.learning_curves, trials), (figures.closeness_over_time, over_time)):
@@ -135,6 +142,31 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
             notes.append(f"figure {make.__name__}: no data")
             continue
         figure_files += make(frame, conditions, out / "figures")
+    return figure_files
+
+
+def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, seed: int = 0, unit: str = "trial",
+                 completed_only: bool = False,
+                 progress: Callable[[str], None] = lambda label: None) -> dict:
+    """Write the report into ``out``; returns its machine-readable summary (also ``results.json``)."""
+    out = Path(out)
+    (out / "tables").mkdir(parents=True, exist_ok=True)
+    progress("measures")
+    trials, picks, people, conditions, notes = select(data, completed_only)
+    done = trials[trials["complete"]]
+    measures_dir = _write_measures(out, trials, picks, people)
+
+    progress("bootstrap intervals")
+    tables, close, results = _tables_and_tests(out, trials, picks, people, conditions, notes, resamples, seed, unit,
+                                               progress)
+
+    progress("score over time")
+    over_time, time_notes = score_over_time(data, trials)
+    notes += time_notes
+    over_time.to_csv(measures_dir / "score_over_time.csv", index=False)
+
+    progress("figures")
+    figure_files = _figures(out, trials, done, picks, over_time, conditions, notes)
 
     people_analysed = done["participant"].nunique()
     summary = {
@@ -146,7 +178,7 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
                          "completed": int((data.participants["status"] == "completed").sum()),
                          "analysed": int(people_analysed)},
         "trials": {"scheduled": len(trials), "completed": len(done)}, "picks": len(picks), "notes": notes,
-        "table1": tables[0].data, "table2": tables[1].data, "closeness": close.data if scored else None,
+        "table1": tables[0].data, "table2": tables[1].data, "closeness": close.data if close is not None else None,
         "tests": {r.measure: (r.comparison.to_dict() | {"contrasts": [c.to_dict() for c in r.contrasts]}
                               if r.comparison else {"error": r.error}) for r in results},
     }

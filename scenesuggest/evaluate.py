@@ -366,6 +366,50 @@ def _timing(seconds: list[float]) -> dict:
     return {"query_p50_ms": float(np.percentile(ms, 50)), "query_p95_ms": float(np.percentile(ms, 95))}
 
 
+def _engine_blocks(run: Run, specs: list[EngineSpec], resamples: int, seed: int) -> dict[str, dict]:
+    """Each engine's figures by name; each after the first with its paired MRR difference from the first."""
+    first = specs[0].name
+    blocks = {}
+    for spec in specs:
+        er = run.engines[spec.name]
+        block = {**_block(er.ranks, er.records), **_timing(er.seconds), "version": spec.kind.version,
+                 "options": {k: v for k, v in spec.raw.items() if k != "name"},
+                 "chairs_at_tables": _chairs(er.records),
+                 "categories": _categories(er.records, _by_category(run, spec.name))}
+        if spec.name != first:
+            block["vs_first"] = {"engine": first, **paired_difference(run.engines[first].ranks, er.ranks, run.groups,
+                                                                      resamples, seed)}
+        blocks[spec.name] = block
+    return blocks
+
+
+def _ablations(corpus: Corpus, main_folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
+               progress, specs: list[EngineSpec], run: Run) -> dict[str, dict]:
+    """Per variant of :data:`ABLATIONS`: the paper engine's full-mode orientation (degrees) and chairs at tables."""
+    out = {}
+    same = [sp for sp in specs if sp.name == "paper" and sp.config == options]
+    paper_records = run.engines["paper"].records if same else None
+    for name, fit_options in ABLATIONS.items():
+        if fit_options or paper_records is None:
+            variant = run_folds(corpus, main_folds, options, periods, progress, fit_options,
+                                rankings=False).engines["paper"].records
+        else:
+            variant = paper_records
+        out[name] = {**_orientation(variant, "full"), "chairs_at_tables": _chairs(variant)}
+    return out
+
+
+def _ungrouped(corpus: Corpus, plain_folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
+               progress, spec: EngineSpec, seed: int, scene_type: str) -> dict:
+    """The figures of engine ``spec`` on plain k-fold by scene (near-copies not kept together)."""
+    plain = run_folds(corpus, plain_folds, options, periods, progress, specs=[spec], seed=seed,
+                      scene_type=scene_type)
+    er = plain.engines[spec.name]
+    return {"queries": len(plain.groups), **_block(er.ranks, er.records),
+            "baselines": {b: summary(r) for b, r in plain.baselines.items()},
+            "chairs_at_tables": _chairs(er.records)}
+
+
 def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptions | None = None,
              progress: Callable[[Iterable, str], Iterable] | None = None, group_similar: bool = True,
              periods: ModelPeriods | None = None, ablations: bool = False, engines: list[EngineSpec] | None = None,
@@ -401,17 +445,7 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
     run = run_folds(corpus, main_folds, options, periods, progress, specs=specs, groups=groups, seed=seed,
                scene_type=scene_type)
     first = specs[0].name
-    blocks = {}
-    for spec in specs:
-        er = run.engines[spec.name]
-        block = {**_block(er.ranks, er.records), **_timing(er.seconds), "version": spec.kind.version,
-                 "options": {k: v for k, v in spec.raw.items() if k != "name"},
-                 "chairs_at_tables": _chairs(er.records),
-                 "categories": _categories(er.records, _by_category(run, spec.name))}
-        if spec.name != first:
-            block["vs_first"] = {"engine": first, **paired_difference(run.engines[first].ranks, er.ranks, run.groups,
-                                                                      resamples, seed)}
-        blocks[spec.name] = block
+    blocks = _engine_blocks(run, specs, resamples, seed)
     top = blocks[first]
     result = {
         "source": corpus.source, "folds": folds, "seed": seed, "scene_type": scene_type, "queries": len(run.groups),
@@ -423,21 +457,7 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
         "categories": top["categories"], "chairs_at_tables": top["chairs_at_tables"], "engines": blocks,
     }
     if ablations:
-        result["ablations"] = {}
-        same = [sp for sp in specs if sp.name == "paper" and sp.config == options]
-        paper_records = run.engines["paper"].records if same else None
-        for name, fit_options in ABLATIONS.items():
-            if fit_options or paper_records is None:
-                variant = run_folds(corpus, main_folds, options, periods, progress, fit_options,
-                               rankings=False).engines["paper"].records
-            else:
-                variant = paper_records
-            result["ablations"][name] = {**_orientation(variant, "full"), "chairs_at_tables": _chairs(variant)}
+        result["ablations"] = _ablations(corpus, main_folds, options, periods, progress, specs, run)
     if group_similar:
-        plain = run_folds(corpus, plain_folds, options, periods, progress, specs=specs[:1], seed=seed,
-                          scene_type=scene_type)
-        er = plain.engines[first]
-        result["ungrouped"] = {"queries": len(plain.groups), **_block(er.ranks, er.records),
-                               "baselines": {b: summary(r) for b, r in plain.baselines.items()},
-                               "chairs_at_tables": _chairs(er.records)}
+        result["ungrouped"] = _ungrouped(corpus, plain_folds, options, periods, progress, specs[0], seed, scene_type)
     return result

@@ -257,6 +257,51 @@ def _segments_as_unseen(priors, pairs, stat: dict, pair_group: np.ndarray, own: 
 TRUSTS = ("learned", "equal")
 
 
+def _canonical_evidence(priors, supports, heading: np.ndarray, group: np.ndarray, stat: dict, t: np.ndarray,
+                        expand: dict[str, list[int]]) -> np.ndarray:
+    """(n, BINS) ``canonical`` log-probabilities over absolute headings (rad), the own scene group left out."""
+    n = len(supports)
+    f = np.array([FACES.index(s.face) for s in supports])
+    alpha_bin = angle_bins(np.array([s.alpha for s in supports]))
+    own: dict[tuple[int, int, int, int], np.ndarray] = {}
+    for j, s in enumerate(supports):
+        if alpha_bin[j] >= 0:
+            for e in expand[s.category]:
+                own.setdefault((e, t[j], f[j], group[j]), np.zeros(BINS))[alpha_bin[j]] += 1
+    e_i = np.array([stat[s.category] for s in supports], dtype=np.int64)
+    counts = priors.alpha_n[e_i, t, f].astype(float)
+    for i in range(n):
+        counts[i] -= own.get((e_i[i], t[i], f[i], group[i]), 0.0)
+    alpha = np.array([s.alpha for s in supports], dtype=float)
+    ok = np.isfinite(alpha)
+    evidence = np.zeros((n, BINS))
+    evidence[ok] = turned(log_density(counts[ok]), (heading - alpha)[ok])
+    return evidence
+
+
+def _add_reference_evidence(features: np.ndarray, priors, pairs, expanded, scene_groups: list[int], stat: dict,
+                            heading: np.ndarray) -> None:
+    """Add the references' θ, φ log-probabilities (rad) into features (n, KINDS, BINS), own scene group left out."""
+    n = len(features)
+    own = _GroupCounts(expanded, np.array([scene_groups[p.scene] for p in pairs], dtype=np.int64)[expanded.pair])
+    pair_group = np.array([scene_groups[p.scene] for p in pairs], dtype=np.int64)
+    seg = _segments_as_unseen(priors, pairs, stat, pair_group, own)
+    support = np.array([p.support for p in pairs], dtype=np.int64)
+    found = seg >= 0
+    for angle_name, all_counts, slot in (("theta", priors.seg_theta_n, 0), ("phi", priors.seg_phi_n, 1)):
+        rel = np.array([getattr(p, angle_name) for p in pairs], dtype=float)
+        kinds = np.array([_or_minus_one(pair_kind_rows(p.relation, p.radial)[slot]) for p in pairs],
+                         dtype=np.int64)
+        idx = np.flatnonzero(found & np.isfinite(rel) & np.isfinite(heading[support]) & (kinds >= 0))
+        if not len(idx):
+            continue
+        c = all_counts[seg[idx]].astype(float) - own.of(seg[idx], pair_group[idx])[1 + slot]
+        values = turned(log_density(c), heading[support[idx]] - rel[idx])
+        for k in np.unique(kinds[idx]):
+            m = kinds[idx] == k
+            features[:, k] += mean_by(support[idx[m]], values[m], n)
+
+
 def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int], expand: dict[str, list[int]],
                       kinds: tuple[str, ...] = KINDS, trust: str = "learned") -> np.ndarray:
     """Weights (entities, surface types, KINDS) of the orientation evidence, learned from the training corpus
@@ -276,43 +321,10 @@ def learn_orientation(priors, supports, pairs, expanded, scene_groups: list[int]
     group = np.array([scene_groups[s.scene] for s in supports], dtype=np.int64)
     stat = {c: priors.stat_entity(c) for c in {s.category for s in supports}}
     features = np.zeros((n, len(KINDS), BINS))
-
-    # canonical: counts of the turn from the canonical pose, minus the object's own scene group's
     t = np.array([SURFACE_TYPES.index(s.surface_type) for s in supports])
-    f = np.array([FACES.index(s.face) for s in supports])
-    alpha_bin = angle_bins(np.array([s.alpha for s in supports]))
-    own: dict[tuple[int, int, int, int], np.ndarray] = {}
-    for j, s in enumerate(supports):
-        if alpha_bin[j] >= 0:
-            for e in expand[s.category]:
-                own.setdefault((e, t[j], f[j], group[j]), np.zeros(BINS))[alpha_bin[j]] += 1
-    e_i = np.array([stat[s.category] for s in supports], dtype=np.int64)
-    counts = priors.alpha_n[e_i, t, f].astype(float)
-    for i in range(n):
-        counts[i] -= own.get((e_i[i], t[i], f[i], group[i]), 0.0)
-    alpha = np.array([s.alpha for s in supports], dtype=float)
-    ok = np.isfinite(alpha)
-    features[ok, 0] = turned(log_density(counts[ok]), (heading - alpha)[ok])
-
-    # references: θ and φ counts of the segment the engine would read, minus the own group's
+    features[:, 0] = _canonical_evidence(priors, supports, heading, group, stat, t, expand)
     if pairs:
-        own = _GroupCounts(expanded, np.array([scene_groups[p.scene] for p in pairs], dtype=np.int64)[expanded.pair])
-        pair_group = np.array([scene_groups[p.scene] for p in pairs], dtype=np.int64)
-        seg = _segments_as_unseen(priors, pairs, stat, pair_group, own)
-        support = np.array([p.support for p in pairs], dtype=np.int64)
-        found = seg >= 0
-        for angle_name, all_counts, slot in (("theta", priors.seg_theta_n, 0), ("phi", priors.seg_phi_n, 1)):
-            rel = np.array([getattr(p, angle_name) for p in pairs], dtype=float)
-            kinds = np.array([_or_minus_one(pair_kind_rows(p.relation, p.radial)[slot]) for p in pairs],
-                             dtype=np.int64)
-            idx = np.flatnonzero(found & np.isfinite(rel) & np.isfinite(heading[support]) & (kinds >= 0))
-            if not len(idx):
-                continue
-            c = all_counts[seg[idx]].astype(float) - own.of(seg[idx], pair_group[idx])[1 + slot]
-            values = turned(log_density(c), heading[support[idx]] - rel[idx])
-            for k in np.unique(kinds[idx]):
-                m = kinds[idx] == k
-                features[:, k] += mean_by(support[idx[m]], values[m], n)
+        _add_reference_evidence(features, priors, pairs, expanded, scene_groups, stat, heading)
 
     chains = [expand[supports[i].category] for i in usable]
     parent_of = {}

@@ -357,43 +357,18 @@ def _copy_rows(tool: str, archive: Path, chosen: Path, url: str, env: dict) -> d
     only renders it as text (no connection), and of that text only COPY blocks of our tables, with columns they
     have, are read; the COPY statements sent are ours. Returns the participants and events counted before the
     transaction commits."""
-    from psycopg import sql
+    import psycopg.sql  # noqa: F401 - the helpers below need it: without it, nothing is started
 
     engine = create_engine(url)
     render = subprocess.Popen([tool, "--data-only", "--no-owner", "--no-privileges", f"--use-list={chosen}",
                                "--file=-", str(archive)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     try:
         with engine.connect() as con:
-            found = {t: inspect(con).get_columns(t) for t in inspect(con).get_table_names()}
-            columns = {t: {c["name"] for c in cols} for t, cols in found.items()}
-            counted = [t for t, cols in found.items()  # tables whose id a sequence gives
-                       if any(c["name"] == "id" and str(c["type"]) in ("INTEGER", "BIGINT") for c in cols)]
+            columns, counted = _columns_and_counted(con)
             raw = con.connection.dbapi_connection
             with raw.cursor() as cur:
-                lines = iter(render.stdout)
-                for line in lines:
-                    match = _COPY.match(line.decode("utf-8", "replace").rstrip("\n"))
-                    if not match:
-                        continue  # SET, comments, anything else: never run
-                    table = match.group(2)
-                    names = [c.strip().strip('"') for c in match.group(3).split(",")]
-                    if table not in columns or table in (*SIGN_INS, "alembic_version") or \
-                            not set(names) <= columns[table]:
-                        raise BackupError(f"the archive's rows of {table!r} do not fit the migrations' table")
-                    statement = sql.SQL("COPY {} ({}) FROM STDIN").format(
-                        sql.Identifier("public", table), sql.SQL(", ").join(map(sql.Identifier, names)))
-                    with cur.copy(statement) as copy:
-                        for row in lines:
-                            if row == b"\\.\n":
-                                break
-                            copy.write(row)
-                for table in counted:
-                    if table != "alembic_version":
-                        cur.execute(sql.SQL("SELECT setval(pg_get_serial_sequence({}, 'id'), "
-                                            "COALESCE(MAX(id), 0) + 1, false) FROM {} "
-                                            "WHERE pg_get_serial_sequence({}, 'id') IS NOT NULL").format(
-                            sql.Literal(f"public.{table}"), sql.Identifier("public", table),
-                            sql.Literal(f"public.{table}")))
+                _load_copy_blocks(cur, iter(render.stdout), columns)
+                _set_sequences(cur, counted)
                 cur.execute("SELECT (SELECT COUNT(*) FROM participants), (SELECT COUNT(*) FROM events)")
                 participants, events = cur.fetchone()
             if render.wait() != 0:
@@ -414,6 +389,50 @@ def _copy_rows(tool: str, archive: Path, chosen: Path, url: str, env: dict) -> d
         render.wait()
         engine.dispose()
     return {"participants": participants, "events": events}
+
+
+def _columns_and_counted(con) -> tuple[dict[str, set[str]], list[str]]:
+    """Each table's column names in the database, and the tables whose integer ``id`` a sequence gives."""
+    found = {t: inspect(con).get_columns(t) for t in inspect(con).get_table_names()}
+    columns = {t: {c["name"] for c in cols} for t, cols in found.items()}
+    counted = [t for t, cols in found.items()  # tables whose id a sequence gives
+               if any(c["name"] == "id" and str(c["type"]) in ("INTEGER", "BIGINT") for c in cols)]
+    return columns, counted
+
+
+def _load_copy_blocks(cur, lines, columns: dict[str, set[str]]) -> None:
+    """Load each COPY block of pg_restore's text ``lines`` (bytes) by a COPY of ours; nothing else is run."""
+    from psycopg import sql
+
+    for line in lines:
+        match = _COPY.match(line.decode("utf-8", "replace").rstrip("\n"))
+        if not match:
+            continue  # SET, comments, anything else: never run
+        table = match.group(2)
+        names = [c.strip().strip('"') for c in match.group(3).split(",")]
+        if table not in columns or table in (*SIGN_INS, "alembic_version") or \
+                not set(names) <= columns[table]:
+            raise BackupError(f"the archive's rows of {table!r} do not fit the migrations' table")
+        statement = sql.SQL("COPY {} ({}) FROM STDIN").format(
+            sql.Identifier("public", table), sql.SQL(", ").join(map(sql.Identifier, names)))
+        with cur.copy(statement) as copy:
+            for row in lines:
+                if row == b"\\.\n":
+                    break
+                copy.write(row)
+
+
+def _set_sequences(cur, counted: list[str]) -> None:
+    """Set the id sequence of each table of ``counted`` (but alembic_version) after its largest id."""
+    from psycopg import sql
+
+    for table in counted:
+        if table != "alembic_version":
+            cur.execute(sql.SQL("SELECT setval(pg_get_serial_sequence({}, 'id'), "
+                                "COALESCE(MAX(id), 0) + 1, false) FROM {} "
+                                "WHERE pg_get_serial_sequence({}, 'id') IS NOT NULL").format(
+                sql.Literal(f"public.{table}"), sql.Identifier("public", table),
+                sql.Literal(f"public.{table}")))
 
 
 def _table_order(url: str) -> list[str]:

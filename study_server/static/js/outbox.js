@@ -130,60 +130,22 @@ export class Outbox {
     return this.sending;
   }
 
+  /** Send batches until nothing is pending (true) or sending must wait or stop (false). */
   async send(keepalive) {
     for (;;) {
-      const state = this.read();
-      // one batch, one vocabulary: events an older page left behind are sent in the version they were logged in
-      const version = state.pending.length ? versionOf(state.pending[0]) : this.vocabulary;
-      const run = state.pending.findIndex((e) => versionOf(e) !== version);
-      const batch = [];
-      let chars = 0;
-      for (const e of state.pending.slice(0, Math.min(MAX_BATCH, run < 0 ? MAX_BATCH : run))) {
-        chars += JSON.stringify(wire(e)).length;
-        if (batch.length && chars > MAX_BATCH_CHARS) break;
-        batch.push(e);
-      }
+      const { version, batch } = this.nextBatch();
       if (!batch.length) { this.onStatus("saved"); return true; }
-      let response;
-      try {
-        response = await fetch(`${this.api}/events`, {
-          method: "POST", keepalive,
-          headers: { "Content-Type": "application/json", Authorization: `Bearer ${this.token}` },
-          body: JSON.stringify({ page_id: this.pageId, vocabulary: version, events: batch.map(wire) }),
-        });
-      } catch (e) {
-        this.retryLater();
+      const response = await this.post(version, batch, keepalive);
+      if (!response) { this.retryLater(); return false; }
+      if (response.status === 422) {  // a malformed event would block the queue forever: set it aside
+        if (await this.setAside(response, batch)) continue;
+        this.retryLater();  // not one event's content: nothing to set aside
         return false;
       }
-      if (response.status === 422) {  // a malformed event would block the queue forever: set it aside
-        const problem = await response.json().catch(() => ({}));
-        const bad = /^events\[(\d+)\]\.(payload|type)/.exec(problem.field || "");
-        if (!bad) { this.retryLater(); return false; }  // not one event's content: nothing to set aside
-        const rejected = batch[Number(bad[1])];
-        const now = this.read();
-        const index = now.pending.findIndex((e) => identity(e) === identity(rejected));
-        if (index < 0) continue;
-        const [dropped] = now.pending.splice(index, 1);
-        this.mine.delete(identity(dropped));
-        const note = { seq: dropped.seq, t: dropped.t, type: "client_error", trial: dropped.trial, uid: newId(),
-          v: versionOf(dropped),
-          payload: { message: `rejected ${dropped.type}: ${problem.field} ${problem.error}`.slice(0, 1900) } };
-        now.pending.push(note);
-        this.mine.set(identity(note), note);
-        now.pending.sort((a, b) => a.seq - b.seq);
-        this.write(now);
-        continue;
-      }
       if (response.status === 409) {  // the server holds other events under some of these seqs: renumber ours
-        const problem = await response.json().catch(() => ({}));
-        if (!Array.isArray(problem.conflicts)) { this.retryLater(); return false; }
-        const moved = new Set(problem.conflicts.map((i) => identity(batch[i])));
-        const now = this.read();
-        now.nextSeq = Math.max(now.nextSeq, problem.next_seq || 0);
-        for (const e of now.pending) if (moved.has(identity(e))) { e.seq = now.nextSeq; now.nextSeq += 1; }
-        now.pending.sort((a, b) => a.seq - b.seq);
-        this.write(now);
-        continue;
+        if (await this.renumber(response, batch)) continue;
+        this.retryLater();
+        return false;
       }
       if (response.status === 410) {  // the session has ended: nothing more is taken
         this.stop();
@@ -191,19 +153,92 @@ export class Outbox {
         return false;
       }
       if (response.status === 429) {  // over a quota: wait as long as the server asks
-        const wait = Number(response.headers.get("Retry-After")) || 60;
-        this.onStatus("offline");
-        this.timer = setTimeout(() => { this.timer = null; this.flush(); }, wait * 1000);
+        this.waitAsAsked(response);
         return false;
       }
       if (!response.ok) { this.retryLater(); return false; }
-      const { acked_seq: acked } = await response.json();
-      const now = this.read();
-      this.acknowledge(now, batch, acked);
-      this.write(now);
-      this.backoff = 1000;
-      this.onStatus(now.pending.length ? "saving" : "saved");
+      await this.accept(response, batch);
     }
+  }
+
+  /** The first pending events, of one vocabulary version, within MAX_BATCH and MAX_BATCH_CHARS (at least one). */
+  nextBatch() {
+    const state = this.read();
+    // one batch, one vocabulary: events an older page left behind are sent in the version they were logged in
+    const version = state.pending.length ? versionOf(state.pending[0]) : this.vocabulary;
+    const run = state.pending.findIndex((e) => versionOf(e) !== version);
+    const batch = [];
+    let chars = 0;
+    for (const e of state.pending.slice(0, Math.min(MAX_BATCH, run < 0 ? MAX_BATCH : run))) {
+      chars += JSON.stringify(wire(e)).length;
+      if (batch.length && chars > MAX_BATCH_CHARS) break;
+      batch.push(e);
+    }
+    return { version, batch };
+  }
+
+  /** POST one batch (``keepalive``: it may outlive the page); resolves the response, or null when it failed. */
+  async post(version, batch, keepalive) {
+    try {
+      return await fetch(`${this.api}/events`, {
+        method: "POST", keepalive,
+        headers: { "Content-Type": "application/json", Authorization: `Bearer ${this.token}` },
+        body: JSON.stringify({ page_id: this.pageId, vocabulary: version, events: batch.map(wire) }),
+      });
+    } catch (e) {
+      return null;
+    }
+  }
+
+  /** After a 422: a client_error note takes the seq of the event it names; false when it names no event. */
+  async setAside(response, batch) {
+    const problem = await response.json().catch(() => ({}));
+    const bad = /^events\[(\d+)\]\.(payload|type)/.exec(problem.field || "");
+    if (!bad) return false;
+    const rejected = batch[Number(bad[1])];
+    const now = this.read();
+    const index = now.pending.findIndex((e) => identity(e) === identity(rejected));
+    if (index < 0) return true;
+    const [dropped] = now.pending.splice(index, 1);
+    this.mine.delete(identity(dropped));
+    const note = { seq: dropped.seq, t: dropped.t, type: "client_error", trial: dropped.trial, uid: newId(),
+      v: versionOf(dropped),
+      payload: { message: `rejected ${dropped.type}: ${problem.field} ${problem.error}`.slice(0, 1900) } };
+    now.pending.push(note);
+    this.mine.set(identity(note), note);
+    now.pending.sort((a, b) => a.seq - b.seq);
+    this.write(now);
+    return true;
+  }
+
+  /** After a 409: the events of ``batch`` it names get new seqs from its next_seq on; false when it names none. */
+  async renumber(response, batch) {
+    const problem = await response.json().catch(() => ({}));
+    if (!Array.isArray(problem.conflicts)) return false;
+    const moved = new Set(problem.conflicts.map((i) => identity(batch[i])));
+    const now = this.read();
+    now.nextSeq = Math.max(now.nextSeq, problem.next_seq || 0);
+    for (const e of now.pending) if (moved.has(identity(e))) { e.seq = now.nextSeq; now.nextSeq += 1; }
+    now.pending.sort((a, b) => a.seq - b.seq);
+    this.write(now);
+    return true;
+  }
+
+  /** After a 429: send again once the answer's Retry-After (seconds; 60 without one) has passed. */
+  waitAsAsked(response) {
+    const wait = Number(response.headers.get("Retry-After")) || 60;
+    this.onStatus("offline");
+    this.timer = setTimeout(() => { this.timer = null; this.flush(); }, wait * 1000);
+  }
+
+  /** After a 2xx: forget what the server acknowledged of ``batch`` and reset the backoff. */
+  async accept(response, batch) {
+    const { acked_seq: acked } = await response.json();
+    const now = this.read();
+    this.acknowledge(now, batch, acked);
+    this.write(now);
+    this.backoff = 1000;
+    this.onStatus(now.pending.length ? "saving" : "saved");
   }
 
   retryLater() {
