@@ -4,7 +4,8 @@ runs it, each in a fresh process, three runs each (median and range).
 
 Budgets on a 2-core machine: 200 × 9 ≤ 10 s; 2,000 × 9 (a large online study) ≤ 90 s and ≤ 2 GB peak memory.
 ``--baseline DIR`` also runs the same reports with the analysis package of another checkout (e.g. a git worktree
-of an earlier revision), in the same run, for comparison.
+of an earlier revision), in the same run, for comparison: those reports run with that checkout first on
+PYTHONPATH.
 
 Usage: .venv/bin/python benchmarks/bench_analysis.py [--sizes 20,200,2000] [--runs 3] [--resamples 1000]
                                                       [--baseline DIR [--baseline-sizes 20,200]]
@@ -22,12 +23,15 @@ import tempfile
 import time
 from pathlib import Path
 
+import checkout
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def one_report(root: Path, export: Path, resamples: int, work: Path) -> dict:
-    """In this process: the report of ``export`` with the analysis package of ``root``, timed by stage."""
-    sys.path.insert(0, str(root))
+    """In this process: the report of ``export`` with the analysis package of ``root`` (the checkout first on
+    this process's PYTHONPATH), timed by stage."""
+    checkout.require(root, ("analysis",))
     from analysis.load import read_export
     from analysis.report import build_report
 
@@ -55,7 +59,8 @@ def measure(root: Path, export: Path, runs: int, resamples: int) -> dict:
     for _ in range(runs):
         with tempfile.TemporaryDirectory() as tmp:
             out = subprocess.run([sys.executable, __file__, "--one", str(export), "--root", str(root),
-                                  "--resamples", str(resamples), "--work", tmp], capture_output=True, text=True)
+                                  "--resamples", str(resamples), "--work", tmp], capture_output=True, text=True,
+                                 env=checkout.env_for(root))
         if out.returncode != 0:
             raise SystemExit(f"report of {export} failed:\n{out.stderr[-3000:]}")
         results.append(json.loads(out.stdout))
@@ -81,7 +86,7 @@ def main() -> int:
     if args.one:
         print(json.dumps(one_report(Path(args.root), Path(args.one), args.resamples, Path(args.work))))
         return 0
-    sys.path.insert(0, str(ROOT))
+    checkout.require(ROOT, ("analysis",))
     from analysis.synthetic import write_export
 
     sizes = [int(n) for n in args.sizes.split(",")]

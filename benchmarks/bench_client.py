@@ -20,13 +20,13 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "benchmarks"))
-from serverproc import StudyServer, demo_missing  # noqa: E402
+import checkout
+from demostudy import to_first_trial
+from serverproc import StudyServer, demo_missing
 
-from simulation.transport import HttpTransport  # noqa: E402
-from simulation.walker import Walker  # noqa: E402
+from simulation.transport import HttpTransport
+
+ROOT = Path(__file__).resolve().parents[1]
 
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -56,6 +56,7 @@ def main() -> int:
     parser.add_argument("--objects", type=int, default=60)
     parser.add_argument("--seconds", type=float, default=5.0)
     args = parser.parse_args()
+    checkout.require(ROOT)
     chromium = shutil.which("chromium") or "/usr/bin/chromium"
     if not Path(chromium).exists() or demo_missing():
         print(json.dumps({"benchmark": "client", "error": demo_missing() or "needs Chromium (apt)"}))
@@ -67,9 +68,7 @@ def main() -> int:
         base = server.base
         # the participant walks to the first trial over HTTP; the browser then carries on with its cookies
         http = HttpTransport(base)
-        walk = Walker(http, "demo").to_first_trial(
-            {"pid": "bench-client"}, lambda _: {"age": "30", "experience_3d": "Never", "pointing_device": "Mouse"})
-        boot = walk.boot
+        boot = to_first_trial(http, "bench-client").boot
         models = http.get("/api/models", headers={"Authorization": f"Bearer {boot['token']}"}).json()["models"]
         key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
         scene = json.dumps(scene_with(models, args.objects))

@@ -8,7 +8,8 @@ bytes, and the process's peak resident memory (``ru_maxrss``) above what it held
 upper bound: a peak reached while the app started counts too). Reports the
 median and range of ``--runs`` runs as JSON, for each size.
 
-Run it on the code before a change and after (e.g. from a ``git worktree`` of the older commit) to compare.
+Run it on the code before a change and after (e.g. from a ``git worktree`` of the older commit, with that
+checkout first on PYTHONPATH: :mod:`checkout`) to compare.
 Usage: .venv/bin/python benchmarks/bench_export.py [--event-mb 33 330] [--participants 200] [--runs 3]
 """
 
@@ -24,15 +25,15 @@ import tempfile
 import time
 from pathlib import Path
 
+import checkout
+from demostudy import make_app
+
 ROOT = Path(__file__).resolve().parents[1]
 PASSWORD = "bench-password"
 
 
 def fill(folder: Path, participants: int, event_bytes: float) -> None:
     """A migrated database with ``participants`` consented participants of the demo study and their events."""
-    sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
-    from conftest import make_app
-
     from study_server.assignment import arrive, assign
 
     app = make_app(folder)
@@ -60,33 +61,35 @@ def fill(folder: Path, participants: int, event_bytes: float) -> None:
     con.close()
 
 
-CHILD = r"""
-import json, re, resource, sys, time
-from pathlib import Path
-root, folder, password = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
-sys.path[:0] = [str(root), str(root / "tests")]
-from conftest import make_app
-from werkzeug.security import generate_password_hash
-app = make_app(folder, ADMIN_PASSWORD_HASH=generate_password_hash(password))
-c = app.test_client()
-page = c.get("/admin/login").get_data(as_text=True)
-token = re.search(r'name="csrf_token" value="([^"]+)"', page).group(1)
-assert c.post("/admin/login", data={"csrf_token": token, "password": password}).status_code == 302
-c.get("/admin/")
-import gc, os
-gc.collect()
-before = int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1024  # resident now, kB
-start = time.perf_counter()
-r = c.get("/admin/demo/export.zip", buffered=False)
-size = 0
-for piece in r.response:
-    size += len(piece)
-r.close()
-seconds = time.perf_counter() - start
-print(json.dumps({"seconds": seconds, "zip_bytes": size,
-                  "rss_before_mb": before / 1024,
-                  "peak_mb": max(0, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024}))
-"""
+def export_once(folder: Path) -> dict:
+    """In this process: an app on ``folder``'s database serves the export to a signed-in admin (the test client,
+    the body read as it comes and dropped). Seconds to the last byte, the archive's bytes, the resident memory
+    just before the request and the peak above it (MB)."""
+    import gc
+    import os
+    import re
+    import resource
+
+    from werkzeug.security import generate_password_hash
+
+    app = make_app(folder, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
+    c = app.test_client()
+    page = c.get("/admin/login").get_data(as_text=True)
+    token = re.search(r'name="csrf_token" value="([^"]+)"', page).group(1)
+    assert c.post("/admin/login", data={"csrf_token": token, "password": PASSWORD}).status_code == 302
+    c.get("/admin/")
+    gc.collect()
+    resident = int(Path("/proc/self/statm").read_text().split()[1])  # pages
+    before = resident * os.sysconf("SC_PAGE_SIZE") / 1024  # kB, as ru_maxrss
+    start = time.perf_counter()
+    r = c.get("/admin/demo/export.zip", buffered=False)
+    size = 0
+    for piece in r.response:
+        size += len(piece)
+    r.close()
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "zip_bytes": size, "rss_before_mb": before / 1024,
+            "peak_mb": max(0, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024}
 
 
 def main() -> None:
@@ -94,7 +97,12 @@ def main() -> None:
     parser.add_argument("--event-mb", type=float, nargs="+", default=[33, 330])
     parser.add_argument("--participants", type=int, default=200)
     parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    checkout.require(ROOT)
+    if args.one:
+        print(json.dumps(export_once(Path(args.one))))
+        return
     results = []
     for mb in args.event_mb:
         with tempfile.TemporaryDirectory() as tmp:
@@ -102,7 +110,7 @@ def main() -> None:
             fill(folder, args.participants, mb * 1e6)
             runs = []
             for _ in range(args.runs):
-                done = subprocess.run([sys.executable, "-c", CHILD, str(ROOT), str(folder), PASSWORD],
+                done = subprocess.run([sys.executable, __file__, "--one", str(folder)],
                                       capture_output=True, text=True, check=True)
                 runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
 

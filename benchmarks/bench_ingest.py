@@ -41,24 +41,19 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+import checkout
+from demostudy import make_app, to_first_trial
+from serverproc import StudyServer, demo_missing, nginx_missing
+
+from scenesuggest.events import SCENE_CHANGES
+from simulation.transport import HttpTransport
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "benchmarks"))
-
-from serverproc import StudyServer, demo_missing, nginx_missing  # noqa: E402
-
-from scenesuggest.events import SCENE_CHANGES  # noqa: E402
-from simulation.transport import HttpTransport  # noqa: E402
-from simulation.walker import Walker  # noqa: E402
 
 
 def enrol(base: str, pid: str) -> str:
     """Walk one participant to the first trial over HTTP; returns its session token."""
-    page = Walker(HttpTransport(base), "demo").to_first_trial(
-        {"pid": pid}, lambda _: {"age": "30", "experience_3d": "Never", "pointing_device": "Mouse"})
-    if page.step != "trial":
-        raise RuntimeError(f"could not reach the trials (stopped at {page.step!r})")
-    return page.boot["token"]
+    return to_first_trial(HttpTransport(base), pid).boot["token"]
 
 
 def event_mix(vocabulary: int) -> list[dict]:
@@ -66,12 +61,9 @@ def event_mix(vocabulary: int) -> list[dict]:
     of ``vocabulary`` sends them: recorded in process on a throwaway database."""
     from simulation.participant import Bot
     from simulation.transport import FlaskTransport
-    from study_server import create_app, upgrade_database
 
     with tempfile.TemporaryDirectory() as tmp:
-        app = create_app({"INSTANCE_PATH": tmp, "SQLALCHEMY_DATABASE_URI": f"sqlite:///{tmp}/mix.sqlite3",
-                          "SECRET_KEY": "bench", "TESTING": True})
-        upgrade_database(app)
+        app = make_app(Path(tmp))
         sent = []
         transport = FlaskTransport(app.test_client())
         post = transport.post
@@ -311,6 +303,7 @@ def main() -> int:
     parser.add_argument("--via-proxy", action="store_true",
                         help="with --database postgresql: two app servers behind nginx over TLS")
     args = parser.parse_args()
+    checkout.require(ROOT)
     if demo_missing():
         print(json.dumps({"benchmark": "ingest", "error": demo_missing()}))
         return 1

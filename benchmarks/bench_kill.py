@@ -22,15 +22,14 @@ from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import checkout
+import numpy as np
+from serverproc import StudyServer, demo_missing
+
+from simulation.participant import Bot
+from simulation.transport import FlowError, HttpTransport
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "benchmarks"))
-
-import numpy as np  # noqa: E402
-from serverproc import StudyServer, demo_missing  # noqa: E402
-
-from simulation.participant import Bot  # noqa: E402
-from simulation.transport import FlowError, HttpTransport  # noqa: E402
 
 
 def run(participants: int, kills: int, seed: int, workers: int) -> dict:
@@ -99,6 +98,7 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
+    checkout.require(ROOT)
     if demo_missing():
         print(json.dumps({"benchmark": "kill", "error": demo_missing()}))
         return 1

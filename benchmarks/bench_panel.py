@@ -37,15 +37,15 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "benchmarks"))
-from bench_client import ARGS, scene_with  # noqa: E402
-from large_library import STUDY_ID, demo_resources, library_models, write_study  # noqa: E402
-from serverproc import StudyServer, demo_missing  # noqa: E402
+import checkout
+from bench_client import ARGS, scene_with
+from demostudy import to_first_trial
+from large_library import STUDY_ID, demo_resources, library_models, write_study
+from serverproc import StudyServer, demo_missing
 
-from simulation.transport import HttpTransport  # noqa: E402
-from simulation.walker import Walker  # noqa: E402
+from simulation.transport import HttpTransport
+
+ROOT = Path(__file__).resolve().parents[1]
 
 VIEWPORT = {"width": 1100, "height": 650}
 VARIANTS = {"as_shipped": "", "all_tiles": ".tile { content-visibility: visible !important; }"}
@@ -111,8 +111,7 @@ def wait_for(page, expression: str, timeout_s: float = 30.0):
 def one_run(browser, base: str, pid: str, scene: dict, css: str, seconds: float) -> dict:
     """A new participant's first trial in a new browser context; what it measured (see the module's docstring)."""
     http = HttpTransport(base)
-    boot = Walker(http, STUDY_ID).to_first_trial(
-        {"pid": pid}, lambda _: {"age": "30", "experience_3d": "Never", "pointing_device": "Mouse"}).boot
+    boot = to_first_trial(http, pid, STUDY_ID).boot
     assert boot["trial"]["condition"] == "none", boot["trial"]
     key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
     context = browser.new_context(viewport=VIEWPORT)
@@ -178,6 +177,7 @@ def main() -> int:
     parser.add_argument("--objects", type=int, default=60, help="objects on the floor of the trial's scene")
     parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
     args = parser.parse_args()
+    checkout.require(ROOT)
     chromium = shutil.which("chromium") or "/usr/bin/chromium"
     if not Path(chromium).exists() or demo_missing():
         print(json.dumps({"benchmark": "panel", "error": demo_missing() or "needs Chromium (apt)"}))

@@ -8,7 +8,8 @@ document as the admin gets it (``replay_document`` serialised as the endpoint se
 took, and the Python memory at the peak of building it (``tracemalloc``, a second build). Reports the median and
 range as JSON.
 
-Run it on the code before a change and after (e.g. from a ``git worktree`` of the older commit) to compare.
+Run it on the code before a change and after (e.g. from a ``git worktree`` of the older commit, with that
+checkout first on PYTHONPATH: :mod:`checkout`) to compare.
 Usage: .venv/bin/python benchmarks/bench_replay.py [--objects 40] [--event-mb 2.4] [--runs 3]
 """
 
@@ -17,14 +18,15 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
 import tempfile
 import time
 import tracemalloc
 from pathlib import Path
 
+import checkout
+from demostudy import make_app, to_first_trial
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 
 def state(oid: str, x: float, z: float, model: str) -> dict:
@@ -35,10 +37,9 @@ def state(oid: str, x: float, z: float, model: str) -> dict:
 
 
 def one_run(objects: int, event_bytes: float) -> dict:
-    from conftest import make_app
-    from flowhelp import auth, to_trials
     from sqlalchemy import func, select
 
+    from simulation.transport import FlaskTransport
     from study_server import replays
     from study_server.extensions import db
     from study_server.models import Event, Participant, Trial
@@ -46,15 +47,16 @@ def one_run(objects: int, event_bytes: float) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         app = make_app(Path(tmp))
         c = app.test_client()
-        b = to_trials(c)
+        b = to_first_trial(FlaskTransport(c), "bench-replay").boot
+        auth = {"Authorization": f"Bearer {b['token']}"}
         trial = b["trial"]["index"]
         model = next(iter(app.extensions["studies"]["demo"].library))
         seq, batch, sent = 0, [], 0
 
         def flush():
             nonlocal batch
-            r = c.post("/api/events", headers=auth(b), json={"page_id": b["page_id"], "vocabulary": 2,
-                                                             "events": batch})
+            r = c.post("/api/events", headers=auth, json={"page_id": b["page_id"], "vocabulary": 2,
+                                                          "events": batch})
             assert r.status_code == 200, r.json
             batch = []
 
@@ -100,6 +102,7 @@ def main() -> None:
     parser.add_argument("--event-mb", type=float, default=2.4)
     parser.add_argument("--runs", type=int, default=3)
     args = parser.parse_args()
+    checkout.require(ROOT)
     runs = [one_run(args.objects, args.event_mb * 1e6) for _ in range(args.runs)]
 
     def summary(key):

@@ -69,8 +69,6 @@ def main() -> int:
     from scenesuggest.priors import Priors
     from scenesuggest.suggest import ContextQuery, Engine
 
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-
     corpus = load_corpus(f"stanford:{stanford_dir}")
     t = time.perf_counter()
     priors = Priors.fit(corpus.scenes, corpus.taxonomy)

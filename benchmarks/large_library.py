@@ -16,8 +16,8 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-DEMO_STUDY = ROOT / "study_server" / "demo" / "study.toml"
+from serverproc import DEMO_STUDY
+
 STUDY_ID = "large-library"
 
 

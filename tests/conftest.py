@@ -15,7 +15,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("SCENESUGGEST_SHARED_DATA", ROOT.parent / "shared" / "data"))
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
-sys.path.insert(0, str(ROOT / "benchmarks"))  # serverproc: the server as a subprocess, shared with the benchmarks
+# serverproc (the server as a subprocess) and demostudy (the demo study in process), shared with the benchmarks
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from demostudy import DEMO_STUDY, make_app  # noqa: E402
+
 BROWSER_TESTS = Path(__file__).resolve().parent / "browser"
 # The lme4 oracle's random studies (tests/test_lme4_oracle.py): drawn afresh each run unless set. Set here, before
 # any worker process starts, so that every worker draws the same studies.
@@ -135,9 +138,6 @@ def replication(stanford_dir, stanford_meshes) -> Path:
 
 
 # --- study server fixtures ------------------------------------------------------------------------------------
-DEMO_STUDY = ROOT / "study_server" / "demo" / "study.toml"
-
-
 @pytest.fixture(scope="session")
 def demo_resources():
     """The demo study, with the server's own priors and model library for it (built here when missing or made
@@ -159,18 +159,6 @@ def gunicorn(tmp: Path, workers: int = 2):
     make_app(tmp, f"sqlite:///{database}")  # migrated here, before the workers start
     with StudyServer(tmp / "instance", f"sqlite:///{database}", workers, migrate=False) as server:
         yield server.base, database
-
-
-def make_app(tmp_path, database_url: str | None = None, studies=None, **config):
-    from study_server import create_app, upgrade_database
-
-    app = create_app({
-        "INSTANCE_PATH": str(tmp_path / "instance"),
-        "SQLALCHEMY_DATABASE_URI": database_url or f"sqlite:///{tmp_path / 'study.sqlite3'}",
-        "STUDY_FILES": studies or [DEMO_STUDY], "SECRET_KEY": "test-secret", "TESTING": True,
-        "WARM_STUDIES": False, **config})
-    upgrade_database(app)
-    return app
 
 
 @pytest.fixture
