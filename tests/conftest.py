@@ -9,6 +9,7 @@ import os
 import secrets
 import sys
 from pathlib import Path
+from typing import NoReturn
 
 import pytest
 
@@ -45,14 +46,32 @@ def _lme4() -> tuple[str | None, str]:
     return rscript, probe.stdout.strip()
 
 
+def lacking(message: str) -> NoReturn:
+    """Skip the test for want of what ``message`` names (and how to get it); under CI=true, fail it instead."""
+    if IN_CI:
+        pytest.fail(message + " — required under CI=true")
+    pytest.skip(message)
+
+
 def require_lme4() -> str:
     """The Rscript to run, with lme4 and jsonlite; skips naming what to install (under CI=true: fails)."""
     rscript, said = _lme4()
     if rscript is None:
-        if IN_CI:
-            pytest.fail(f"the lme4 oracle needs R with lme4 and jsonlite: {said} — required under CI=true")
-        pytest.skip(f"the lme4 oracle needs R with lme4 and jsonlite: {said}")
+        lacking(f"the lme4 oracle needs R with lme4 and jsonlite: {said}")
     return rscript
+
+
+def require_node() -> str:
+    """The Node.js executable, to run the client's modules outside a browser, with three.js installed in
+    node_modules; skips naming what to install (under CI=true: fails)."""
+    import shutil
+
+    node = shutil.which("node")
+    if node is None:
+        lacking("Node.js is not installed (apt-get install nodejs)")
+    if not (ROOT / "node_modules" / "three" / "package.json").is_file():
+        lacking("node_modules/three is missing: run 'make setup' (npm ci) first")
+    return node
 
 
 def pytest_report_header(config) -> list[str]:
@@ -75,10 +94,7 @@ def pytest_collection_modifyitems(config, items) -> None:
 
 def require(path: Path, what: str) -> Path:
     if not path.exists():
-        message = f"{what} not found at {path} (set SCENESUGGEST_SHARED_DATA)"
-        if IN_CI:
-            pytest.fail(message + " — required under CI=true")
-        pytest.skip(message)
+        lacking(f"{what} not found at {path} (set SCENESUGGEST_SHARED_DATA)")
     return path
 
 
@@ -179,9 +195,7 @@ def postgres_server():
     try:
         server = ThrowawayPostgres()
     except RuntimeError as e:
-        if IN_CI:
-            pytest.fail(f"{e}: required under CI=true")
-        pytest.skip(str(e))
+        lacking(str(e))
     with server:
         yield server
 
