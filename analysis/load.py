@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from scenesuggest.cells import unescape_cell
+from scenesuggest.contract.cells import unescape_cell
 
 from .errors import AnalysisError
 
@@ -90,7 +90,7 @@ def _normalise(data: StudyData) -> StudyData:
 
 
 def _unescape(frame: pd.DataFrame) -> pd.DataFrame:
-    """Text cells as stored: the export's spreadsheet-safety prefix removed (``scenesuggest.cells``)."""
+    """Text cells as stored: the export's spreadsheet-safety prefix removed (``scenesuggest.contract.cells``)."""
     for column in frame.columns:
         values = frame[column]
         if values.dtype == object:

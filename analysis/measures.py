@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from scenesuggest.events import as_event
-from scenesuggest.picks import picks
+from scenesuggest.contract.events import as_event
+from scenesuggest.contract.picks import picks
 
 from .load import StudyData
 
@@ -211,7 +211,7 @@ PICK_COLUMNS = ["participant", "trial", "seq", "action", "model", "category", "s
 
 
 def picks_table(data: StudyData, trials: pd.DataFrame) -> pd.DataFrame:
-    """One row per model placed from a list (:func:`scenesuggest.picks.picks`, the definition the export's
+    """One row per model placed from a list (:func:`scenesuggest.contract.picks.picks`, the definition the export's
     ``picks.csv`` uses): its rank there (1-based), the list's source (``fixed`` list / ``search`` / ``context``),
     reciprocal rank, ``final`` (False when a later pick replaced it in place or it was undone; only final picks
     count for MRR and the rank distribution), and the trial's condition and scene."""

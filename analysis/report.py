@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from scenesuggest.scoring import FORMULA
+from scenesuggest.contract.scoring import FORMULA
 
 from . import figures
 from .closeness import SCORE_TEST, closeness_table, score_over_time

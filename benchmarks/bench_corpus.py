@@ -41,7 +41,7 @@ def main() -> int:
 
     from scenesuggest.assets.build import build_library
     from scenesuggest.corpora import load_corpus
-    from scenesuggest.search import SearchIndex
+    from scenesuggest.library.search import SearchIndex
 
     stanford, stanford_s = timed(lambda: load_corpus(f"stanford:{stanford_dir}"))
     ai2thor, ai2thor_s = timed(lambda: load_corpus("ai2thor"))

@@ -45,7 +45,7 @@ import checkout
 from demostudy import make_app, to_first_trial
 from serverproc import StudyServer, demo_missing, nginx_missing
 
-from scenesuggest.events import SCENE_CHANGES
+from scenesuggest.contract.events import SCENE_CHANGES
 from simulation.transport import HttpTransport
 
 ROOT = Path(__file__).resolve().parents[1]

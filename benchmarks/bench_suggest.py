@@ -66,8 +66,8 @@ def main() -> int:
         return 1
 
     from scenesuggest.corpora import load_corpus
-    from scenesuggest.priors import Priors
-    from scenesuggest.suggest import ContextQuery, Engine
+    from scenesuggest.learning.priors import Priors
+    from scenesuggest.suggestion.suggest import ContextQuery, Engine
 
     corpus = load_corpus(f"stanford:{stanford_dir}")
     t = time.perf_counter()
@@ -143,8 +143,8 @@ def main() -> int:
 def time_engine(name: str, corpus, priors, queries, tmp: Path) -> dict:
     """An engine trained on the corpus (or answering from its priors) asked every query as the server asks."""
     from scenesuggest import engines
+    from scenesuggest.assets.symmetry import corpus_periods
     from scenesuggest.engines.protocol import LoadContext
-    from scenesuggest.symmetry import corpus_periods
 
     spec = engines.configure({"name": name})
     kind = spec.kind

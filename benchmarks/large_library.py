@@ -36,9 +36,9 @@ def scene_model_ids(study_folder: Path = DEMO_STUDY.parent) -> set[str]:
 
 
 def library_models(source: Path, n: int) -> list:
-    """The ``n`` models (:class:`scenesuggest.library.ModelInfo`) of the library made from the one in ``source``,
+    """The ``n`` models (:class:`scenesuggest.library.index.ModelInfo`) of the library made from the one in ``source``,
     in the order they were made (see the module's docstring)."""
-    from scenesuggest.library import load_index
+    from scenesuggest.library.index import load_index
 
     originals = sorted(load_index(source).values(), key=lambda m: m.id)
     used = scene_model_ids()
@@ -53,7 +53,7 @@ def library_models(source: Path, n: int) -> list:
 def write_library(source: Path, folder: Path, n: int) -> Path:
     """Write a library of ``n`` models into ``folder`` (index, taxonomy, links to the source's model and thumbnail
     folders); returns ``folder``."""
-    from scenesuggest.library import INDEX_FILE, save_index
+    from scenesuggest.library.index import INDEX_FILE, save_index
 
     doc = json.loads((source / INDEX_FILE).read_text(encoding="utf-8"))
     extra = {k: v for k, v in doc.items() if k not in ("format", "version", "models")}

@@ -38,12 +38,12 @@ def main() -> int:
         print(json.dumps({"benchmark": "learning_curve", "error": f"no Stanford corpus at {stanford_dir}"}))
         return 1
     from scenesuggest import engines
+    from scenesuggest.assets.symmetry import corpus_periods
     from scenesuggest.corpora import load_corpus
     from scenesuggest.corpora.corpus import Corpus
-    from scenesuggest.evaluate import run_folds
-    from scenesuggest.folds import grouped_folds, similar_groups
-    from scenesuggest.suggest import EngineOptions
-    from scenesuggest.symmetry import corpus_periods
+    from scenesuggest.corpora.folds import grouped_folds, similar_groups
+    from scenesuggest.evaluation.evaluate import run_folds
+    from scenesuggest.suggestion.suggest import EngineOptions
 
     started = time.perf_counter()
     corpus = load_corpus(f"stanford:{stanford_dir}")
@@ -83,9 +83,9 @@ def main() -> int:
 def _in_sample(spec, corpus, periods) -> dict:
     """The engine trained on every scene and asked about every scene (each object removed from it, as always)."""
     from scenesuggest.errors import SceneSuggestError
-    from scenesuggest.evaluate import EngineRun, fitted_engine, measure_query
-    from scenesuggest.priors import Priors
-    from scenesuggest.suggest import ContextQuery, Engine
+    from scenesuggest.evaluation.evaluate import EngineRun, fitted_engine, measure_query
+    from scenesuggest.learning.priors import Priors
+    from scenesuggest.suggestion.suggest import ContextQuery, Engine
 
     quiet = lambda items, label="": items  # noqa: E731
     priors = Priors.fit(corpus.scenes, corpus.taxonomy)

@@ -3,7 +3,7 @@
 One category at a time and one reference at a time: the occurrence and surface terms read from the priors,
 each relative-position density is a ``scipy.stats.gaussian_kde`` (bandwidths fixed to the engine's, scaled to the
 engine's peak normalisation), and the learned orientation score is summed bin by bin from the raw histograms.
-It computes exactly what :meth:`scenesuggest.suggest.Engine.score` and the engine's learned heading scores
+It computes exactly what :meth:`scenesuggest.suggestion.suggest.Engine.score` and the engine's learned heading scores
 compute — a test holds the two equal — only without any vectorisation. Used by ``bench_suggest.py`` (speed-up)
 and ``tests/test_naive_scorer.py`` (equality).
 """
@@ -15,12 +15,12 @@ import math
 import numpy as np
 from scipy.stats import gaussian_kde
 
-from scenesuggest import poses
-from scenesuggest.observations import POOLED, RELATIONS, WALL, bearing, is_radial, near_wall, wall_heading
-from scenesuggest.orientation import BINS, KINDS, PSEUDO_COUNT, pair_kind_rows
-from scenesuggest.priors import FACES, K_MAX, UNSEEN_IN_SCENE_TYPE
-from scenesuggest.scene import SURFACE_TYPES
-from scenesuggest.taxonomy import MIN_OBSERVATIONS
+from scenesuggest.learning.observations import POOLED, RELATIONS, WALL, bearing, is_radial, near_wall, wall_heading
+from scenesuggest.learning.orientation import BINS, KINDS, PSEUDO_COUNT, pair_kind_rows
+from scenesuggest.learning.priors import FACES, K_MAX, UNSEEN_IN_SCENE_TYPE
+from scenesuggest.scenes import poses
+from scenesuggest.scenes.scene import SURFACE_TYPES
+from scenesuggest.scenes.taxonomy import MIN_OBSERVATIONS
 
 
 class FixedKDE(gaussian_kde):

@@ -93,7 +93,7 @@ def corpus() -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document.")
 @click.option("--top", default=15, show_default=True, help="Rows per section in the human format.")
 def corpus_stats_cmd(source: str, meshes: str | None, as_json: bool, top: int) -> None:
-    from .stats import corpus_stats, format_stats
+    from .corpora.stats import corpus_stats, format_stats
 
     stats = corpus_stats(_load(source, meshes))
     emit(stats, as_json, format_stats(stats, top))
@@ -125,8 +125,8 @@ def corpus_convert_cmd(source: str, out: str, meshes: str | None, as_json: bool)
 def search_cmd(query: str, source: str, library_dir: str | None, meshes: str | None, limit: int,
                as_json: bool) -> None:
     """Keyword search over model names, tags, categories and descriptions (BM25)."""
-    from .library import load_index
-    from .search import SearchIndex
+    from .library.index import load_index
+    from .library.search import SearchIndex
 
     models = load_index(library_dir) if library_dir else _load(source, meshes).models
     hits = SearchIndex.build(models.values()).search(query, limit)
@@ -175,7 +175,7 @@ def priors_train_cmd(source: str, out: str, meshes: str | None, as_json: bool) -
     """Learn the occurrence, surface, attachment, position and orientation priors of SOURCE."""
     import time
 
-    from .priors import Priors
+    from .learning.priors import Priors
 
     c = _load(source, meshes)
     started = time.perf_counter()
@@ -250,8 +250,8 @@ def _explanation_lines(explained: list[dict]) -> list[str]:
 def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, mode, top, scene_type,
                 infer_scene_type, collision_aware, refine_anchor, explain, explain_categories, as_json) -> None:
     """Rank categories for a click on a surface, each with a placement (column-major 4×4)."""
-    from . import scene_json
-    from .suggest import ContextQuery
+    from .scenes import scene_json
+    from .suggestion.suggest import ContextQuery
 
     engine = _engine(engine_name, priors_file, collision_aware=collision_aware, anchor_refinement=refine_anchor,
                      infer_scene_type=infer_scene_type)
@@ -304,8 +304,8 @@ def evaluate_cmd(source: str, folds: int, seed: int, engine_names: tuple[str, ..
     """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines; with several
     --engine, every engine on the same folds with paired intervals of the MRR differences."""
     from .engines import configure, kind
-    from .evaluate import check_evaluable, evaluate
-    from .evaluate_format import format_evaluation
+    from .evaluation.evaluate import check_evaluable, evaluate
+    from .evaluation.formatting import format_evaluation
 
     for name in engine_names:  # before the options: an engine that needs some (http) is not evaluable anyway
         if not (kind(name).trainable or hasattr(kind(name), "from_priors")):

@@ -23,8 +23,8 @@ import time
 
 import numpy as np
 
-from scenesuggest import frames, poses
-from scenesuggest.symmetry import glb_symmetry_period_deg, visible_turn_deg
+from scenesuggest.assets.symmetry import glb_symmetry_period_deg, visible_turn_deg
+from scenesuggest.scenes import frames, poses
 
 from .timing import B, Clock, K, M, P, drag_seconds, turn_seconds
 from .transport import FlowError

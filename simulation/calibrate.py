@@ -9,8 +9,8 @@ file's source to hold it so).
 A *rehearsal* plays each bot's ``none`` trials of its schedule row, at their place in the row (the practice
 effect), in process: the study's own scenes, model list and search index answer, and the events the bot would
 send are measured with the analysis' own definitions (:func:`analysis.measures.measures_by_trial`,
-:func:`scenesuggest.picks.picks`). The loss is the squared distance to the paper in units of its standard errors
-(from the 95% intervals; rank shares in units of RANK_SE) plus a weak prior pulling each parameter to its
+:func:`scenesuggest.contract.picks.picks`). The loss is the squared distance to the paper in units of its standard
+errors (from the 95% intervals; rank shares in units of RANK_SE) plus a weak prior pulling each parameter to its
 default. It is minimised by Nelder–Mead (scipy) over the parameters mapped to their ranges, with common random
 numbers: every evaluation replays the same bots from the same seeds.
 """
@@ -78,7 +78,7 @@ def priors_content_sha256(path: Path) -> str | None:
 def fingerprint(study) -> dict:
     """What a calibration depends on besides its parameters: the study, the content of its priors (the engine)
     and its model library's index (SHA-256 of the file), and the simulation's code."""
-    from scenesuggest.library import INDEX_FILE
+    from scenesuggest.library.index import INDEX_FILE
 
     def sha256(path: Path) -> str | None:
         return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
@@ -173,7 +173,7 @@ def measure(events: pd.DataFrame) -> dict[str, float]:
     """The paper's ``none`` measures of a rehearsal's events, by the analysis' definitions: per-trial means of
     total, rotation and translation time and keyword queries; MRR and rank shares over final picks."""
     from analysis.measures import measures_by_trial
-    from scenesuggest.picks import picks
+    from scenesuggest.contract.picks import picks
 
     events = events.sort_values(["participant", "trial", "seq"], kind="stable")
     keys = pd.MultiIndex.from_arrays([events["participant"], events["trial"]])

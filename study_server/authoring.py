@@ -16,10 +16,10 @@ from pathlib import Path
 
 from sqlalchemy import func, select
 
-from scenesuggest import scene_json
 from scenesuggest.atomic import write_atomically
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.scene import Scene
+from scenesuggest.scenes import scene_json
+from scenesuggest.scenes.scene import Scene
 
 from .config import part_of_the_package
 from .errors import StudyError

@@ -8,7 +8,7 @@ import secrets
 
 from flask import url_for
 
-from scenesuggest.events import VERSION as EVENT_VOCABULARY
+from scenesuggest.contract.events import VERSION as EVENT_VOCABULARY
 
 from .study_file import Study
 

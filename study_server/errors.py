@@ -7,7 +7,7 @@ is about. Each class says once, as ``status``, what it means to a client (409 a 
 410 a session that has ended, 429 a quota, 503 something the server lacks just now); services never build HTTP
 answers. Routes raise :class:`RequestError` (a StudyError whose status is given) for what they parse themselves,
 and turn the engine's :class:`scenesuggest.errors.SceneSuggestError` and
-:class:`scenesuggest.events.EventError` into it where a request carries engine input. ``create_app`` answers
+:class:`scenesuggest.contract.events.EventError` into it where a request carries engine input. ``create_app`` answers
 every StudyError in one place (:func:`answer`): ``{"error": message, "field": name, …}`` as JSON under ``/api/``
 and for JSON requests (the admin's scene editor), the calm message page everywhere else; what the request had
 changed is rolled back. A route catches a StudyError only to do more than answer it (log a refusal, show a

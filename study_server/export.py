@@ -2,7 +2,7 @@
 
 Cells are safe to open in a spreadsheet: a text cell that begins with ``=``, ``+``, ``-``, ``@``, a tab, a
 carriage return or ``'`` is written with a leading ``'`` (OWASP's advice against formula injection; numbers are
-written as they are). :func:`scenesuggest.cells.unescape_cell` undoes it, and the project's reader
+written as they are). :func:`scenesuggest.contract.cells.unescape_cell` undoes it, and the project's reader
 (``analysis.load``) applies it, so the tables load back to the stored values. Text that is not valid Unicode (a
 lone surrogate stored before the server refused it) is written with a backslash escape (``\\udfff``) rather
 than failing the export.
@@ -10,8 +10,8 @@ than failing the export.
 Tables (one row per …): ``participants`` (participant), ``trials`` (trial), ``events`` (logged event),
 ``suggestions`` (item of a list the server showed: context suggestions and search results, with ranks),
 ``picks`` (model placed: insert/replace events with their rank, source and whether it was final, by the one
-definition in :mod:`scenesuggest.picks`), ``survey`` (answer), ``session_log`` (server-side observation: arrival,
-resume, device check, failures). ``scenes.json`` holds what rebuilding and scoring a trial needs: each scene's
+definition in :mod:`scenesuggest.contract.picks`), ``survey`` (answer), ``session_log`` (server-side observation:
+arrival, resume, device check, failures). ``scenes.json`` holds what rebuilding and scoring a trial needs: each scene's
 start and target objects, the categories' taxonomy parents and the target models' symmetry periods.
 """
 
@@ -31,11 +31,11 @@ from pathlib import Path
 from sqlalchemy import select, text
 
 import scenesuggest
-from scenesuggest.cells import safe_cell
-from scenesuggest.events import as_event
-from scenesuggest.library import INDEX_FILE
-from scenesuggest.picks import PICK_INPUTS, PICK_PAYLOADS, picks
-from scenesuggest.scoring import FORMULA
+from scenesuggest.contract.cells import safe_cell
+from scenesuggest.contract.events import as_event
+from scenesuggest.contract.picks import PICK_INPUTS, PICK_PAYLOADS, picks
+from scenesuggest.contract.scoring import FORMULA
+from scenesuggest.library.index import INDEX_FILE
 
 from .extensions import db
 from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial, open_flags
@@ -426,8 +426,8 @@ def _manifest(rt: StudyRuntime, counts: dict, hashes: dict) -> dict:
 def write_export(rt: StudyRuntime, sink: _Sink) -> Iterator[dict | None]:
     """Write a complete export of the study ``rt`` runs into ``sink``, table by table, ``BATCH`` rows at a time;
     yields after each batch (so a caller can send what is written) and last the manifest."""
-    from scenesuggest.event_schema import json_schema
-    from scenesuggest.events import VERSION
+    from scenesuggest.contract.event_schema import json_schema
+    from scenesuggest.contract.events import VERSION
 
     hashes, counts, picks = {}, {}, _HeldPicks()
     seen = {"picks": picks.take}

@@ -15,7 +15,7 @@ import re
 
 from sqlalchemy import bindparam, func, select
 
-from scenesuggest.events import MAX_SEQ, EventError, check_version, validate_batch
+from scenesuggest.contract.events import MAX_SEQ, EventError, check_version, validate_batch
 
 from .bulk_insert import COUNT, COUNT_WITH_QUOTA, insert_events
 from .errors import StudyError
@@ -103,7 +103,7 @@ def _next_seqs(before: int, batch: list[dict], inserted: int) -> bool:
 
 def store(participant: Participant, page_id: str, events: list, quota: tuple[int, int] | None = None,
           nbytes: int | None = None, vocabulary=None) -> int:
-    """Validate (raising :class:`scenesuggest.events.EventError`) and store a batch of a session that is still
+    """Validate (raising :class:`scenesuggest.contract.events.EventError`) and store a batch of a session that is still
     open (the caller checks :func:`study_server.flow.is_open`); returns acked_seq. Raises :class:`Conflict`
     (nothing stored, the conflict logged) and
     :class:`OverQuota` when ``quota`` = (events, bytes) per participant would be exceeded. ``nbytes`` is the

@@ -16,9 +16,9 @@ from datetime import timedelta
 from flask import current_app
 from sqlalchemy import func, select, update
 
-from scenesuggest import frames
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.suggest import ContextQuery, SuggestionList
+from scenesuggest.scenes import frames
+from scenesuggest.suggestion.suggest import ContextQuery, SuggestionList
 
 from .authoring import live_scene
 from .errors import StudyError

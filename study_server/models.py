@@ -96,16 +96,17 @@ class Trial(db.Model):
     #: Why the trial should be reviewed: its events do not show the study's minimum work, or its scene came less
     #: close to the target than the study's min_target_score (None: neither, or not yet checked).
     review: Mapped[str | None] = mapped_column(Text, nullable=True)
-    #: Whether the trial's events rebuild the final scene it submitted (scenesuggest.replay): "match",
+    #: Whether the trial's events rebuild the final scene it submitted (scenesuggest.contract.replay): "match",
     #: "mismatch: …" (what differs), "pending: …" (waiting for events the page logged before "done"), or
     #: "unavailable: …" (events without object states, or the check failed); empty before "done".
     replay: Mapped[str | None] = mapped_column(Text, nullable=True)
     #: The last seq the page logged before "done" while the replay check waits for it to be stored (None: the
     #: check is not waiting); trial_check.settle makes the check when it arrives.
     replay_waits_for: Mapped[int | None] = mapped_column(Integer, nullable=True)
-    #: How close the final scene came to the target (scenesuggest.scoring), 0..1; empty before "done".
+    #: How close the final scene came to the target (scenesuggest.contract.scoring), 0..1; empty before "done".
     score: Mapped[float | None] = mapped_column(Float, nullable=True)
-    #: The whole closeness result found at "done" (scenesuggest.scoring.Closeness.record: score, matched, missing,
+    #: The whole closeness result found at "done" (scenesuggest.contract.scoring.Closeness.record: score, matched,
+    #missing,
     #: extra, errors in metres and degrees, the matched pairs), exported as stored; {"unavailable": why} when the
     #: check failed, None before "done" or for trials done before it was stored (the export computes those).
     closeness: Mapped[dict | None] = mapped_column(JSON, nullable=True)
@@ -124,7 +125,7 @@ class Event(db.Model):
     client_t: Mapped[float] = mapped_column(Float)
     server_t: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     payload: Mapped[dict] = mapped_column(JSON, default=dict)
-    #: The version of the event vocabulary the page spoke (scenesuggest.events.VERSIONS).
+    #: The version of the event vocabulary the page spoke (scenesuggest.contract.events.VERSIONS).
     vocabulary: Mapped[int] = mapped_column(SmallInteger, default=1, server_default="1")
 
 

@@ -26,11 +26,11 @@ import unicodedata
 from pathlib import Path
 from string import Template
 
-from scenesuggest import scene_json
 from scenesuggest.atomic import temporary_folder_beside
-from scenesuggest.authoring import SceneAuthor
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.scene_types import infer_scene_type
+from scenesuggest.library.authoring import SceneAuthor
+from scenesuggest.scenes import scene_json
+from scenesuggest.scenes.scene_types import infer_scene_type
 
 from .config import PACKAGE
 
@@ -192,10 +192,10 @@ def write_stanford_resources(out: Path, root: Path, meshes: str | Path | None, s
     scenes (``scenes/``) from the Stanford Scene Database copy at ``root``."""
     from scenesuggest.assets.build import build_library
     from scenesuggest.corpora import load_corpus
+    from scenesuggest.corpora.representatives import study_representatives
     from scenesuggest.corpora.stanford import MESHES_ENV, find_mesh_dir
-    from scenesuggest.library import load_index
-    from scenesuggest.priors import Priors
-    from scenesuggest.representatives import study_representatives
+    from scenesuggest.learning.priors import Priors
+    from scenesuggest.library.index import load_index
 
     mesh_dir = find_mesh_dir(root, meshes)
     if mesh_dir is None:

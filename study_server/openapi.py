@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+from scenesuggest.contract.event_schema import json_schema
+from scenesuggest.contract.events import MAX_BATCH, MAX_SEQ, VERSIONS
 from scenesuggest.engines.wire import ANSWER_SCHEMA, QUERY_SCHEMA
-from scenesuggest.event_schema import json_schema
-from scenesuggest.events import MAX_BATCH, MAX_SEQ, VERSIONS
 
 ERROR = {"type": "object", "required": ["error"],
          "properties": {"error": {"type": "string"}, "field": {"type": ["string", "null"]}}}

@@ -16,8 +16,8 @@ from collections.abc import Callable, Iterable
 
 from scenesuggest.assets.build import code_digest as assets_digest
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.library import INDEX_FILE
-from scenesuggest.priors import Priors, code_digest
+from scenesuggest.learning.priors import Priors, code_digest
+from scenesuggest.library.index import INDEX_FILE
 
 from .study_file import Study
 
@@ -98,7 +98,7 @@ def prepare(study: Study, progress: Progress, say: Callable[[str], None]) -> lis
     for key, spec in condition_engines(study):
         path = spec.kind.trained_file(spec.config, study.priors)
         if key in todo and path not in built:
-            from scenesuggest.symmetry import corpus_periods
+            from scenesuggest.assets.symmetry import corpus_periods
 
             periods = periods or corpus_periods(corpus.models.values(), progress)
             spec.kind.train(spec.config, corpus.scenes, corpus.taxonomy, path, progress=progress, periods=periods)

@@ -1,13 +1,13 @@
-"""A trial as its events rebuild it (:mod:`scenesuggest.replay`): for the check when it is done and for the admin's
-replay, which shows any trial, finished or in progress, step by step."""
+"""A trial as its events rebuild it (:mod:`scenesuggest.contract.replay`): for the check when it is done and for the
+admin's replay, which shows any trial, finished or in progress, step by step."""
 
 from __future__ import annotations
 
 from flask import url_for
 from sqlalchemy import select
 
-from scenesuggest.events import as_event
-from scenesuggest.replay import ReplayUnavailable, apply, start_scene
+from scenesuggest.contract.events import as_event
+from scenesuggest.contract.replay import ReplayUnavailable, apply, start_scene
 
 from .extensions import db
 from .models import Event, Trial

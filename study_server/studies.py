@@ -16,13 +16,14 @@ from pathlib import Path
 
 from flask import abort, current_app, request, url_for
 
-from scenesuggest import engines, scene_json
+from scenesuggest import engines
+from scenesuggest.assets.symmetry import NONE, corpus_periods
 from scenesuggest.engines.protocol import LoadContext, SuggestionEngine
-from scenesuggest.library import INDEX_FILE, ModelInfo, load_index
-from scenesuggest.priors import Priors
-from scenesuggest.search import SearchIndex
-from scenesuggest.symmetry import NONE, corpus_periods
-from scenesuggest.taxonomy import Taxonomy
+from scenesuggest.learning.priors import Priors
+from scenesuggest.library.index import INDEX_FILE, ModelInfo, load_index
+from scenesuggest.library.search import SearchIndex
+from scenesuggest.scenes import scene_json
+from scenesuggest.scenes.taxonomy import Taxonomy
 
 from .errors import StudyError
 from .study_file import Study, StudyFileError, load_study
@@ -216,7 +217,7 @@ class StudyRuntime:
 
     def period_of(self, model_id: str) -> float:
         """The model's rotational symmetry period (degrees about its up axis; 360: none), measured on its asset
-        once (and cached on disk, :mod:`scenesuggest.symmetry`)."""
+        once (and cached on disk, :mod:`scenesuggest.assets.symmetry`)."""
         with self._lock:
             known = self._periods.get(model_id)
         if known is None:  # measured outside the lock, which suggestions wait on (twice at worst, alike)

@@ -102,7 +102,7 @@ class Study:
     #: objects placed (insert/replace events) and seconds between its first and last event (client clock).
     min_objects_placed: int = 0
     min_trial_seconds: float = 0.0
-    #: Trials whose final scene scores below this (scenesuggest.scoring, 0..1) are flagged for review.
+    #: Trials whose final scene scores below this (scenesuggest.contract.scoring, 0..1) are flagged for review.
     min_target_score: float | None = None
     #: Quotas: new arrivals per client address per hour; events and megabytes stored per participant.
     arrivals_per_address_per_hour: int = 100

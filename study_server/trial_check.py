@@ -1,15 +1,15 @@
 """What the server checks when a trial is done, for the experimenter (never shown to the participant): whether
-the trial's events rebuild the final scene it submitted (:mod:`scenesuggest.replay`), and how close that scene
-came to the target (:mod:`scenesuggest.scoring`), flagging trials below the study's ``[limits] min_target_score``
-for review."""
+the trial's events rebuild the final scene it submitted (:mod:`scenesuggest.contract.replay`), and how close that scene
+came to the target (:mod:`scenesuggest.contract.scoring`), flagging trials below the study's ``[limits]
+min_target_score`` for review."""
 
 from __future__ import annotations
 
 from flask import current_app
 from sqlalchemy.exc import SQLAlchemyError
 
-from scenesuggest.replay import ReplayUnavailable, differences, final_scene
-from scenesuggest.scoring import Closeness, closeness
+from scenesuggest.contract.replay import ReplayUnavailable, differences, final_scene
+from scenesuggest.contract.scoring import Closeness, closeness
 
 from .flow import below_target, trials
 from .models import Participant, Trial

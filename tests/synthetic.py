@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 
-from scenesuggest import frames, surfaces
 from scenesuggest.corpora.corpus import Corpus
-from scenesuggest.scene import ObjectInstance, Scene
-from scenesuggest.taxonomy import Taxonomy
+from scenesuggest.scenes import frames, surfaces
+from scenesuggest.scenes.scene import ObjectInstance, Scene
+from scenesuggest.scenes.taxonomy import Taxonomy
 
 SIZES = {
     "Room": (1.0, 1.0, 1.0), "Desk": (1.4, 0.75, 0.7), "Monitor": (0.55, 0.45, 0.2), "Keyboard": (0.45, 0.03, 0.15),
@@ -38,7 +38,7 @@ class Builder:
     def add(self, category: str, parent: str, point, normal=(0.0, 1.0, 0.0), yaw_deg: float = 0.0,
             face: str | None = None) -> str:
         """Place ``category`` with its attachment face centred at ``point`` on ``parent``."""
-        from scenesuggest import poses
+        from scenesuggest.scenes import poses
 
         size = SIZES[category]
         n = np.asarray(normal, dtype=float)

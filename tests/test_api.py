@@ -6,7 +6,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 from flowhelp import auth, boot, to_trials
 
-from scenesuggest import scene_json
+from scenesuggest.scenes import scene_json
 from study_server.extensions import db
 from study_server.models import Event, Participant, ShownList, Trial
 

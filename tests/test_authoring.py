@@ -11,7 +11,7 @@ from flowhelp import auth, boot, csrf, to_trials
 from PIL import Image
 from werkzeug.security import generate_password_hash
 
-from scenesuggest import scene_json
+from scenesuggest.scenes import scene_json
 
 PASSWORD = "correct horse battery staple"
 

@@ -162,7 +162,7 @@ def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_
 
     from flowhelp import auth, to_trials
 
-    from scenesuggest.priors import Priors
+    from scenesuggest.learning.priors import Priors
     from study_server import studies
 
     loads = []

@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 from conftest import ROOT, require_node
 
-from scenesuggest import frames, poses, surfaces
-from scenesuggest.suggest import Engine
+from scenesuggest.scenes import frames, poses, surfaces
+from scenesuggest.suggestion.suggest import Engine
 
 HELPER = Path(__file__).resolve().parent / "js" / "geometry_cases.mjs"
 #: Largest difference allowed between the two sides' numbers (metres, radians, matrix entries). Both compute in

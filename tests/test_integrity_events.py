@@ -13,7 +13,7 @@ from conftest import make_app
 from flowhelp import auth, csrf, to_trials
 from integrityhelp import PASSWORD, event, post_events, study_copy
 
-from scenesuggest.cells import safe_cell, unescape_cell
+from scenesuggest.contract.cells import safe_cell, unescape_cell
 from study_server.extensions import db
 from study_server.models import Event, Participant, SessionLog, Trial
 
@@ -85,7 +85,7 @@ def test_strings_that_cannot_be_stored_and_seqs_that_overflow_get_a_422(app_on, 
 def test_a_whole_librarys_list_is_stored_and_a_longer_one_refused_naming_it(app_on):
     """A fixed list of every model of a large library (the Stanford database's 1,580; ids of 40 characters) is one
     event the server stores whole; a list over MAX_STRINGS is refused with its field."""
-    from scenesuggest.events import MAX_STRINGS
+    from scenesuggest.contract.events import MAX_STRINGS
 
     c = app_on.test_client()
     b = to_trials(c)
@@ -104,7 +104,7 @@ def test_strings_in_object_states_are_bounded_as_they_arrive(app_on, key):
     characters) is refused naming it, so no trial's replay grows by what a page chose to send."""
     from test_replay import insert, obj
 
-    from scenesuggest.events import MAX_STATE_TEXT
+    from scenesuggest.contract.events import MAX_STATE_TEXT
 
     c = app_on.test_client()
     b = to_trials(c)

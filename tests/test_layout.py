@@ -41,6 +41,26 @@ def test_the_server_never_imports_the_simulation():
         assert not {m for m in imports(path) if m.split(".")[0] == "simulation"}, path
 
 
+#: The engine's stages in the order its data flows; each imports only stages before it. The modules at the top of
+#: the package (errors, atomic writes, JSON positions, npz, digests) are shared by all and import no stage; cli.py
+#: files are composition roots (the ``scenesuggest`` command and its groups) and may import anything.
+STAGES = ("scenes", "contract", "library", "corpora", "assets", "learning", "suggestion", "engines", "evaluation")
+
+
+def test_the_engine_stages_point_down():
+    package = ROOT / "scenesuggest"
+    assert {p.name for p in package.iterdir() if (p / "__init__.py").is_file()} == set(STAGES)
+    for path in package.rglob("*.py"):
+        parts = path.relative_to(package).parts
+        if path.name == "cli.py":
+            continue
+        below = STAGES[:STAGES.index(parts[0])] if len(parts) > 1 else ()
+        for m in imports(path):
+            names = m.split(".")
+            if names[0] == "scenesuggest" and len(names) > 1 and names[1] in STAGES:
+                assert names[1] == parts[0] or names[1] in below, (path, m)
+
+
 def test_the_simulation_drives_the_server_from_outside():
     """Bots reach the server over HTTP or a test client and never read the analysis. Only the composition roots
     build an app (with the public factory) or read a study's answers in process (the offline answers), and only

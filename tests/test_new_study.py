@@ -136,10 +136,10 @@ def test_a_study_on_the_stanford_corpus_gets_its_own_library_priors_and_scenes(t
     the corpus, starter scenes composed from the library's models; the study validates and runs as written."""
     import numpy as np
 
-    from scenesuggest import scene_json
-    from scenesuggest.library import load_index
-    from scenesuggest.priors import Priors
-    from scenesuggest.representatives import read_representatives
+    from scenesuggest.corpora.representatives import read_representatives
+    from scenesuggest.learning.priors import Priors
+    from scenesuggest.library.index import load_index
+    from scenesuggest.scenes import scene_json
 
     folder = tmp_path / "desks"
     said = []

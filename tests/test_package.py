@@ -146,7 +146,7 @@ def test_prepare_builds_only_the_servers_own_resources(tmp_path, demo_resources)
     builds; what a study file names is checked (missing, or a file this engine cannot read) but never built over."""
     import shutil
 
-    from scenesuggest.priors import Priors
+    from scenesuggest.learning.priors import Priors
     from study_server.config import data_home
     from study_server.prepare import prepare, problems
     from study_server.study_file import StudyFileError, load_study

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from conftest import REPLICATION, ROOT, SHARED_DATA, make_app, replication_module
 
-from scenesuggest import poses, scene_json
+from scenesuggest.corpora.representatives import read_representatives, top_representatives
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.library import load_index
-from scenesuggest.priors import Priors
-from scenesuggest.representatives import read_representatives, top_representatives
+from scenesuggest.learning.priors import Priors
+from scenesuggest.library.index import load_index
+from scenesuggest.scenes import poses, scene_json
 
 PREPARED = ROOT / "var" / "experiments" / "scenesuggest-2015"
 REPRESENTATIVES = SHARED_DATA / "stanford_models" / "representatives.tsv"

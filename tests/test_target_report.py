@@ -9,7 +9,7 @@ from conftest import make_app
 
 from analysis.load import read_export
 from analysis.report import build_report
-from scenesuggest.events import SCENE_CHANGES
+from scenesuggest.contract.events import SCENE_CHANGES
 from simulation.run import simulate
 from study_server.export import export_to
 from study_server.extensions import db

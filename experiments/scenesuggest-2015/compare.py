@@ -4,8 +4,8 @@ Reads the report (``results/report/``, from ``scenesuggest analyze report``) and
 targets themselves (for each target object, a context query at its contact point in the target without it: the
 rank of its category and how far the pose each interface suggests is from the target's — basic: the canonical
 pose, full: the engine's orientation, and full with the paper's orientation rule — as the rotation error folded
-by the model's rotational symmetry, :func:`scenesuggest.pose_error.pose_error_deg`). The study's own engine (the
-paper's) answers from the study's priors; beside it, every engine of ENGINES trained twice — without the targets'
+by the model's rotational symmetry, :func:`scenesuggest.contract.pose_error.pose_error_deg`). The study's own engine
+(the paper's) answers from the study's priors; beside it, every engine of ENGINES trained twice — without the targets'
 source scenes (as the study's priors are) and on all 133 scenes, sources included (what the paper most likely
 did) — so that the gap to the paper's participants can be split between the held-out protocol and the engine.
 Those files are trained here once (about three minutes) and kept beside the prepared study (``engines.json``
@@ -38,15 +38,16 @@ sys.path.insert(0, str(HERE))
 from targets import PERIODS  # noqa: E402
 
 from analysis.bootstrap import bootstrap_by  # noqa: E402
-from scenesuggest import engines, scene_json  # noqa: E402
+from scenesuggest import engines  # noqa: E402
+from scenesuggest.assets.symmetry import corpus_periods  # noqa: E402
 from scenesuggest.atomic import write_atomically  # noqa: E402
+from scenesuggest.contract.pose_error import pose_error_deg  # noqa: E402
 from scenesuggest.engines.learned.engine import code_digest as learned_digest  # noqa: E402
 from scenesuggest.engines.protocol import LoadContext  # noqa: E402
-from scenesuggest.library import load_index  # noqa: E402
-from scenesuggest.pose_error import pose_error_deg  # noqa: E402
-from scenesuggest.priors import Priors, code_digest  # noqa: E402
-from scenesuggest.suggest import ContextQuery, Engine  # noqa: E402
-from scenesuggest.symmetry import corpus_periods  # noqa: E402
+from scenesuggest.learning.priors import Priors, code_digest  # noqa: E402
+from scenesuggest.library.index import load_index  # noqa: E402
+from scenesuggest.scenes import scene_json  # noqa: E402
+from scenesuggest.suggestion.suggest import ContextQuery, Engine  # noqa: E402
 
 CONDITIONS = ("none", "basic", "full")
 # Savva, Chang, Agrawala: SceneSuggest, Table 1 and Table 2 (means per trial; 20 participants, 102 models)

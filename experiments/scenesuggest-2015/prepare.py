@@ -34,15 +34,15 @@ sys.path.insert(0, str(HERE))
 
 from targets import TARGETS, compose, held_out  # noqa: E402
 
-from scenesuggest import scene_json  # noqa: E402
 from scenesuggest.assets.build import build_library  # noqa: E402
 from scenesuggest.corpora import load_corpus  # noqa: E402
+from scenesuggest.corpora.representatives import FILE_NAME, study_representatives  # noqa: E402
 from scenesuggest.corpora.stanford import find_mesh_dir  # noqa: E402
 from scenesuggest.errors import SceneSuggestError  # noqa: E402
-from scenesuggest.library import INDEX_FILE, load_index  # noqa: E402
-from scenesuggest.priors import VERSION as PRIORS_VERSION  # noqa: E402
-from scenesuggest.priors import Priors, code_digest  # noqa: E402
-from scenesuggest.representatives import FILE_NAME, study_representatives  # noqa: E402
+from scenesuggest.learning.priors import VERSION as PRIORS_VERSION  # noqa: E402
+from scenesuggest.learning.priors import Priors, code_digest  # noqa: E402
+from scenesuggest.library.index import INDEX_FILE, load_index  # noqa: E402
+from scenesuggest.scenes import scene_json  # noqa: E402
 
 ENV = "SCENESUGGEST_STANFORD_DIR"
 

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from scenesuggest.authoring import SceneAuthor
-from scenesuggest.scene import Scene
-from scenesuggest.scene_types import infer_scene_type
+from scenesuggest.library.authoring import SceneAuthor
+from scenesuggest.scenes.scene import Scene
+from scenesuggest.scenes.scene_types import infer_scene_type
 from study_server.new_study import side_table  # the practice scene of every new Stanford study
 
 ROOM = (5.0, 2.7, 4.0)

@@ -24,7 +24,7 @@ from ..atomic import temporary_folder_beside
 from ..corpora.corpus import Corpus, Progress, no_progress
 from ..digest import source_digest
 from ..errors import SceneSuggestError
-from ..library import ModelInfo, save_index
+from ..library.index import ModelInfo, save_index
 from .convert import convert_model
 from .procedural import procedural_model
 from .render import save_thumbnail

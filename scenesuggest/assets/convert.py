@@ -18,7 +18,7 @@ from PIL import Image
 from trimesh.visual.material import PBRMaterial
 
 from ..errors import SceneSuggestError
-from ..library import ModelInfo
+from ..library.index import ModelInfo
 from .primitives import closed_volume
 
 FACE_BUDGET = 40000

@@ -13,7 +13,7 @@ import numpy as np
 import trimesh
 from trimesh.visual.material import PBRMaterial
 
-from .. import frames
+from ..scenes import frames
 
 Part = tuple[trimesh.Trimesh, tuple[float, float, float]]
 SECTIONS = 20

@@ -556,7 +556,7 @@ def bat(s) -> list[Part]:
 
 def _lying_along_z(parts: list[Part], s) -> list[Part]:
     """Lay an upright lathe down along Z (or X when the box is longer in X)."""
-    from .. import frames
+    from ..scenes import frames
 
     out = []
     tilt = frames.linear(frames.rotation_between([0, 1, 0], [0, 0, 1]))

@@ -26,12 +26,12 @@ from importlib import resources
 
 import numpy as np
 
-from .. import frames, surfaces
 from ..errors import SceneSuggestError
-from ..library import ModelInfo
-from ..scene import ROOM, ObjectInstance, Scene
-from ..scene_types import infer_scene_type
-from ..taxonomy import ai2thor_taxonomy
+from ..library.index import ModelInfo
+from ..scenes import frames, surfaces
+from ..scenes.scene import ROOM, ObjectInstance, Scene
+from ..scenes.scene_types import infer_scene_type
+from ..scenes.taxonomy import ai2thor_taxonomy
 from .corpus import Corpus, Progress, no_progress
 
 METADATA = "databases/ai2thor-object-metadata.json"

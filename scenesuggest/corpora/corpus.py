@@ -5,9 +5,9 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
-from ..library import ModelInfo
-from ..scene import Scene
-from ..taxonomy import Taxonomy
+from ..library.index import ModelInfo
+from ..scenes.scene import Scene
+from ..scenes.taxonomy import Taxonomy
 
 #: Wraps an iterable to show progress (e.g. a ``click.progressbar``); the identity by default.
 Progress = Callable[[Iterable, str], Iterable]

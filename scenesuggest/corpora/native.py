@@ -1,6 +1,6 @@
 """``json:DIR`` — a corpus in the native format, and writing any corpus in it.
 
-Layout: ``DIR/scenes/*.json`` (one scene each, see :mod:`scenesuggest.scene_json`), ``DIR/taxonomy.json``
+Layout: ``DIR/scenes/*.json`` (one scene each, see :mod:`scenesuggest.scenes.scene_json`), ``DIR/taxonomy.json``
 (``{"parents": {category: parent}}``) and ``DIR/library.json`` (the model index), both optional.
 """
 
@@ -9,11 +9,11 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from .. import scene_json
 from ..atomic import temporary_folder_beside
 from ..errors import SceneSuggestError
-from ..library import INDEX_FILE, ModelInfo, load_index, save_index
-from ..taxonomy import Taxonomy
+from ..library.index import INDEX_FILE, ModelInfo, load_index, save_index
+from ..scenes import scene_json
+from ..scenes.taxonomy import Taxonomy
 from .corpus import Corpus, Progress, no_progress
 
 TAXONOMY_FILE = "taxonomy.json"

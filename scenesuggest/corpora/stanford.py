@@ -12,7 +12,7 @@ Each model's bbox comes from its OBJ mesh when present; otherwise from the metad
 placed so that the scene contacts lie on the face that touches the parent (the database puts the
 contact at the centre of that face); without either, a 20 cm box grown to reach what rests on it.
 Categories come from the ShapeNetSem labels, then the first WordNet lemma, then the coarse labels.
-A scene's walls are measured on its room model's mesh (:func:`scenesuggest.walls.mesh_walls`) when the mesh is
+A scene's walls are measured on its room model's mesh (:func:`scenesuggest.scenes.walls.mesh_walls`) when the mesh is
 there; otherwise the room's box stands for them.
 """
 
@@ -24,14 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import frames, surfaces
 from ..errors import SceneSuggestError
-from ..library import ModelInfo
-from ..objfile import obj_bounds
-from ..scene import ROOM, ObjectInstance, Scene
-from ..scene_types import infer_scene_type
-from ..taxonomy import Taxonomy
-from ..walls import mesh_walls
+from ..library.index import ModelInfo
+from ..library.objfile import obj_bounds
+from ..scenes import frames, surfaces
+from ..scenes.scene import ROOM, ObjectInstance, Scene
+from ..scenes.scene_types import infer_scene_type
+from ..scenes.taxonomy import Taxonomy
+from ..scenes.walls import mesh_walls
 from .corpus import Corpus, Progress, no_progress
 from .shapenetsem import (
     DEFAULT_FRONT,

@@ -1,7 +1,7 @@
 """Engines by name: the registry of :class:`~.protocol.EngineKind` s and the one way to configure and load one.
 
-Built in: ``paper`` (the paper's factors, :class:`scenesuggest.suggest.Engine`, with its options), ``learned``
-(a learning-to-rank engine over the paper's factors and the scene's context, :mod:`.learned`), ``frequency``
+Built in: ``paper`` (the paper's factors, :class:`scenesuggest.suggestion.suggest.Engine`, with its options),
+``learned`` (a learning-to-rank engine over the paper's factors and the scene's context, :mod:`.learned`), ``frequency``
 (categories by how often they occur: a control) and ``http`` (an engine in any language behind HTTP, with a
 fallback, :mod:`.http`). Other packages add kinds through the entry-point group ``scenesuggest.engines``: an entry
 ``name = "package.module:KIND"`` whose object is an :class:`~.protocol.EngineKind` (or a class of one) with that

@@ -40,7 +40,7 @@ def list_cmd(as_json: bool) -> None:
 @meshes_option
 @click.option("--json", "as_json", is_flag=True)
 def train_cmd(name: str, source: str, out: str, seed: int, meshes: str | None, as_json: bool) -> None:
-    from ..symmetry import corpus_periods
+    from ..assets.symmetry import corpus_periods
 
     if not kind(name).trainable:  # before its options: an engine that needs some (http) is not trained here
         raise SceneSuggestError(f"the {name!r} engine is not trained by this project", field="name")

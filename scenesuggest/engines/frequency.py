@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from ..priors import Priors
-from ..suggest import Engine, EngineOptions, Scores
+from ..learning.priors import Priors
+from ..suggestion.suggest import Engine, EngineOptions, Scores
 from .paper import engine_options
 from .protocol import EngineKind, LoadContext
 

@@ -8,7 +8,7 @@ answer (:data:`.wire.ANSWER_SCHEMA`), which is validated strictly (:func:`.wire.
 to the surface, finite headings, model ids the study knows, and at most ``max_bytes`` bytes. A timeout
 (``timeout_ms``, the whole exchange: name lookup, connecting, the TLS handshake, sending, waiting and reading), a
 refused connection, a status other than 200, a body that is not JSON or an answer that breaks a rule gives the
-fallback engine's list instead, with the reason (:attr:`~scenesuggest.suggest.SuggestionList.fallback`): the
+fallback engine's list instead, with the reason (:attr:`~scenesuggest.suggestion.suggest.SuggestionList.fallback`): the
 participant never waits longer than the timeout (and the fallback's own time) for a list and never sees an error
 because of the engine.
 
@@ -36,9 +36,9 @@ from urllib.parse import urlsplit
 import orjson
 
 from ..errors import SceneSuggestError
-from ..query import ContextQuery, prepare
-from ..suggest import MODES, SuggestionList
-from ..taxonomy import Taxonomy
+from ..scenes.taxonomy import Taxonomy
+from ..suggestion.query import ContextQuery, prepare
+from ..suggestion.suggest import MODES, SuggestionList
 from .protocol import EngineKind, LoadContext, SuggestionEngine
 from .wire import ANSWER_SCHEMA, QUERY_SCHEMA, EngineUnavailable, parse_answer, query_document
 

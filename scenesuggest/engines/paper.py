@@ -1,6 +1,6 @@
-"""The ``paper`` engine: the paper's factors (:class:`scenesuggest.suggest.Engine`) answering from a priors file,
-with its options (:class:`~scenesuggest.suggest.EngineOptions`: the weights λ1, λ2, back-off, the orientation
-rule and the extras beyond the paper). What the replication runs, and the default of every condition."""
+"""The ``paper`` engine: the paper's factors (:class:`scenesuggest.suggestion.suggest.Engine`) answering from a priors
+file, with its options (:class:`~scenesuggest.suggestion.suggest.EngineOptions`: the weights λ1, λ2, back-off, the
+orientation rule and the extras beyond the paper). What the replication runs, and the default of every condition."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SceneSuggestError
-from ..priors import Priors
-from ..suggest import Engine, EngineOptions
+from ..learning.priors import Priors
+from ..suggestion.suggest import Engine, EngineOptions
 from .protocol import EngineKind, LoadContext
 
 #: The options a study condition may give the paper's engine (the fields of EngineOptions).

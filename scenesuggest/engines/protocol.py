@@ -1,7 +1,7 @@
-"""What an engine is: a query in, a :class:`~scenesuggest.suggest.SuggestionList` out — and how a kind of engine
-is configured, trained and loaded.
+"""What an engine is: a query in, a :class:`~scenesuggest.suggestion.suggest.SuggestionList` out — and how a kind of
+engine is configured, trained and loaded.
 
-The query (:class:`~scenesuggest.query.ContextQuery`) is a click: the scene (world frame, metres, +Y up), the
+The query (:class:`~scenesuggest.suggestion.query.ContextQuery`) is a click: the scene (world frame, metres, +Y up), the
 clicked parent's id, the world point and the surface normal there, optionally the scene type; with it, the mode
 (``basic``: canonical pose; ``full``: oriented), how many suggestions to return (``top``) and which categories
 may appear (``only``: those the study's library can place). The answer ranks categories best first; each carries
@@ -24,10 +24,10 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 from ..corpora.corpus import Progress
-from ..query import ContextQuery
-from ..scene import Scene
-from ..suggest import SuggestionList
-from ..taxonomy import Taxonomy
+from ..scenes.scene import Scene
+from ..scenes.taxonomy import Taxonomy
+from ..suggestion.query import ContextQuery
+from ..suggestion.suggest import SuggestionList
 
 
 @runtime_checkable
@@ -89,7 +89,7 @@ class EngineKind:
     def fit(self, config: Any, scenes: list[Scene], taxonomy: Taxonomy, *, seed: int = 0,
             progress: Progress | None = None, periods: Any = None) -> SuggestionEngine:
         """An engine trained on ``scenes`` only (what ``evaluate`` asks for each fold); ``periods``: the models'
-        rotational symmetry (:class:`~scenesuggest.symmetry.ModelPeriods`) where known."""
+        rotational symmetry (:class:`~scenesuggest.assets.symmetry.ModelPeriods`) where known."""
         raise NotImplementedError(f"the {self.name!r} engine is not trained by this project")
 
     def train(self, config: Any, scenes: list[Scene], taxonomy: Taxonomy, out: Path, *, seed: int = 0,

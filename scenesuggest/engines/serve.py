@@ -14,9 +14,9 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 import orjson
 
 from ..errors import SceneSuggestError
-from ..query import ContextQuery
-from ..scene_json import from_dict
-from ..suggest import MODES
+from ..scenes.scene_json import from_dict
+from ..suggestion.query import ContextQuery
+from ..suggestion.suggest import MODES
 from .protocol import SuggestionEngine
 
 #: The largest query read (bytes): a scene of a few hundred objects is well below it.

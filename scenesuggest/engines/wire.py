@@ -13,9 +13,9 @@ from collections.abc import Collection, Mapping
 
 import numpy as np
 
-from .. import frames, poses
-from ..scene_json import finite, scene_to_dict
-from ..suggest import MODES, Suggestion
+from ..scenes import frames, poses
+from ..scenes.scene_json import finite, scene_to_dict
+from ..suggestion.suggest import MODES, Suggestion
 
 PROTOCOL_VERSION = 1
 #: A placement's rotation must be orthonormal to this tolerance, and its origin this close to the click (metres).

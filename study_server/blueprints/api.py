@@ -12,9 +12,9 @@ from dataclasses import dataclass
 from flask import Blueprint, jsonify, request, url_for
 from sqlalchemy import bindparam, select
 
-from scenesuggest import scene_json
-from scenesuggest.event_schema import json_schema
-from scenesuggest.events import MAX_SEQ, EventError, text_problem
+from scenesuggest.contract.event_schema import json_schema
+from scenesuggest.contract.events import MAX_SEQ, EventError, text_problem
+from scenesuggest.scenes import scene_json
 
 from .. import flow, ingest, lists, trial_check
 from ..authoring import live_scene
@@ -176,7 +176,7 @@ def events():
     who = caller()
     data = body()
     if isinstance(who, Preview):
-        from scenesuggest.events import check_version, validate_batch
+        from scenesuggest.contract.events import check_version, validate_batch
 
         try:
             batch = validate_batch(data.get("events"), check_version(data.get("vocabulary")))

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scenesuggest import scene_json
-from scenesuggest.authoring import SceneAuthor
 from scenesuggest.corpora import load_corpus
-from scenesuggest.scene import Scene
+from scenesuggest.library.authoring import SceneAuthor
+from scenesuggest.scenes import scene_json
+from scenesuggest.scenes.scene import Scene
 
 HERE = Path(__file__).resolve().parent
 ROOM = (5.0, 2.7, 4.0)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import DEMO_STUDY, make_app
 
-from scenesuggest.replay import replay
+from scenesuggest.contract.replay import replay
 from simulation.participant import Bot
 from simulation.transport import HttpTransport
 from study_server.studies import load_studies

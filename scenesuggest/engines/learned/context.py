@@ -23,9 +23,9 @@ import math
 
 import numpy as np
 
-from ... import frames
-from ...scene import ROOM, Scene
-from ...walls import nearest_wall, room_walls
+from ...scenes import frames
+from ...scenes.scene import ROOM, Scene
+from ...scenes.walls import nearest_wall, room_walls
 
 #: Bin edges of the descriptors (metres; ``area`` in log m²).
 EDGES = {
@@ -59,7 +59,7 @@ def _box_distances(lo: np.ndarray, hi: np.ndarray, point: np.ndarray) -> np.ndar
 
 
 class Boxes:
-    """The world boxes of a scene's supported objects (:func:`scenesuggest.frames.world_bboxes`), with their
+    """The world boxes of a scene's supported objects (:func:`scenesuggest.scenes.frames.world_bboxes`), with their
     ids and parents: what the descriptors and the neighbourhood of a click are measured against."""
 
     def __init__(self, objects: list):

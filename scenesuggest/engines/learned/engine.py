@@ -21,14 +21,14 @@ from pathlib import Path
 import lightgbm as lgb
 import numpy as np
 
-from ... import poses
 from ...atomic import write_atomically
-from ...digest import source_digest
+from ...digest import ENGINE_SOURCES, source_digest
 from ...errors import SceneSuggestError
-from ...frames import FACES
+from ...learning.priors import Priors
 from ...npz import npz_bytes
-from ...priors import Priors
-from ...suggest import Engine, EngineOptions, Scores
+from ...scenes import poses
+from ...scenes.frames import FACES
+from ...suggestion.suggest import Engine, EngineOptions, Scores
 from .context import ContextStats
 from .features import FRAMES, ORIENTATION, RANKING, frame_proposals, ranking_features
 
@@ -46,7 +46,7 @@ SHORTLIST = 80
 def code_digest() -> str:
     """A short hash of the code that decides what a learned engine's file holds (the priors' code and this
     package's): files the server prepared for itself are trained again when it changes."""
-    return source_digest("*.py", "corpora/*.py", "engines/learned/*.py")
+    return source_digest(*ENGINE_SOURCES, "engines/learned/*.py")
 
 
 def _text(array: np.ndarray) -> str:

@@ -27,10 +27,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import headings, poses
-from ...orientation import BINS, KINDS, decide
-from ...scene import SURFACE_TYPES
-from ...suggest import Engine, Scores
+from ...learning.orientation import BINS, KINDS, decide
+from ...scenes import poses
+from ...scenes.scene import SURFACE_TYPES
+from ...suggestion import headings
+from ...suggestion.suggest import Engine, Scores
 from .context import ContextStats
 
 PAPER_TERMS = ("occurrence", "surface", "position", "paper_score", "log_paper_score", "log_occurrence_surface")

@@ -1,11 +1,11 @@
 """Training the learned engine so that its models never see a prior that already contains the answer.
 
-The training scenes are split into INNER_FOLDS folds that keep near-copies together (:mod:`scenesuggest.folds`).
+The training scenes are split into INNER_FOLDS folds that keep near-copies together (:mod:`scenesuggest.corpora.folds`).
 For each fold, the paper's priors and the context counts are learned from the other folds, and every support edge
 of the fold's scenes becomes a query exactly as ``evaluate`` asks it (the object removed, the click at its
 contact point): its ranking rows, labelled 1 for the object's category, and — for the object's category — its
 orientation rows, labelled by whether each frame's heading comes within FRAME_TOLERANCE_DEG of the object's true
-pose (folded by the model's rotational symmetry when its period is known, :mod:`scenesuggest.symmetry`). The
+pose (folded by the model's rotational symmetry when its period is known, :mod:`scenesuggest.assets.symmetry`). The
 ranker (LightGBM lambdarank) and the frame classifier (LightGBM, binary) learn from those out-of-fold rows; the
 engine then answers from priors and counts learned on all the training scenes.
 
@@ -21,18 +21,18 @@ from dataclasses import dataclass, field
 import lightgbm as lgb
 import numpy as np
 
-from ... import poses
+from ...assets.symmetry import NONE, ModelPeriods
+from ...contract.pose_error import pose_error_deg
 from ...corpora.corpus import Progress
+from ...corpora.folds import grouped_folds, similar_groups
 from ...errors import SceneSuggestError
-from ...folds import grouped_folds, similar_groups
-from ...frames import FACES
-from ...pose_error import pose_error_deg
-from ...priors import Priors
-from ...query import ContextQuery
-from ...scene import Scene
-from ...suggest import Engine
-from ...symmetry import NONE, ModelPeriods
-from ...taxonomy import Taxonomy
+from ...learning.priors import Priors
+from ...scenes import poses
+from ...scenes.frames import FACES
+from ...scenes.scene import Scene
+from ...scenes.taxonomy import Taxonomy
+from ...suggestion.query import ContextQuery
+from ...suggestion.suggest import Engine
 from .context import ContextStats
 from .engine import LearnedEngine
 from .features import (

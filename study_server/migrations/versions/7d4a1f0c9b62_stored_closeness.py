@@ -1,10 +1,10 @@
 """A trial's whole closeness result, and the seq its replay check waits for, in columns of their own
 
-trials.closeness: what :mod:`scenesuggest.scoring` found when the trial was done (score, matched, missing, extra,
-errors, the matched pairs), exported as stored so that a later change of the scoring code cannot make the database
-and an export disagree. trials.replay_waits_for: the last seq the page logged before "done" while the replay check
-waits for it (NULL: not waiting), which was prose in trials.replay; the pending checks of existing rows are carried
-over.
+trials.closeness: what :mod:`scenesuggest.contract.scoring` found when the trial was done (score, matched, missing,
+extra, errors, the matched pairs), exported as stored so that a later change of the scoring code cannot make the
+database and an export disagree. trials.replay_waits_for: the last seq the page logged before "done" while the replay
+check waits for it (NULL: not waiting), which was prose in trials.replay; the pending checks of existing rows are
+carried over.
 
 Revision ID: 7d4a1f0c9b62
 Revises: 5c1e7d9a3f20

@@ -1,4 +1,4 @@
-// Poses on support surfaces, as the engine defines them (scenesuggest/poses.py, surfaces.py): attaching a
+// Poses on support surfaces, as the engine defines them (scenesuggest/scenes/poses.py, surfaces.py): attaching a
 // face of an object's canonical box (bottom centred at the origin, +Y up, +Z front, metres) to a surface,
 // turning it about the surface normal, and classifying the surface a click landed on.
 import * as THREE from "three";

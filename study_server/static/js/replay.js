@@ -1,5 +1,5 @@
 // The admin's replay of a trial: the participants' editor, read-only, showing the scene after each event as the
-// server's replay (scenesuggest/replay.py) rebuilt it. A scrubber and the event list move through the events,
+// server's replay (scenesuggest/contract/replay.py) rebuilt it. A scrubber and the event list move through the events,
 // play runs them at 1×, 4× or 16× the participant's own pace, the camera is free and the target is inset.
 import { ModelLibrary } from "./models.js";
 import { SceneModel } from "./scene-model.js";

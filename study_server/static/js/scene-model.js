@@ -1,5 +1,5 @@
 // The editor's scene: objects with their canonical → world matrices and support tree, convertible to and
-// from the native scene JSON (scenesuggest/scene_json.py), with snapshots for undo and reloads.
+// from the native scene JSON (scenesuggest/scenes/scene_json.py), with snapshots for undo and reloads.
 import * as THREE from "three";
 import { fromColumnMajor, toColumnMajor } from "./geometry.js";
 
@@ -25,7 +25,7 @@ export class SceneModel {
       contact_normal: o.contactNormal };
   }
 
-  /** An object's state as the scene-changing events carry it (scenesuggest/events.py OBJECT_STATE): the object
+  /** An object's state as the scene-changing events carry it (scenesuggest/contract/events.py OBJECT_STATE): the object
    * as a scene file lists it, numbers to 0.1 µm (events stay small; a replay matches the scene within 1 µm). */
   static stateJSON(o) {
     const r = (x) => Math.round(x * 1e7) / 1e7;

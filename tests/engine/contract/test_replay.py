@@ -1,0 +1,301 @@
+"""Trials rebuilt from their events: the event vocabulary's object states, the pure replay, the server's check at
+"done", and how close a scene came to its target."""
+
+import json
+
+import numpy as np
+import pytest
+from flowhelp import EXIT, auth, boot, csrf, finish_all_trials, to_trials
+
+from scenesuggest.contract.event_schema import json_schema
+from scenesuggest.contract.events import EventError, validate_batch
+from scenesuggest.contract.replay import ReplayUnavailable, differences, final_scene, replay, scene_at
+from scenesuggest.contract.scoring import BACKOFF_CREDIT, category_credit, closeness
+from study_server.extensions import db
+from study_server.models import Event, Participant, Trial
+
+
+def obj(id_, x=0.0, z=0.0, parent="room", model="m-chair", category="Chair", turn_deg=0.0):
+    """An object state as a scene file lists it, at (x, 0, z) turned by ``turn_deg`` about +Y."""
+    a = np.radians(turn_deg)
+    m = np.eye(4)
+    m[:3, :3] = [[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]
+    m[:3, 3] = [x, 0.0, z]
+    return {"id": id_, "model_id": model, "category": category, "size": [0.5, 0.9, 0.5],
+            "transform": m.T.reshape(-1).tolist(), "parent": parent, "surface_type": "up_interior",
+            "attachment_face": "bottom", "contact_point": [x, 0.0, z], "contact_normal": [0.0, 1.0, 0.0]}
+
+
+ROOM = {**obj("room", parent=None, model="room", category="Room"), "surface_type": None, "attachment_face": None,
+        "contact_point": None, "contact_normal": None}
+
+
+def event(seq, kind, t=None, **payload):
+    return {"seq": seq, "t": 1.7e12 + 1000.0 * seq if t is None else t, "type": kind, "trial": 0, "payload": payload}
+
+
+def insert(seq, state, **extra):
+    return event(seq, "insert", object=state["id"], model=state["model_id"], category=state["category"], rank=1,
+                 source="fixed", objects=[state], **extra)
+
+
+# --- the pure replay ----------------------------------------------------------------------------------------------
+def test_replay_follows_inserts_moves_deletes_and_undos():
+    a0, a1, b0 = obj("a", 1.0), obj("a", 2.0), obj("b", 0.0, 1.0, parent="a")
+    events = [insert(0, a0), event(1, "camera", action="orbit"), insert(2, b0),
+              event(3, "move_end", object="a", distance=1.0, objects=[a1, {**b0, "parent": "a"}]),
+              event(4, "delete", object="a", objects=[{"id": "a", "removed": True}, {"id": "b", "removed": True}]),
+              event(5, "undo", action="delete", objects=[a1, b0]),
+              event(6, "undo", action="move", objects=[a0, b0])]
+    scenes = replay([ROOM], events)
+    assert len(scenes) == len(events) and scenes[1] is scenes[0]  # a camera turn changes nothing
+    assert sorted(scenes[2]) == ["a", "b", "room"] and scenes[3]["a"]["transform"][12] == 2.0
+    assert sorted(scenes[4]) == ["room"]  # the delete took the child with it
+    assert scenes[6]["a"] == a0 and sorted(scenes[6]) == ["a", "b", "room"]  # the undone move restored the pose
+    assert scene_at([ROOM], events, events[3]["t"] - 1)["a"]["transform"][12] == 1.0
+    assert scene_at([ROOM], events, 0.0) == {"room": ROOM}
+    assert differences(final_scene([ROOM], events), [ROOM, a0, b0]) == []
+    moved = {**a0, "transform": a0["transform"][:12] + [1.0 + 1e-3, 0.0, 0.0, 1.0]}
+    assert differences(final_scene([ROOM], events), [ROOM, moved]) == ["b: only in the replay",
+                                                                     "a: transform differs"]
+
+
+def test_events_without_object_states_cannot_be_replayed():
+    with pytest.raises(ReplayUnavailable, match="vocabulary 1"):
+        replay([ROOM], [event(0, "insert", object="a", model="m", category="C", rank=1, source="fixed")])
+
+
+# --- the vocabulary -------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("states", "field"), [
+    (None, "events[0].payload.objects"),
+    ([{**obj("a"), "transform": [1.0] * 15}], "events[0].payload.objects[0].transform"),
+    ([{**obj("a"), "size": [0.5, -0.1, 0.5]}], "events[0].payload.objects[0].size"),
+    ([{**obj("a"), "attachment_face": "side"}], "events[0].payload.objects[0].attachment_face"),
+    ([{**obj("a"), "colour": "red"}], "events[0].payload.objects[0].colour"),
+    ([{"id": "a", "removed": False}], "events[0].payload.objects[0]"),
+    ([{"id": "a\x00", "removed": True}], "events[0].payload.objects[0].id"),
+    ([{k: v for k, v in obj("a").items() if k != "parent"}], "events[0].payload.objects[0].parent"),
+])
+def test_scene_changes_of_vocabulary_2_must_carry_valid_states(states, field):
+    e = insert(0, obj("a"))
+    if states is None:
+        del e["payload"]["objects"]
+    else:
+        e["payload"]["objects"] = states
+    with pytest.raises(EventError) as info:
+        validate_batch([e], 2)
+    assert info.value.field == field
+    ok = insert(0, obj("a"))
+    assert validate_batch([ok], 2)[0]["payload"]["objects"][0]["id"] == "a"
+    with pytest.raises(EventError, match="unknown field"):  # version 1 pages never sent states
+        validate_batch([ok], 1)
+
+
+def test_the_event_schema_describes_object_states():
+    schema = json_schema()
+    assert schema["x-vocabulary-version"] == 2
+    insert_branch = next(b for b in schema["allOf"] if b["if"]["properties"]["type"]["const"] == "insert")
+    payload = insert_branch["then"]["properties"]["payload"]
+    assert "objects" in payload["required"] and "removed" in json.dumps(payload["properties"]["objects"])
+    old = next(b for b in json_schema(1)["allOf"] if b["if"]["properties"]["type"]["const"] == "insert")
+    assert "objects" not in old["then"]["properties"]["payload"]["properties"]
+
+
+def test_batches_say_their_vocabulary_and_old_pages_still_store(client, app):
+    b = to_trials(client)
+    h = auth(b)
+    old = {"seq": 0, "t": 1.7e12, "type": "insert", "trial": -1,
+           "payload": {"object": "a", "model": "m", "category": "C", "rank": 1, "source": "fixed"}}
+    assert client.post("/api/events", headers=h, json={"page_id": "p", "events": [old]}).status_code == 200
+    r = client.post("/api/events", headers=h, json={"page_id": "p", "vocabulary": 2,
+                                                    "events": [{**old, "seq": 1}]})
+    assert r.status_code == 422 and r.json["field"] == "events[0].payload.objects"
+    r = client.post("/api/events", headers=h, json={"page_id": "p", "vocabulary": 3, "events": []})
+    assert r.status_code == 422 and r.json["field"] == "vocabulary"
+    new = {**insert(1, obj("a")), "trial": -1}
+    assert client.post("/api/events", headers=h, json={"page_id": "p", "vocabulary": 2,
+                                                     "events": [new]}).status_code == 200
+    with app.app_context():
+        assert [(e.seq, e.vocabulary) for e in db.session.query(Event).order_by(Event.seq)] == [(0, 1), (1, 2)]
+
+
+# --- the server's check at "done" -------------------------------------------------------------------------------
+def _finish(client, b, events, scene):
+    r = client.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2, "events": events})
+    assert r.status_code == 200, r.json
+    assert client.post("/api/trial/done", headers=auth(b), json={"trial": b["trial"]["index"],
+                                                                   "scene": {"objects": scene}}).status_code == 200
+
+
+def test_done_replays_the_trial_and_scores_it_against_its_target(client, app):
+    b = to_trials(client)  # the practice: a dining table with a plate, an apple and a bowl on it
+    rt = app.extensions["studies"]["demo"]
+    start = rt.scene(b["trial"]["scene"], "start")["objects"]
+    target = [o for o in rt.scene(b["trial"]["scene"], "target")["objects"] if o["parent"] is not None]
+    events = [{**insert(i, o), "trial": -1} for i, o in enumerate(target)]
+    _finish(client, b, events, start + target)
+    with app.app_context():
+        t = db.session.query(Trial).filter_by(index=-1).one()
+        assert t.replay == "match" and t.score == pytest.approx(1.0)
+    page = client.get("/study/demo/")
+    b2 = json.loads(page.data.split(b'id="boot">')[1].split(b"</script>")[0])
+    nudged = [{**target[0], "transform": target[0]["transform"][:12] + [9.0, 0.0, 9.0, 1.0]}]
+    _finish(client, b2, [{**insert(100, nudged[0]), "trial": b2["trial"]["index"]}],
+            rt.scene(b2["trial"]["scene"], "start")["objects"] + [target[0]])  # not what its events built
+    with app.app_context():
+        t = db.session.query(Trial).filter_by(index=b2["trial"]["index"]).one()
+        assert t.replay.startswith("mismatch: ") and "transform differs" in t.replay
+        assert t.score == 0.0 and "close to the target < 0.3" in t.review  # a table top's plate is no sofa's
+
+
+def test_a_check_waits_for_late_events_and_a_low_score_stays_flagged_after_completion(client, app):
+    """'done' can arrive before the page's last events (their request failed, 'done' did not): the check waits
+    for them (``pending``) and is made when they are stored; the flag of a low score outlives the work check
+    at completion."""
+    b = to_trials(client)
+    rt = app.extensions["studies"]["demo"]
+    _finish(client, b, [], rt.scene(b["trial"]["scene"], "start")["objects"])  # the practice, left empty
+    t = boot(client.get("/study/demo/"))["trial"]
+    target = [o for o in rt.scene(t["scene"], "target")["objects"] if o["parent"] is not None]
+    far = {**target[0], "transform": target[0]["transform"][:12] + [9.0, 0.0, 9.0, 1.0]}
+    scene = rt.scene(t["scene"], "start")["objects"] + [far]
+    r = client.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2,
+                                                        "events": [{**insert(0, far), "trial": t["index"]}]})
+    assert r.status_code == 200
+    r = client.post("/api/trial/done", headers=auth(b), json={"trial": t["index"], "scene": {"objects": scene},
+                                                               "last_seq": 1})
+    assert r.status_code == 200
+    with app.app_context():
+        done = db.session.query(Trial).filter_by(index=t["index"]).one()
+        assert done.replay == "pending: events up to seq 1 not stored yet" and done.score == 0.0
+        assert done.replay_waits_for == 1
+    late = {**event(1, "camera", action="orbit"), "trial": t["index"]}
+    assert client.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2,
+                                                            "events": [late]}).status_code == 200
+    finish_all_trials(client, boot(client.get("/study/demo/")), first_seq=2)  # the next 'done' makes the check
+    with app.app_context():
+        settled = db.session.query(Trial).filter_by(index=t["index"]).one()
+        assert settled.replay == "match" and settled.replay_waits_for is None
+    page = client.get("/study/demo/")
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "25", "attempt": "0"})
+    assert r.status_code == 302
+    with app.app_context():
+        assert db.session.query(Participant).one().status == "completed"
+        done = db.session.query(Trial).filter_by(index=t["index"]).one()
+        assert done.replay == "match"
+        assert done.review == "1 s of events < 10 s, scene 0.00 close to the target < 0.3"
+
+
+def test_the_export_gives_the_closeness_found_at_done_and_scores_older_trials_itself(client, app, monkeypatch):
+    """What the database holds and what an export gives cannot drift apart when the scoring code changes: the whole
+    closeness result is stored at "done" and exported as stored; a trial done before it was stored (no result) is
+    scored by the export."""
+    from study_server import export, trial_check
+
+    b = to_trials(client)
+    rt = app.extensions["studies"]["demo"]
+    start = rt.scene(b["trial"]["scene"], "start")["objects"]
+    target = [o for o in rt.scene(b["trial"]["scene"], "target")["objects"] if o["parent"] is not None]
+    _finish(client, b, [{**insert(i, o), "trial": -1} for i, o in enumerate(target)], start + target)
+    with app.app_context():
+        t = db.session.query(Trial).filter_by(index=-1).one()
+        assert t.closeness["score"] == t.score == pytest.approx(1.0)
+        assert t.closeness["matched"] == len(target) and len(t.closeness["matches"]) == len(target)
+        monkeypatch.setattr(trial_check, "closeness", lambda *_: pytest.fail("the export rescored a stored trial"))
+        row = next(r for r in export._table(rt, "trials", {}) if r["trial"] == -1)
+        assert (row["score"], row["matched"], row["missing"]) == (pytest.approx(1.0), len(target), 0)
+        t.closeness = None  # as a trial done before the result was stored
+        monkeypatch.undo()
+        row = next(r for r in export._table(rt, "trials", {}) if r["trial"] == -1)
+        assert row["score"] == pytest.approx(1.0) and row["position_error_m"] == pytest.approx(0.0, abs=1e-9)
+        t.closeness = {"unavailable": "the check failed"}
+        row = next(r for r in export._table(rt, "trials", {}) if r["trial"] == -1)
+        assert row["score"] == row["matched"] == row["orientation_error_deg"] == ""
+
+
+def test_a_check_that_fails_never_holds_the_participant_up(client, app, monkeypatch):
+    from study_server import trial_check
+
+    def broken(*_):
+        raise RuntimeError("a mesh that cannot be read")
+
+    monkeypatch.setattr(trial_check, "target_closeness", broken)
+    b = to_trials(client)
+    start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")["objects"]
+    _finish(client, b, [], start)
+    assert boot(client.get("/study/demo/"))["trial"]["index"] == 0  # on to the first trial
+    with app.app_context():
+        practice = db.session.query(Trial).filter_by(index=-1).one()
+        assert practice.replay == "match" and practice.score is None  # the replay check stands; no score
+        assert practice.closeness == {"unavailable": "the check failed"}
+
+
+def test_a_check_waiting_for_events_that_never_come_is_made_at_completion(client, app, monkeypatch):
+    """A page that says it logged more than it ever sends (or loses its last events for good) cannot keep its
+    trial's check pending: at completion the check is made on what is stored, and says so; a check that fails
+    there does not stop the participant completing."""
+    from study_server import trial_check
+
+    b = to_trials(client)
+    rt = app.extensions["studies"]["demo"]
+    start = rt.scene(b["trial"]["scene"], "start")["objects"]
+    r = client.post("/api/trial/done", headers=auth(b), json={"trial": -1, "scene": {"objects": start},
+                                                               "last_seq": 2**31 - 1})
+    assert r.status_code == 200
+    finish_all_trials(client, boot(client.get("/study/demo/")), first_seq=0)
+    with app.app_context():
+        assert db.session.query(Trial).filter_by(index=-1).one().replay.startswith("pending: ")
+    calls = []
+    real = trial_check.replay_check
+
+    def fails_once(*args):
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("a scene file gone")
+        return real(*args)
+
+    monkeypatch.setattr(trial_check, "replay_check", fails_once)
+    page = client.get("/study/demo/")
+    r = client.post("/study/demo/exit", data={"csrf_token": csrf(page), **EXIT, "last_seq": "26", "attempt": "0"})
+    assert r.status_code == 302
+    with app.app_context():
+        assert db.session.query(Participant).one().status == "completed"
+        practice = db.session.query(Trial).filter_by(index=-1).one()
+        assert practice.replay == "unavailable: the check failed (events after seq 26 never arrived)"
+
+
+# --- how close to the target ----------------------------------------------------------------------------------
+def _parent(category):
+    return {"Chair": "Seat", "Stool": "Seat", "Seat": None}.get(category)
+
+
+def test_a_rebuilt_scene_scores_1_and_each_shortfall_costs():
+    target = [ROOM, obj("a", 1.0, 0.0), obj("b", -1.0, 0.0, model="m-table", category="Table")]
+    periods = {"m-chair": 360.0, "m-table": 180.0}.get
+
+    def score(scene):
+        return closeness([ROOM, *scene], target, ["room"], _parent, periods)
+
+    assert score([obj("x", 1.0, 0.0), obj("y", -1.0, 0.0, model="m-table", category="Table")]).score == 1.0
+    assert score([obj("x", 1.0, 0.0)]).score == pytest.approx(0.5)  # the table is missing
+    three = score([obj("x", 1.0), obj("y", -1.0, model="m-table", category="Table"), obj("z", 5.0)])
+    assert three.score == pytest.approx(2 / 3) and three.extra == ("z",)
+    half_way = score([obj("x", 1.0 + 0.275), obj("y", -1.0, model="m-table", category="Table")])
+    assert half_way.score == pytest.approx((0.5 + 1.0) / 2) and half_way.position_error_m == pytest.approx(0.1375)
+    turned = score([obj("x", 1.0, turn_deg=50.0), obj("y", -1.0, model="m-table", category="Table",
+                                                         turn_deg=180.0)])
+    assert turned.score == pytest.approx((0.5 + 1.0) / 2)  # 50° costs half; a table turned by its period nothing
+    stool = score([obj("x", 1.0, category="Stool", model="m-stool"), obj("y", -1.0, model="m-table",
+                                                                          category="Table")])
+    assert stool.score == pytest.approx((BACKOFF_CREDIT + 1.0) / 2)
+    # the assignment prefers the right category to the nearer object
+    swapped = score([obj("x", -1.0, 0.0), obj("y", 1.0, 0.0, model="m-table", category="Table")])
+    assert {(m.target, m.placed) for m in swapped.matches} == {("a", "x"), ("b", "y")} and swapped.score == 0.0
+    assert category_credit("Sofa", "Chair", _parent) == 0.0 and category_credit("Seat", "Chair", _parent) == 0.5
+
+
+def test_an_event_gives_each_object_one_state():
+    a = obj("a")
+    with pytest.raises(EventError) as info:
+        validate_batch([insert(0, a) | {"payload": insert(0, a)["payload"] | {"objects": [a, {**a, "model_id": "x"}]}}])
+    assert info.value.field == "events[0].payload.objects[1].id"
