@@ -120,24 +120,7 @@ def measures_by_trial(events: pd.DataFrame, key: np.ndarray, n: int) -> pd.DataF
     active = np.where(np.isfinite(total), total - hidden_ms / 1000.0, np.nan)
 
     def interval(start_kind: str, end_kind: str) -> np.ndarray:
-        rows = np.flatnonzero((kinds == start_kind) | (kinds == end_kind))
-        objects = [_object_key(o) for o in _payload_field(payloads[rows], "object")]
-        sub = pd.DataFrame({"key": key[rows], "obj": pd.Series(objects, dtype=object), "t": t[rows],
-                            "is_end": kinds[rows] == end_kind})
-        by_object = sub.groupby(["key", "obj"], sort=False, dropna=False)
-        opened = ~by_object["is_end"].shift(1, fill_value=True).to_numpy(bool)  # the previous one was a start
-        before = by_object["t"].shift(1).to_numpy(float)
-        pairs = sub["is_end"].to_numpy(bool) & opened
-        return _sequential_sums(key[rows][pairs], t[rows][pairs] - before[pairs], n) / 1000.0
-
-    moves = np.flatnonzero(kinds == "move_end")
-    distance = np.zeros(n)
-    if len(moves):
-        lists: dict[int, list] = {}
-        for k, d in zip(key[moves], _payload_field(payloads[moves], "distance", 0.0), strict=True):
-            lists.setdefault(int(k), []).append(d)
-        for k, values in lists.items():
-            distance[k] = float(np.sum(values))
+        return _interval_seconds(kinds, t, payloads, key, n, start_kind, end_kind)
 
     n_text = _text_query_counts(kinds, payloads, key, n)
     n_context = count(kinds == "context_query")
@@ -145,10 +128,38 @@ def measures_by_trial(events: pd.DataFrame, key: np.ndarray, n: int) -> pd.DataF
         "total_time": total, "active_time": active,
         "rotation_time": interval("rotate_start", "rotate_end"),
         "translation_time": interval("move_start", "move_end"),
-        "translation_distance": distance, "n_text_queries": n_text, "n_context_queries": n_context,
+        "translation_distance": _distance(kinds, payloads, key, n), "n_text_queries": n_text,
+        "n_context_queries": n_context,
         "n_queries": n_text + n_context, "objects_inserted": count(kinds == "insert"),
         "n_picks": count((kinds == "insert") | (kinds == "replace")),
     }, columns=list(TRIAL_MEASURES))
+
+
+def _interval_seconds(kinds, t, payloads, key, n, start_kind: str, end_kind: str) -> np.ndarray:
+    """Seconds per trial between each object's latest ``start_kind`` and its ``end_kind`` (an end without a start
+    counts nothing)."""
+    rows = np.flatnonzero((kinds == start_kind) | (kinds == end_kind))
+    objects = [_object_key(o) for o in _payload_field(payloads[rows], "object")]
+    sub = pd.DataFrame({"key": key[rows], "obj": pd.Series(objects, dtype=object), "t": t[rows],
+                        "is_end": kinds[rows] == end_kind})
+    by_object = sub.groupby(["key", "obj"], sort=False, dropna=False)
+    opened = ~by_object["is_end"].shift(1, fill_value=True).to_numpy(bool)  # the previous one was a start
+    before = by_object["t"].shift(1).to_numpy(float)
+    pairs = sub["is_end"].to_numpy(bool) & opened
+    return _sequential_sums(key[rows][pairs], t[rows][pairs] - before[pairs], n) / 1000.0
+
+
+def _distance(kinds, payloads, key, n) -> np.ndarray:
+    """Metres moved per trial: the sum of the ``move_end`` distances, in event order."""
+    distance = np.zeros(n)
+    moves = np.flatnonzero(kinds == "move_end")
+    if len(moves):
+        lists: dict[int, list] = {}
+        for k, d in zip(key[moves], _payload_field(payloads[moves], "distance", 0.0), strict=True):
+            lists.setdefault(int(k), []).append(d)
+        for k, values in lists.items():
+            distance[k] = float(np.sum(values))
+    return distance
 
 
 def _text_query_counts(kinds, payloads, key, n) -> np.ndarray:

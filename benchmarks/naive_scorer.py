@@ -5,7 +5,7 @@ each relative-position density is a ``scipy.stats.gaussian_kde`` (bandwidths fix
 engine's peak normalisation), and the learned orientation score is summed bin by bin from the raw histograms.
 It computes exactly what :meth:`scenesuggest.suggestion.suggest.Engine.score` and the engine's learned heading scores
 compute — a test holds the two equal — only without any vectorisation. Used by ``bench_suggest.py`` (speed-up)
-and ``tests/test_naive_scorer.py`` (equality).
+and ``tests/engine/suggestion/test_naive_scorer.py`` (equality).
 """
 
 from __future__ import annotations
