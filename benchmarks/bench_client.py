@@ -51,11 +51,90 @@ def scene_with(models: list[dict], n: int) -> dict:
             "objects": objects}
 
 
-def main() -> int:
+TRANSFERRED = """() => {
+  const nav = performance.getEntriesByType('navigation')[0];
+  // what a participant's page loads (the test hook is loaded for the measurement only)
+  const res = performance.getEntriesByType('resource').filter(r => !r.name.endsWith('/test-hook.js'));
+  const sum = (k) => res.reduce((s, r) => s + (r[k] || 0), 0);
+  return {page: (nav.transferSize || nav.encodedBodySize), transfer: sum('transferSize'),
+          body: sum('encodedBodySize'),
+          models: res.filter(r => r.name.endsWith('.glb')).reduce((s, r) => s + r.encodedBodySize, 0),
+          js: res.filter(r => r.name.endsWith('.js')).reduce((s, r) => s + r.encodedBodySize, 0),
+          count: res.length};
+}"""
+
+
+def parse_args() -> argparse.Namespace:
+    """The command line: objects in the room and the length of each orbit (s)."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--objects", type=int, default=60)
     parser.add_argument("--seconds", type=float, default=5.0)
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def walk_to_trial(base: str, objects: int) -> tuple[HttpTransport, str, str]:
+    """The participant's walk to the first trial over HTTP: its transport, the page's scene key, the scene as JSON."""
+    http = HttpTransport(base)
+    boot = to_first_trial(http, "bench-client").boot
+    models = http.get("/api/models", headers={"Authorization": f"Bearer {boot['token']}"}).json()["models"]
+    key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
+    return http, key, json.dumps(scene_with(models, objects))
+
+
+def open_trial(browser, http: HttpTransport, base: str, key: str, scene: str):
+    """The trial page at 800×600 with the participant's cookies, resumed from ``scene``, its hook ready (≤ 20 s)."""
+    fresh = browser.new_context(viewport={"width": 800, "height": 600})
+    fresh.add_cookies(http.cookies())
+    # the scene the page resumes from, and the test hook (loaded only when asked for)
+    fresh.add_init_script(f"localStorage.setItem({json.dumps(key)}, {json.dumps(scene)}); "
+                          "window.sceneSuggestTestHook = true")
+    page = fresh.new_page()
+    page.goto(f"{base}/study/demo/")
+    for _ in range(400):
+        if page.evaluate("() => !!(window.sceneSuggestTest && window.sceneSuggestTest.ready)"):
+            break
+        time.sleep(0.05)
+    return page
+
+
+def measure(page, seconds: float) -> dict:
+    """The page's first frame (ms), objects, orbits of ``seconds`` s sharp and adaptive, draws and bytes loaded."""
+    page.evaluate("() => window.sceneSuggestTest.loaded()")
+    first_frame = page.evaluate("() => window.sceneSuggestTest.firstFrameAt()")
+    count = len(page.evaluate("() => window.sceneSuggestTest.objects()")) - 1
+    time.sleep(0.5)
+    sharp = page.evaluate(f"() => window.sceneSuggestTest.orbit({seconds * 1000}, {{adaptive: false}})")
+    time.sleep(0.5)
+    orbit = page.evaluate(f"() => window.sceneSuggestTest.orbit({seconds * 1000})")
+    drawn = page.evaluate("() => window.sceneSuggestTest.renderInfo()")
+    return {"first_frame": first_frame, "count": count, "sharp": sharp, "orbit": orbit, "drawn": drawn,
+            "transferred": page.evaluate(TRANSFERRED)}
+
+
+def report(measured: dict) -> dict:
+    """The printed result: frame rates (fps), first frame (ms), sizes (MB) and requests."""
+    orbit, sharp, drawn, transferred = (measured[k] for k in ("orbit", "sharp", "drawn", "transferred"))
+    total = transferred["page"] + max(transferred["transfer"], transferred["body"])
+    return {
+        "benchmark": "client",
+        "viewport": "800x600",
+        "objects": measured["count"],
+        "fps": round(orbit["fps"], 1),
+        "motion_scale": orbit["scale"],
+        "fps_sharp": round(sharp["fps"], 1),
+        "draw_calls": drawn["calls"],
+        "triangles": drawn["triangles"],
+        "first_frame_ms": round(measured["first_frame"], 1),
+        "page_mb": round(total / 2**20, 3),
+        "js_mb": round(transferred["js"] / 2**20, 3),
+        "models_mb": round(transferred["models"] / 2**20, 3),
+        "requests": transferred["count"] + 1,
+        "renderer": "SwiftShader (software WebGL)",
+    }
+
+
+def main() -> int:
+    args = parse_args()
     checkout.require(ROOT)
     chromium = shutil.which("chromium") or "/usr/bin/chromium"
     if not Path(chromium).exists() or demo_missing():
@@ -65,63 +144,13 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory() as tmp, \
             StudyServer(Path(tmp) / "instance", f"sqlite:///{tmp}/db.sqlite3") as server:
-        base = server.base
         # the participant walks to the first trial over HTTP; the browser then carries on with its cookies
-        http = HttpTransport(base)
-        boot = to_first_trial(http, "bench-client").boot
-        models = http.get("/api/models", headers={"Authorization": f"Bearer {boot['token']}"}).json()["models"]
-        key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
-        scene = json.dumps(scene_with(models, args.objects))
+        http, key, scene = walk_to_trial(server.base, args.objects)
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=chromium, args=ARGS)
-            fresh = browser.new_context(viewport={"width": 800, "height": 600})
-            fresh.add_cookies(http.cookies())
-            # the scene the page resumes from, and the test hook (loaded only when asked for)
-            fresh.add_init_script(f"localStorage.setItem({json.dumps(key)}, {json.dumps(scene)}); "
-                                  "window.sceneSuggestTestHook = true")
-            measure = fresh.new_page()
-            measure.goto(f"{base}/study/demo/")
-            for _ in range(400):
-                if measure.evaluate("() => !!(window.sceneSuggestTest && window.sceneSuggestTest.ready)"):
-                    break
-                time.sleep(0.05)
-            measure.evaluate("() => window.sceneSuggestTest.loaded()")
-            first_frame = measure.evaluate("() => window.sceneSuggestTest.firstFrameAt()")
-            count = len(measure.evaluate("() => window.sceneSuggestTest.objects()")) - 1
-            time.sleep(0.5)
-            sharp = measure.evaluate(f"() => window.sceneSuggestTest.orbit({args.seconds * 1000}, {{adaptive: false}})")
-            time.sleep(0.5)
-            orbit = measure.evaluate(f"() => window.sceneSuggestTest.orbit({args.seconds * 1000})")
-            drawn = measure.evaluate("() => window.sceneSuggestTest.renderInfo()")
-            transferred = measure.evaluate("""() => {
-              const nav = performance.getEntriesByType('navigation')[0];
-              // what a participant's page loads (the test hook is loaded for the measurement only)
-              const res = performance.getEntriesByType('resource').filter(r => !r.name.endsWith('/test-hook.js'));
-              const sum = (k) => res.reduce((s, r) => s + (r[k] || 0), 0);
-              return {page: (nav.transferSize || nav.encodedBodySize), transfer: sum('transferSize'),
-                      body: sum('encodedBodySize'),
-                      models: res.filter(r => r.name.endsWith('.glb')).reduce((s, r) => s + r.encodedBodySize, 0),
-                      js: res.filter(r => r.name.endsWith('.js')).reduce((s, r) => s + r.encodedBodySize, 0),
-                      count: res.length};
-            }""")
+            measured = measure(open_trial(browser, http, server.base, key, scene), args.seconds)
             browser.close()
-    total = transferred["page"] + max(transferred["transfer"], transferred["body"])
-    print(json.dumps({
-        "benchmark": "client",
-        "viewport": "800x600",
-        "objects": count,
-        "fps": round(orbit["fps"], 1),
-        "motion_scale": orbit["scale"],
-        "fps_sharp": round(sharp["fps"], 1),
-        "draw_calls": drawn["calls"],
-        "triangles": drawn["triangles"],
-        "first_frame_ms": round(first_frame, 1),
-        "page_mb": round(total / 2**20, 3),
-        "js_mb": round(transferred["js"] / 2**20, 3),
-        "models_mb": round(transferred["models"] / 2**20, 3),
-        "requests": transferred["count"] + 1,
-        "renderer": "SwiftShader (software WebGL)",
-    }, indent=1))
+    print(json.dumps(report(measured), indent=1))
     return 0
 
 

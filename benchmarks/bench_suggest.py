@@ -50,7 +50,8 @@ def percentiles(values) -> dict:
             "p99_ms": round(float(np.percentile(a, 99)), 3), "max_ms": round(float(a.max()), 3)}
 
 
-def main() -> int:
+def parse_args() -> argparse.Namespace:
+    """The command line: shared data folder, query counts, seed, engines to time, and whether to time http."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data", default=os.environ.get("SCENESUGGEST_SHARED_DATA", ROOT.parent / "shared" / "data"))
     parser.add_argument("--queries", type=int, default=600)
@@ -59,17 +60,13 @@ def main() -> int:
     parser.add_argument("--engine", action="append", dest="engines",
                         help="an engine to time besides the paper's (default: frequency and learned)")
     parser.add_argument("--no-http", action="store_true", help="leave out the http engine's overhead")
-    args = parser.parse_args()
-    stanford_dir = Path(args.data) / "stanford_scene_db"
-    if not stanford_dir.is_dir():
-        print(json.dumps({"benchmark": "suggest", "error": f"no Stanford corpus at {stanford_dir}"}))
-        return 1
+    return parser.parse_args()
 
-    from scenesuggest.corpora import load_corpus
+
+def fit_priors(corpus) -> tuple:
+    """The paper's priors fitted on the corpus, saved and loaded again: (priors, train s, load s, file MB)."""
     from scenesuggest.learning.priors import Priors
-    from scenesuggest.suggestion.suggest import ContextQuery, Engine
 
-    corpus = load_corpus(f"stanford:{stanford_dir}")
     t = time.perf_counter()
     priors = Priors.fit(corpus.scenes, corpus.taxonomy)
     train_s = time.perf_counter() - t
@@ -79,15 +76,22 @@ def main() -> int:
         t = time.perf_counter()
         priors = Priors.load(path)
         load_s = time.perf_counter() - t
-    engine = Engine(priors)
+    return priors, train_s, load_s, priors_mb
 
-    rng = np.random.default_rng(args.seed)
+
+def held_out_queries(corpus, count: int, seed: int) -> list:
+    """Up to ``count`` held-out support edges of scenes with 10–60 objects, asked at the removed object's contact."""
+    from scenesuggest.suggestion.suggest import ContextQuery
+
+    rng = np.random.default_rng(seed)
     edges = [(s, o) for s in corpus.scenes if 10 <= len(s) <= 60 for o in s if o.parent is not None]
-    picks = rng.choice(len(edges), size=min(args.queries, len(edges)), replace=False)
-    queries = [ContextQuery(edges[i][0].without(edges[i][1].id), edges[i][1].parent, edges[i][1].contact_point,
-                            edges[i][1].contact_normal) for i in picks]
-    from naive_scorer import NaiveScorer
+    picks = rng.choice(len(edges), size=min(count, len(edges)), replace=False)
+    return [ContextQuery(edges[i][0].without(edges[i][1].id), edges[i][1].parent, edges[i][1].contact_point,
+                         edges[i][1].contact_normal) for i in picks]
 
+
+def time_paper(engine, queries) -> tuple[list, list]:
+    """The paper engine's ms per query: the TOP placed for every query, and every category placed for the first 100."""
     engine.suggest(queries[0], "full", top=TOP)  # import-time and first-touch costs are not query costs
     latencies, all_placed = [], []
     for q in queries:
@@ -98,9 +102,11 @@ def main() -> int:
         t = time.perf_counter()
         engine.suggest(q, "full")
         all_placed.append((time.perf_counter() - t) * 1000)
+    return latencies, all_placed
 
-    naive = NaiveScorer(engine)
-    compared = queries[: args.naive]
+
+def versus_naive(naive, engine, compared) -> tuple[list, list]:
+    """The naive scorer's and the engine's ms for each compared query, the naive KDEs built beforehand."""
     for q in compared:  # build the naive KDEs first: only evaluation is compared
         naive.scores(q)
     naive_ms, fast_ms = [], []
@@ -111,6 +117,27 @@ def main() -> int:
         t = time.perf_counter()
         engine.suggest(q, "full", top=TOP)
         fast_ms.append((time.perf_counter() - t) * 1000)
+    return naive_ms, fast_ms
+
+
+def main() -> int:
+    args = parse_args()
+    stanford_dir = Path(args.data) / "stanford_scene_db"
+    if not stanford_dir.is_dir():
+        print(json.dumps({"benchmark": "suggest", "error": f"no Stanford corpus at {stanford_dir}"}))
+        return 1
+
+    from scenesuggest.corpora import load_corpus
+    from scenesuggest.suggestion.suggest import Engine
+
+    corpus = load_corpus(f"stanford:{stanford_dir}")
+    priors, train_s, load_s, priors_mb = fit_priors(corpus)
+    engine = Engine(priors)
+    queries = held_out_queries(corpus, args.queries, args.seed)
+    from naive_scorer import NaiveScorer
+
+    latencies, all_placed = time_paper(engine, queries)
+    naive_ms, fast_ms = versus_naive(NaiveScorer(engine), engine, queries[: args.naive])
 
     others = {}
     for name in args.engines or ["frequency", "learned"]:
