@@ -30,9 +30,7 @@ from scenesuggest.suggestion.suggest import Engine
 
 HELPER = Path(__file__).resolve().parent / "js" / "geometry_cases.mjs"
 #: Largest difference allowed between the two sides' numbers (metres, radians, matrix entries). Both compute in
-#: IEEE doubles by different routes (quaternions on one side, 3×3 matrices on the other): they differ by ~1e-15,
-#: except near a face turned onto its opposite, where the engine's shortest arc loses precision (1.5e-10 for the
-#: bottom under a ceiling 1e-3 off; 5e-9 at 3e-4 off, one of KNOWN_DIFFERENCES).
+#: IEEE doubles by different routes (quaternions on one side, 3×3 matrices on the other): they differ by ~1e-15.
 TOL = 1e-9
 
 NORMALS = {
@@ -189,28 +187,27 @@ PYTHON = {
 }
 ANGLES = {"heading", "zeroHeading"}
 
+#: A face turned onto almost its opposite: within ``poses.OPPOSITE`` (1 + cos) both sides turn it half round a fixed
+#: axis, beyond it along the shortest arc, both from a unit quaternion. id → (JS function, arguments).
+NEAR_OPPOSITE = {
+    "attachRotation bottom on a ceiling 1e-4 off towards +Z (1 + cos 5e-9)": (
+        "attachRotation", {"face": "bottom", "normal": (0.0, -1.0, 1e-4)}),
+    "attachRotation top on a floor 1e-4 off towards +Z": (
+        "attachRotation", {"face": "top", "normal": (0.0, 1.0, 1e-4)}),
+    "attachRotation bottom on a ceiling 1e-4 off towards +X": (
+        "attachRotation", {"face": "bottom", "normal": (1e-4, -1.0, 0.0)}),
+    "attachRotation bottom on a ceiling 2e-4 off towards +X (1 + cos 2e-8)": (
+        "attachRotation", {"face": "bottom", "normal": (2e-4, -1.0, 0.0)}),
+    "attachRotation left on a wall leaning 2e-5 (upright)": (
+        "attachRotation", {"face": "left", "normal": (1.0, -2e-5, 0.0)}),
+    "attachRotation bottom on a ceiling 3e-4 off": ("attachRotation", {"face": "bottom", "normal": (3e-4, -1.0, 0.0)}),
+    "placement bottom on a ceiling 1e-4 off, turned": (
+        "placement", {"point": (0.3, 2.5, -0.2), "normal": (0.0, -1.0, 1e-4), "face": "bottom",
+                      "size": (0.4, 0.6, 0.3), "alpha": 0.7}),
+}
+
 #: Cases where the two sides disagree today: id → (JS function, arguments, what differs).
 KNOWN_DIFFERENCES = {
-    "attachRotation bottom on a ceiling 1e-4 off towards +Z": (
-        "attachRotation", {"face": "bottom", "normal": (0.0, -1.0, 1e-4)},
-        "1 + a·b is 5e-9: geometry.js's own antiparallel test (1e-9) lets it through to three.js's "
-        "setFromUnitVectors, whose test (1e-8) answers an exact half turn about Z; the engine takes the shortest "
-        "arc, a half turn about X less 1e-4 rad: the two are a half turn about Y apart (heading off by π)"),
-    "attachRotation top on a floor 1e-4 off towards +Z": (
-        "attachRotation", {"face": "top", "normal": (0.0, 1.0, 1e-4)},
-        "as the bottom on a ceiling: three.js's half turn about Z against the engine's shortest arc about X"),
-    "attachRotation bottom on a ceiling 1e-4 off towards +X": (
-        "attachRotation", {"face": "bottom", "normal": (1e-4, -1.0, 0.0)},
-        "three.js's exact half turn about Z ignores the 1e-4 rad lean that the engine's shortest arc follows"),
-    "attachRotation left on a wall leaning 2e-5": (
-        "attachRotation", {"face": "left", "normal": (1.0, -2e-5, 0.0)},
-        "the normal leans more than 1e-6 out of the horizontal, so neither side turns about +Y, but the face is "
-        "within 1e-9 of opposite: geometry.js turns a horizontal face half round +Y (upright), the engine "
-        "(frames.rotation_between) half round +Z (upside down)"),
-    "attachRotation bottom on a ceiling 3e-4 off": (
-        "attachRotation", {"face": "bottom", "normal": (3e-4, -1.0, 0.0)},
-        "the engine's shortest arc (frames.rotation_between: I + [v]× + [v]×²/(1 + c)) loses precision as c nears "
-        "−1: its matrix is 5e-9 from a rotation (three.js's quaternion stays within 1e-15)"),
     "heading of a reference vector along the normal": (
         "heading", {"matrix": column_major(np.eye(4)), "face": "front", "normal": (0.0, 1.0, 0.0)},
         "an object attached by its front yet standing upright on a floor: its reference vector (+Y) has no part in "
@@ -222,7 +219,7 @@ KNOWN_DIFFERENCES = {
 def js_results() -> dict:
     """id → what geometry.js answers, for every case (one Node.js process)."""
     node = require_node()
-    table = {**cases(), **{k: (fn, args) for k, (fn, args, _) in KNOWN_DIFFERENCES.items()}}
+    table = {**CASES, **{k: (fn, args) for k, (fn, args, _) in KNOWN_DIFFERENCES.items()}}
     done = subprocess.run([node, str(HELPER)], input=json.dumps(list(table.values())), capture_output=True,
                           text=True, cwd=ROOT, timeout=120)
     if done.returncode:
@@ -253,7 +250,7 @@ def check(case: str, fn: str, args: dict, js) -> None:
     assert not found, f"{case}: geometry.js ≠ engine at\n  " + "\n  ".join(found[:12])
 
 
-CASES = cases()
+CASES = {**cases(), **NEAR_OPPOSITE}
 
 
 @pytest.mark.parametrize("case", list(CASES))

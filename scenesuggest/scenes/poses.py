@@ -55,20 +55,37 @@ def axis_rotation(axis, angle: float) -> np.ndarray:
                      [t * x * z - s * y, t * y * z + s * x, t * z * z + c]])
 
 
+#: How close to opposite (1 + cos of the angle) a face and a surface may be before the face is turned half round a
+#: fixed axis rather than along the shortest arc, which is then undefined (the browser's geometry.js: the same).
+OPPOSITE = 1e-8
+
+
 def attach_rotation(face: str, normal) -> np.ndarray:
     """3×3 rotation taking face ``face``'s outward normal onto −``normal`` (α = 0).
 
-    Between two horizontal directions this is a turn about +Y, so that wall objects stay upright;
-    otherwise the shortest arc.
+    Between two horizontal directions this is a turn about +Y, so that wall objects stay upright; between opposite
+    directions a half turn about +X (a top or bottom face: the object turned over front to back) or +Y (a side
+    face: it stays upright); otherwise the shortest arc, computed as a unit quaternion (precise up to opposite,
+    as three.js computes it in the browser).
     """
     a = np.asarray(frames.FACE_NORMALS[face], dtype=float)
     b = -np.asarray(normal, dtype=float) / np.linalg.norm(normal)
     if abs(a[1]) < 1e-9 and abs(b[1]) < 1e-6:
         angle = math.atan2(a[2] * b[0] - a[0] * b[2], a[0] * b[0] + a[2] * b[2])
         return frames.rotation_y(angle)[:3, :3]
-    if np.dot(a, b) < -1 + 1e-9 and abs(a[1]) > 0.5:  # bottom onto a ceiling, top onto a floor: turn over X
-        return axis_rotation([1.0, 0.0, 0.0], math.pi)
-    return frames.rotation_between(a, b)
+    if np.dot(a, b) + 1 < OPPOSITE:
+        return axis_rotation([1.0, 0.0, 0.0] if abs(a[1]) > 0.5 else [0.0, 1.0, 0.0], math.pi)
+    return _shortest_arc(a, b)
+
+
+def _shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """3×3 rotation taking unit ``a`` onto unit ``b`` along the shortest arc, from the unit quaternion
+    (a × b, 1 + a·b): no division by 1 + a·b, so it stays a rotation to rounding as the two near opposite."""
+    q = np.array([*np.cross(a, b), 1.0 + float(np.dot(a, b))])
+    x, y, z, w = q / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 def plane_zero(normal) -> np.ndarray:

@@ -51,9 +51,13 @@ export function geometricFace(size, normal) {
   return sz <= sx || sz <= 0.5 * sy ? "back" : "right";
 }
 
+const OPPOSITE = 1e-8;
+
 function rotationBetween(a, b) {
+  // opposite within OPPOSITE (scenesuggest/scenes/poses.py, the same; three.js's own test is this one too): a half
+  // turn about +X for a top or bottom face, +Y for a side face (it stays upright)
   const dot = a.dot(b);
-  if (dot < -1 + 1e-9) {
+  if (dot + 1 < OPPOSITE) {
     const axis = Math.abs(a.y) > 0.5 ? new THREE.Vector3(1, 0, 0) : new THREE.Vector3(0, 1, 0);
     return new THREE.Quaternion().setFromAxisAngle(axis, Math.PI);
   }
