@@ -93,28 +93,58 @@ def _unescape(frame: pd.DataFrame) -> pd.DataFrame:
     """Text cells as stored: the export's spreadsheet-safety prefix removed (``scenesuggest.contract.cells``)."""
     for column in frame.columns:
         values = frame[column]
-        if values.dtype == object:
+        if values.dtype == object or pd.api.types.is_string_dtype(values):
             escaped = values.str.startswith("'", na=False)
             if escaped.any():
                 frame.loc[escaped, column] = values[escaped].map(unescape_cell)
     return frame
 
 
+#: pandas dtypes of the Table Schema types an export's ``datapackage.json`` gives its columns: text stays text ("01"
+#: is not 1, "NA" is a name), integers that may be missing read as floats (NaN), as everywhere in the analysis.
+_DTYPES = {"string": "str", "object": "str", "datetime": "str", "number": "float64"}
+#: What exports made before they carried ``datapackage.json`` are read with: the columns known to be text.
+_TEXT_BEFORE_PACKAGES = {"payload": "str", "answer": "str", "scene": "str", "condition": "str"}
+
+
+def _dtype(f: dict) -> str | None:
+    required = bool((f.get("constraints") or {}).get("required"))
+    if f.get("type") == "integer":
+        return "int64" if required else "float64"
+    if f.get("type") == "boolean":
+        return "bool" if required else "boolean"
+    return _DTYPES.get(f.get("type"))
+
+
+def _column_types(folder: Path) -> dict[str, dict[str, str]]:
+    """Table → column → pandas dtype, from the export's ``datapackage.json`` (its Table Schemas); for an export made
+    before it, the columns known to be text."""
+    path = folder / "datapackage.json"
+    if not path.exists():
+        return {name: dict(_TEXT_BEFORE_PACKAGES) for name in REQUIRED}
+    try:
+        package = json.loads(path.read_text())
+        return {r["name"]: {f["name"]: d for f in r["schema"]["fields"] if (d := _dtype(f)) is not None}
+                for r in package["resources"]}
+    except (ValueError, KeyError, TypeError) as e:
+        raise AnalysisError(f"is not a data package this reader knows ({type(e).__name__}: {e})", str(path)) from None
+
+
 def read_export(folder: str | Path) -> StudyData:
-    """Read the CSV tables and ``manifest.json`` of an export folder."""
+    """Read the CSV tables and ``manifest.json`` of an export folder, each column of the type the export's
+    ``datapackage.json`` gives it."""
     folder = Path(folder)
     if not folder.is_dir():
         raise AnalysisError("is not a folder (expected the output of `scenesuggest study export`)", str(folder))
-    tables = {}
+    tables, types = {}, _column_types(folder)
     for name in REQUIRED:
         path = folder / f"{name}.csv"
         if not path.exists():
             raise AnalysisError("is missing from the export", str(path))
         try:
-            frame = pd.read_csv(path, dtype={"payload": str, "answer": str, "scene": str, "condition": str},
-                                keep_default_na=False, na_values=[""])  # ids are text: "01" is not "1", "NA" a name
-        except pd.errors.ParserError as e:
-            raise AnalysisError(f"is not valid CSV ({e})", str(path)) from None
+            frame = pd.read_csv(path, dtype=types.get(name, {}), keep_default_na=False, na_values=[""])
+        except (pd.errors.ParserError, ValueError) as e:
+            raise AnalysisError(f"is not valid CSV of the types its datapackage.json gives ({e})", str(path)) from None
         tables[name] = _check_columns(name, _unescape(frame))
     manifest_path = folder / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}

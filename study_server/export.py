@@ -37,77 +37,17 @@ from scenesuggest.contract.picks import PICK_INPUTS, PICK_PAYLOADS, picks
 from scenesuggest.contract.scoring import FORMULA
 from scenesuggest.library.index import INDEX_FILE
 
+from .export_schema import DICTIONARY, data_package, dictionary_markdown
 from .extensions import db
 from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial, open_flags
 from .studies import StudyRuntime
 from .study_file import Study
 from .trial_check import target_closeness
 
-DICTIONARY: dict[str, dict[str, str]] = {
-    "participants": {
-        "participant": "participant number (database id)", "study": "study id",
-        "study_hash": "sha256 of the study file",
-        "platform": "prolific | mturk | link", "platform_id": "the platform's worker id",
-        "row": "schedule row (Williams row × period) assigned on arrival", "status":
-        "in_progress | completed | no_consent | screened_out | returned | excluded | technical",
-        "step": "last step reached", "consent_version": "consent text version agreed to",
-        "excluded_reason": "why an experimenter excluded the participant", "created_at": "arrival (UTC)",
-        "last_seen_at": "last request (UTC)", "finished_at": "completion or early end (UTC)",
-        "acked_seq": "highest contiguous event seq stored",
-        "flags": "why the experimenter should review this participant (reasons separated by ' | '; empty: none; "
-                 "flags the experimenter cleared are not listed)",
-        "viewport_width": "browser window width at the device check (px)",
-        "viewport_height": "height (px)", "user_agent": "browser user agent"},
-    "trials": {
-        "participant": "participant number", "position": "order in the session (0 = first)",
-        "trial": "trial index (−1 = practice)", "kind": "practice | trial", "condition": "none | basic | full",
-        "scene": "target scene id", "period": "period of the schedule row", "block": "block within the session",
-        "started_at": "trial page first shown (UTC)", "done_at": "done acknowledged (UTC)",
-        "final_objects": "objects in the final scene",
-        "review": "why the trial should be reviewed: its events do not show the study's minimum work, or its scene "
-                  "came less close to the target than [limits] min_target_score (empty: neither)",
-        "replay": "whether the trial's events rebuild the final scene it submitted: match, mismatch: what differs, "
-                  "pending: (events the page logged before 'done' not stored yet; made at the next 'done' or at "
-                  "completion, then with '(events after seq N never arrived)' if some never did), or "
-                  "unavailable: why (events of vocabulary 1 carry no object states, or the check failed)",
-        "score": f"how close the final scene came to the target, 0..1, as the server found it when the trial was "
-                 f"done (this and the next five columns are stored then and exported as stored): {FORMULA}",
-        "matched": "target objects matched by an object of the final scene",
-        "missing": "target objects nothing matched", "extra": "objects of the final scene that match nothing",
-        "position_error_m": "mean distance of the matched objects from their targets (metres)",
-        "orientation_error_deg": "mean angle of the matched objects from their targets' orientations, folded by "
-                                 "each model's rotational symmetry (degrees)"},
-    "events": {
-        "participant": "participant number", "seq": "per-participant event number from 0", "page_id":
-        "page load that sent it", "type": "event type (see the event vocabulary in manifest.json)",
-        "trial": "trial index or empty", "client_t_ms": "client clock, ms since the epoch",
-        "server_t": "server receive time (UTC)", "payload": "event payload as JSON",
-        "vocabulary": "version of the event vocabulary the page spoke (2: scene changes carry the resulting object "
-                      "states; see event_schema.json, and event_schema_v1.json when the data holds version 1)"},
-    "suggestions": {
-        "participant": "participant number", "list_id": "id of the list", "trial": "trial index",
-        "source": "context | search", "rank": "1-based rank in the list", "category": "category",
-        "model": "model id (search lists) or first model of the category (context lists)",
-        "score": "engine score (context lists)", "created_at": "when the server made the list (UTC)",
-        "query": "the query as JSON"},
-    "picks": {
-        "participant": "participant number", "seq": "event seq", "trial": "trial index",
-        "client_t_ms": "client clock (ms)", "action": "insert | replace", "object": "editor object id",
-        "model": "model id", "category": "category", "rank": "rank in the list it was picked from (empty if none)",
-        "reciprocal_rank": "1 / rank (empty if none)", "source": "context | search | fixed",
-        "list_id": "list it was picked from, when known",
-        "final": "true unless a later pick of the trial replaced this one in place (the top suggestion is placed "
-                 "at once; the participant's choice is the last pick of such a chain; MRR counts final picks)"},
-    "survey": {"participant": "participant number", "survey": "demographics | exit", "question": "question id",
-               "answer": "the answer (Likert 1..scale, choice text, number or free text)"},
-    "session_log": {"participant": "participant number (empty for failures before arrival)", "kind":
-                    "arrive | view | resume | device_check | consent | instructions | trial_start | trial_done | "
-                    "finish | error | …", "at": "server time (UTC)", "detail": "details as JSON"},
-}
-
 
 def _iso(t) -> str:
-    return t.isoformat() if t else ""
+    """A stored time (naive, UTC) as ISO 8601 with microseconds always written (one format for every cell)."""
+    return t.isoformat(timespec="microseconds") if t else ""
 
 
 CLOSENESS = ("score", "matched", "missing", "extra", "position_error_m", "orientation_error_deg")
@@ -385,21 +325,6 @@ def _write_table(rt: StudyRuntime, name: str, sink: _Sink, seen: dict, picks: _H
     return count
 
 
-def _dictionary() -> str:
-    """``data_dictionary.md``: every table's columns and what they mean, and how text cells are written."""
-    lines = ["# Data dictionary", ""]
-    for name, columns in DICTIONARY.items():
-        lines += [f"## {name}.csv", "", "| column | meaning |", "|---|---|"]
-        lines += [f"| {c} | {m} |" for c, m in columns.items()] + [""]
-    lines += ["## Text cells", "",
-              "A text cell beginning with `=`, `+`, `-`, `@`, a tab, a carriage return or `'` is written "
-              "with one leading `'` so that spreadsheets show it as text instead of running it as a formula "
-              "(OWASP's advice on CSV injection); numbers are written as they are. Remove that one "
-              "`'` to get the stored value (`analysis.load.read_export` does). Text that was stored without "
-              "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
-    return "\n".join(lines)
-
-
 def _schema_version() -> str | None:
     """The database's schema revision (None where it has no Alembic table)."""
     try:
@@ -409,12 +334,12 @@ def _schema_version() -> str | None:
         return None
 
 
-def _manifest(rt: StudyRuntime, counts: dict, hashes: dict) -> dict:
+def _manifest(rt: StudyRuntime, counts: dict, hashes: dict, exported_at: str) -> dict:
     study = rt.study
     return {
         "study": study.id, "title": study.title, "study_hash": study.hash, "study_file": study.path.name,
         "code_version": _code_version(), "schema_version": _schema_version(),
-        "exported_at": datetime.now(UTC).isoformat(), "row_counts": counts,
+        "exported_at": exported_at, "row_counts": counts,
         "files": dict(sorted(hashes.items())),
         "design": {"kind": study.design, "blocking": study.blocking, "rows": study.n_rows,
                    "conditions": [c.id for c in study.conditions], "periods": [list(p) for p in study.periods]},
@@ -441,12 +366,14 @@ def write_export(rt: StudyRuntime, sink: _Sink) -> Iterator[dict | None]:
         counts[name] = yield from _write_table(rt, name, sink, seen, picks)
         hashes[f"{name}.csv"] = sink.end()
         yield None
-    whole("data_dictionary.md", _dictionary())
+    exported_at = datetime.now(UTC).isoformat()
+    whole("data_dictionary.md", dictionary_markdown())
+    whole("datapackage.json", json.dumps(data_package(rt.study, hashes, exported_at), indent=1, ensure_ascii=False))
     whole("event_schema.json", json.dumps(json_schema(), indent=1))
     for version in sorted(seen.get("vocabularies", set()) - {VERSION}):  # older pages' events
         whole(f"event_schema_v{version}.json", json.dumps(json_schema(version), indent=1))
     whole("scenes.json", json.dumps(scenes_document(rt), indent=1, sort_keys=True))
-    manifest = _manifest(rt, counts, hashes)
+    manifest = _manifest(rt, counts, hashes, exported_at)
     whole("manifest.json", json.dumps(manifest, indent=1))
     yield manifest
 

@@ -20,7 +20,8 @@ TYPE = re.compile(r"\[['\"]type['\"]\]|\.type\b|\bkinds\b")
 LOGGERS = ("event", "change")
 #: Modules whose "type" is something else's, with what it is.
 OTHER_TYPES = {"study_server/backup.py": "a database column's type",
-               "scenesuggest/learning/priors.py": "the entries of a priors file"}
+               "scenesuggest/learning/priors.py": "the entries of a priors file",
+               "study_server/export_schema.py": "an export column's Table Schema type"}
 
 
 def _literals(node) -> list[str]:
