@@ -188,8 +188,21 @@ function wireToolbar(viewer, editor) {
   $("undo-button").addEventListener("click", () => editor.undo());
   $("redo-button").addEventListener("click", () => editor.redo());
   $("delete-button").addEventListener("click", () => editor.deleteSelected());
-  $("target").addEventListener("mouseenter", () => $("target").classList.add("large"));
-  $("target").addEventListener("mouseleave", () => $("target").classList.remove("large"));
+  for (const [on, large] of [["mouseenter", true], ["mouseleave", false], ["focus", true], ["blur", false]]) {
+    $("target").addEventListener(on, () => $("target").classList.toggle("large", large));  // the keyboard's too
+  }
+}
+
+/** The target picture's text alternative: the objects the target scene holds, by category ("2 × chair"). */
+function describeTarget(target) {
+  const counts = new Map();
+  for (const o of target.objects || []) {
+    if (o.parent === null || o.parent === undefined) continue;  // the room
+    const name = o.category.replace(/([a-z0-9])([A-Z])/g, "$1 $2").toLowerCase();
+    counts.set(name, (counts.get(name) || 0) + 1);
+  }
+  const listed = [...counts].map(([name, n]) => (n > 1 ? `${n} × ${name}` : name)).join(", ");
+  return strings.targetAlt.replace("{objects}", listed || strings.targetEmpty);
 }
 
 /** Done asks for confirmation, then finishes the trial. */
@@ -209,6 +222,7 @@ async function main() {
   viewer.startControls();
   viewer.setRoom(scene);
   viewer.setTarget(new SceneModel(target), (o) => library.instance(o.modelId, o.size), $("target"));
+  $("target").setAttribute("aria-label", describeTarget(target));
   logInputs(viewer);
   logStart(saved);
   setUpCondition(trial.condition, { editor, scene, models, trial: trial.index, api, log, strings, say,
