@@ -78,7 +78,8 @@ def _answer_text(answer) -> str | None:
 def _normalise(data: StudyData) -> StudyData:
     """One shape whichever source the data came from: payloads as dicts, times and trial numbers as numbers,
     participants as text, survey answers as text."""
-    data.survey["answer"] = data.survey["answer"].map(_answer_text, na_action="ignore").astype("str")
+    data.survey["answer"] = pd.Series([_answer_text(a) for a in data.survey["answer"]], index=data.survey.index,
+                                      dtype=object)
     ev = data.events
     ev["payload"] = [_decode(p) for p in ev["payload"]]
     ev["client_t_ms"] = pd.to_numeric(ev["client_t_ms"], errors="coerce")

@@ -8,10 +8,11 @@ import hashlib
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
-#: The engine's code up to what it learns and how it is evaluated (the shared modules and every stage but the model
-#: assets and the engines by name): what a priors file depends on.
+#: The engine's code up to what it learns and how it is evaluated (the shared modules, every stage but the model
+#: assets' builders and the engines by name, and the models' rotational symmetry, which evaluation and the learned
+#: engine fold angles by): what a priors file depends on.
 ENGINE_SOURCES = ("*.py", "scenes/*.py", "contract/*.py", "library/*.py", "corpora/*.py", "learning/*.py",
-                  "suggestion/*.py", "evaluation/*.py")
+                  "suggestion/*.py", "evaluation/*.py", "assets/symmetry.py")
 
 
 def source_digest(*patterns: str) -> str:

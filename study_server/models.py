@@ -106,9 +106,8 @@ class Trial(db.Model):
     #: How close the final scene came to the target (scenesuggest.contract.scoring), 0..1; empty before "done".
     score: Mapped[float | None] = mapped_column(Float, nullable=True)
     #: The whole closeness result found at "done" (scenesuggest.contract.scoring.Closeness.record: score, matched,
-    #missing,
-    #: extra, errors in metres and degrees, the matched pairs), exported as stored; {"unavailable": why} when the
-    #: check failed, None before "done" or for trials done before it was stored (the export computes those).
+    #: missing, extra, errors in metres and degrees, the matched pairs), exported as stored; {"unavailable": why}
+    #: when the check failed, None before "done" or for trials done before it was stored (the export computes those).
     closeness: Mapped[dict | None] = mapped_column(JSON, nullable=True)
 
 

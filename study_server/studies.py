@@ -8,7 +8,6 @@ that creating the app stays cheap and each gunicorn worker holds one copy.
 
 from __future__ import annotations
 
-import copy
 import json
 import threading
 from functools import cached_property
@@ -25,16 +24,13 @@ from scenesuggest.library.search import SearchIndex
 from scenesuggest.scenes import scene_json
 from scenesuggest.scenes.taxonomy import Taxonomy
 
-from .errors import StudyError
 from .study_file import Study, StudyFileError, load_study
 
 
-class EngineUnavailable(StudyError):
-    """A condition's engine cannot be loaded (its file is damaged, say): the server's fault, not the caller's. The
-    message names the file and is for the server's log (:class:`study_server.lists.SuggestionsUnavailable` is
-    what a participant is told)."""
-
-    status = 503
+class EngineUnavailable(Exception):
+    """A condition's engine cannot be loaded (its file is damaged, say): the server's fault, not the caller's, so no
+    :class:`study_server.errors.StudyError` — its message names files and is for the server's log and /healthz
+    (:class:`study_server.lists.SuggestionsUnavailable` is what a participant is told)."""
 
 
 def load_studies(files: list[Path], check: bool = True) -> dict[str, StudyRuntime]:
@@ -75,8 +71,10 @@ class StudyRuntime:
         #: size is computed from its bounding box and its URLs by routing (a sixth of a suggestion request's CPU).
         #: Bounded by the library: one entry per model.
         self.model_descriptions: dict[str, dict] = {}
-        #: Scene files as parsed JSON, by path, with the (mtime_ns, size) they were read at (:meth:`_document`).
-        self._documents: dict[Path, tuple[tuple[int, int], dict]] = {}
+        #: Scene files by path: the version they were read at (inode, mtime, ctime, size), their text and their JSON
+        #: (:meth:`_document`); under a lock of their own, so that reading a scene never waits for an engine to load.
+        self._documents: dict[Path, tuple[tuple[int, int, int, int], str, dict]] = {}
+        self._documents_lock = threading.Lock()
 
     def describe(self, m: ModelInfo) -> dict:
         """What the API says of model ``m`` (size in metres, asset and thumbnail URLs), in a request context: a
@@ -228,28 +226,29 @@ class StudyRuntime:
                 self._periods[model_id] = known
         return known
 
-    def _document(self, path: Path) -> dict:
-        """The scene file at ``path`` as parsed JSON, read again only when the file has changed since (its
-        modification time or size: an admin may author a target while the server runs, in any of its processes).
-        Shared: callers copy before changing it."""
+    def _document(self, path: Path) -> tuple[str, dict]:
+        """The scene file at ``path``: its text and its parsed JSON, read again only when the file has changed since
+        (another inode, modification or change time, or size: an admin may author a target while the server runs,
+        in any of its processes, and saves replace the file). The parsed JSON is shared: read it, never change it."""
         stat = path.stat()
-        version = (stat.st_mtime_ns, stat.st_size)
-        with self._lock:
+        version = (stat.st_ino, stat.st_mtime_ns, stat.st_ctime_ns, stat.st_size)
+        with self._documents_lock:
             known = self._documents.get(path)
         if known is not None and known[0] == version:
-            return known[1]
-        doc = json.loads(path.read_text())
-        with self._lock:
-            self._documents[path] = (version, doc)
-        return doc
+            return known[1], known[2]
+        text = path.read_text()
+        doc = json.loads(text)
+        with self._documents_lock:
+            self._documents[path] = (version, text, doc)
+        return text, doc
 
     def scene(self, scene_id: str, which: str = "target") -> dict:
-        """A target (or start) scene as native JSON, a copy the caller may change; the start defaults to the
-        target's room alone."""
+        """A target (or start) scene as native JSON, parsed afresh (the caller may change it); the start defaults
+        to the target's room alone."""
         s = self.study.scenes[scene_id]
         if which == "start" and s.start is not None:
-            return copy.deepcopy(self._document(Path(s.start)))
-        doc = copy.deepcopy(self._document(Path(s.target)))
+            return json.loads(self._document(Path(s.start))[0])
+        doc = json.loads(self._document(Path(s.target))[0])
         if which == "start":
             doc["objects"] = [o for o in doc["objects"] if o.get("parent") is None]
         return doc
@@ -257,7 +256,7 @@ class StudyRuntime:
     def scene_type(self, scene_id: str) -> str:
         """The scene type of a scene (its target's ``scene_type``; ``Room`` when it names none): what the
         engine's occurrence priors are conditioned on."""
-        return self._document(Path(self.study.scenes[scene_id].target)).get("scene_type", "Room")
+        return self._document(Path(self.study.scenes[scene_id].target))[1].get("scene_type", "Room")
 
     def validate_scenes(self) -> None:
         """Parse every scene file (a bad one stops the start-up naming it), and keep them parsed."""

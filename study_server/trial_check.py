@@ -5,6 +5,8 @@ min_target_score`` for review."""
 
 from __future__ import annotations
 
+import re
+
 from flask import current_app
 from sqlalchemy.exc import SQLAlchemyError
 
@@ -79,14 +81,22 @@ def check_trial(rt: StudyRuntime, p: Participant, t: Trial, last_seq: int | None
         t.review = f"{t.review}; {below}" if t.review else below
 
 
+def _waiting_in_prose(replay: str | None) -> int | None:
+    """The seq a check waits for as an app server of the version before the column wrote it (in ``replay`` only):
+    while two versions serve one database during an upgrade, such checks are made too."""
+    found = re.fullmatch(rf"{PENDING} (\d+) not stored yet", replay or "")
+    return int(found.group(1)) if found else None
+
+
 def settle(rt: StudyRuntime, p: Participant, final: bool = False) -> None:
     """Make the waiting replay checks of ``p``'s trials whose events have all arrived since; ``final`` (at
     completion) makes every waiting check on what is stored, noting the events that never arrived. The caller
     commits."""
     for t in trials(p):
-        if t.replay_waits_for is None:
+        waits_for = t.replay_waits_for if t.replay_waits_for is not None else _waiting_in_prose(t.replay)
+        if waits_for is None:
             continue
-        arrived = p.acked_seq >= t.replay_waits_for
+        arrived = p.acked_seq >= waits_for
         if arrived or final:
             t.replay = _replay(rt, t) + ("" if arrived else f" (events after seq {p.acked_seq} never arrived)")
             t.replay_waits_for = None

@@ -146,7 +146,7 @@ def test_every_admin_form_needs_its_csrf_token(admin_app):
 def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(monkeypatch, admin_app):
     """The replay's data: the trial so far, the scene after each event (from the server's replay), the models to
     draw; events of vocabulary 1 give the events without scenes and say why; admins only."""
-    from test_replay import insert, obj
+    from statehelp import insert, obj
 
     participant = admin_app.test_client()
     b = to_trials(participant)

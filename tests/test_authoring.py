@@ -147,13 +147,19 @@ def test_a_study_that_ships_with_the_installed_package_is_read_only(tmp_path, de
     assert post(c, "/admin/demo/author/bedside/image", {"png": png()}).status_code == 409
 
 
-def test_scenes_are_parsed_once_and_read_again_when_their_file_changes(admin, study_copy):
-    """The server keeps each scene file parsed (a click needs its scene type; no disk read per request) and reads it
-    again when it has changed, whichever process changed it; callers get copies."""
+def test_scenes_are_parsed_once_and_read_again_when_their_file_changes(admin, study_copy, monkeypatch):
+    """The server keeps each scene file (a click needs its scene type; no disk read per request) and reads it again
+    when it has changed, whichever process changed it; callers get copies."""
     import os
+    from pathlib import Path
 
     rt = admin.app_.extensions["studies"]["demo"]
     target = study_copy / "scenes" / "bedside.json"
+    rt.scene("bedside")
+    reads, read_text = [], Path.read_text
+    monkeypatch.setattr(Path, "read_text", lambda self, *a, **k: reads.append(self) or read_text(self, *a, **k))
+    rt.scene("bedside"), rt.scene("bedside", "start"), rt.scene_type("bedside")
+    assert target not in reads  # unchanged: not read again
     first = rt.scene("bedside")
     first["objects"].clear()  # a caller's copy
     assert rt.scene("bedside")["objects"] and rt.scene_type("bedside") == json.loads(target.read_text())["scene_type"]
@@ -164,4 +170,6 @@ def test_scenes_are_parsed_once_and_read_again_when_their_file_changes(admin, st
     stat = target.stat()
     target.write_text(changed)
     os.utime(target, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1))
+    before = reads.count(target)
     assert rt.scene_type("bedside") == kind[::-1] and rt.scene("bedside")["scene_type"] == kind[::-1]
+    assert reads.count(target) == before + 1  # changed: read once more

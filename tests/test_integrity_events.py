@@ -102,7 +102,7 @@ def test_a_whole_librarys_list_is_stored_and_a_longer_one_refused_naming_it(app_
 def test_strings_in_object_states_are_bounded_as_they_arrive(app_on, key):
     """Every object state is kept and the admin's replay carries each: a long string in one (here 201
     characters) is refused naming it, so no trial's replay grows by what a page chose to send."""
-    from test_replay import insert, obj
+    from statehelp import insert, obj
 
     from scenesuggest.contract.events import MAX_STATE_TEXT
 

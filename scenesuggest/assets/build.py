@@ -55,9 +55,14 @@ def build_model(model: ModelInfo, out: Path, thumbnail_px: int = 256) -> ModelIn
     return replace(model, asset=glb.as_posix(), thumbnail=png.as_posix())
 
 
+#: The modules that build a library's assets (not the symmetry measure, which reads them).
+BUILDERS = ("assets/__init__.py", "assets/build.py", "assets/convert.py", "assets/primitives.py",
+            "assets/procedural.py", "assets/render.py")
+
+
 def code_digest() -> str:
     """A short hash of the asset builders' code: a library built by other code is rebuilt by ``study prepare``."""
-    return source_digest("assets/*.py")
+    return source_digest(*BUILDERS)
 
 
 def build_library(corpus: Corpus, out: str | Path, model_ids: list[str] | None = None, thumbnail_px: int = 256,

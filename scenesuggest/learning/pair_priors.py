@@ -2,8 +2,7 @@
 
 Every :class:`~scenesuggest.learning.observations.Pair` is expanded over the child's and the reference's entities (the
 category and the subtrees above it, :mod:`scenesuggest.learning.priors`) and over its scene type and all scene types
-(``*``). A
-*group* is a reference key (reference entity, scene type, relation, surface type); a *segment* is one child
+(``*``). A *group* is a reference key (reference entity, scene type, relation, surface type); a *segment* is one child
 entity within a group, holding its samples:
 
 * relative position — a 2-D Gaussian KDE of the offsets δ (metres), bandwidth by Scott's rule, at least

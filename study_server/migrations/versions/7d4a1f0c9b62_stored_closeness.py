@@ -41,6 +41,8 @@ def upgrade():
 
 
 def downgrade():
-    with op.batch_alter_table('trials') as batch:
+    # SQLite drops the columns in place (3.35+): the table keeps the CREATE text the migrations gave it, which a
+    # restore compares
+    with op.batch_alter_table('trials', recreate='never') as batch:
         batch.drop_column('replay_waits_for')
         batch.drop_column('closeness')
