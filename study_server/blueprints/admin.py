@@ -20,7 +20,7 @@ from flask import (
 )
 from sqlalchemy import select
 
-from .. import authoring, decisions
+from .. import authoring, decisions, plots
 from ..assignment import fresh_after
 from ..authoring import image_path
 from ..boot import trial_boot
@@ -107,9 +107,23 @@ def logout():
 @bp.get("/")
 @admin_required
 def dashboard():
-    studies = [(rt.study, decisions.progress(rt.study)) for rt in current_app.extensions["studies"].values()]
+    glances = [(rt.study, plots.glance(rt.study)) for rt in current_app.extensions["studies"].values()]
+    studies = [(study, g["progress"], g) for study, g in glances]
     codes = {rt.study.id: issued_codes(rt.study.id) for rt in current_app.extensions["studies"].values()}
-    return render_template("admin/dashboard.html", studies=studies, codes=codes)
+    return render_template("admin/dashboard.html", studies=studies, codes=codes, outcomes=list(plots.OUTCOMES))
+
+
+@bp.get("/<study_id>/plots/<name>.svg")
+@admin_required
+def plot(study_id: str, name: str):
+    """One of the dashboard's plots (:mod:`study_server.plots`), drawn now. An SVG shown as an image runs no
+    script; its own inline styles are all it may use."""
+    study = runtime(study_id).study
+    if name not in plots.DRAW:
+        abort(404)
+    return Response(plots.DRAW[name](study), mimetype="image/svg+xml",
+                    headers={"Cache-Control": "no-store",
+                             "Content-Security-Policy": "default-src 'none'; style-src 'unsafe-inline'"})
 
 
 @bp.get("/<study_id>/participants")

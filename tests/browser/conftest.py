@@ -50,7 +50,7 @@ TEST_HOOK = "window.sceneSuggestTestHook = true"  # set before the page's script
 def new_context(browser, test_hook: bool = True, **options):
     """A browser context whose pages load the trial page's test hook (``window.sceneSuggestTest``) unless
     ``test_hook`` is false, as a participant's page does not."""
-    context = browser.new_context(viewport={"width": 1280, "height": 720}, **options)
+    context = browser.new_context(**{"viewport": {"width": 1280, "height": 720}, **options})
     if test_hook:
         context.add_init_script(TEST_HOOK)
     return context

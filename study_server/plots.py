@@ -1,0 +1,192 @@
+"""What an experimenter watches while a study collects, drawn: participants over time by outcome, progress per
+schedule row and per condition, trial time per condition and scene, flags over time.
+
+Each plot is an SVG drawn on the server with matplotlib (no script, no plotting library sent to the browser), and
+each has a table of the same numbers (:func:`glance`) that the dashboard shows beside it, for readers of the page
+without images. Times are the server's, UTC; trial time is from the trial page first shown to "done" (seconds).
+"""
+
+from __future__ import annotations
+
+import io
+from collections import Counter
+from datetime import datetime
+
+import numpy as np
+from sqlalchemy import select
+
+from .decisions import progress
+from .extensions import db
+from .models import Participant, Trial
+from .study_file import Study
+
+#: How a participant's status is drawn: outcome → the statuses it gathers.
+OUTCOMES = {"completed": ("completed",), "in progress": ("in_progress",), "excluded": ("excluded",),
+            "ended early": ("no_consent", "screened_out", "returned", "technical")}
+COLOURS = {"completed": "#2e7d32", "in progress": "#1a4fb0", "excluded": "#b3261e", "ended early": "#8a6d00",
+           "stale": "#7a7f87", "done": "#2e7d32", "open": "#1a4fb0", "unfinished": "#8a6d00", "raised": "#b3261e",
+           "cleared": "#7a7f87"}
+#: One shade per condition in the trial-time box plots, in the study's order.
+SHADES = ("#c9d8f5", "#8fb0ec", "#4f82dc", "#1a4fb0")
+
+
+def outcome(status: str) -> str:
+    return next(name for name, statuses in OUTCOMES.items() if status in statuses)
+
+
+def _arrivals(study: Study) -> list[tuple[datetime, str]]:
+    rows = db.session.execute(select(Participant.created_at, Participant.status)
+                              .where(Participant.study_id == study.id).order_by(Participant.created_at))
+    return [(at, outcome(status)) for at, status in rows]
+
+
+def _trial_times(study: Study) -> list[tuple[str, str, float]]:
+    """(condition, scene, seconds) of every counted trial done."""
+    rows = db.session.execute(select(Trial.condition, Trial.scene_id, Trial.started_at, Trial.done_at)
+                              .join(Participant).where(Participant.study_id == study.id, Trial.kind == "trial",
+                                                       Trial.done_at.is_not(None), Trial.started_at.is_not(None)))
+    return [(c, s, (done - started).total_seconds()) for c, s, started, done in rows]
+
+
+def _flags(study: Study) -> list[tuple[datetime, str, bool]]:
+    """(raised at, reason, cleared) of every flag of the study's participants."""
+    out = []
+    for flags, in db.session.execute(select(Participant.flags).where(Participant.study_id == study.id)):
+        for f in flags or []:
+            try:
+                at = datetime.fromisoformat(f["at"])
+            except (KeyError, TypeError, ValueError):
+                continue
+            out.append((at, str(f.get("reason", "")), bool(f.get("cleared_at"))))
+    return sorted(out)
+
+
+def glance(study: Study) -> dict:
+    """The numbers the plots draw, as the dashboard's tables give them: arrivals per day by outcome, progress per
+    row and condition (:func:`study_server.decisions.progress`), trial seconds per condition and scene (n, median,
+    quartiles), flags per day raised and cleared."""
+    days: dict[str, Counter] = {}
+    for at, name in _arrivals(study):
+        days.setdefault(at.date().isoformat(), Counter())[name] += 1
+    times = {}
+    for c, s, sec in _trial_times(study):
+        times.setdefault((c, s), []).append(sec)
+    flag_days: dict[str, Counter] = {}
+    for at, _, cleared in _flags(study):
+        flag_days.setdefault(at.date().isoformat(), Counter())["cleared" if cleared else "raised"] += 1
+    order = {c.id: i for i, c in enumerate(study.conditions)}
+    return {"arrivals": sorted(days.items()), "progress": progress(study),
+            "trial_times": [{"condition": c, "scene": s, "n": len(v), "median": float(np.median(v)),
+                             "q1": float(np.percentile(v, 25)), "q3": float(np.percentile(v, 75))}
+                            for (c, s), v in sorted(times.items(), key=lambda kv: (order.get(kv[0][0], 99), kv[0]))],
+            "flags": sorted(flag_days.items())}
+
+
+# --- drawing ------------------------------------------------------------------------------------------------------
+def _figure(width: float = 7.0, height: float = 3.2, columns: int = 1):
+    """A figure (inches) and its axes, laid out by matplotlib's constrained layout."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), layout="constrained")
+    return fig, fig.subplots(1, columns)
+
+
+def _svg(fig) -> str:
+    from matplotlib import rc_context
+
+    out = io.StringIO()
+    with rc_context({"svg.fonttype": "none", "svg.hashsalt": "scenesuggest"}):  # text as text; stable ids
+        fig.savefig(out, format="svg", metadata={"Date": None})
+    return out.getvalue()
+
+
+def _empty(ax, text: str) -> None:
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color="#5d6775")
+    ax.set_axis_off()
+
+
+def plot_participants(study: Study) -> str:
+    """Participants who have arrived so far, cumulatively over time, stacked by outcome."""
+    fig, ax = _figure()
+    arrivals = _arrivals(study)
+    if not arrivals:
+        _empty(ax, "nobody has arrived yet")
+        return _svg(fig)
+    times = [at for at, _ in arrivals]
+    stacks = [np.cumsum([name == o for _, name in arrivals]) for o in OUTCOMES]
+    ax.stackplot(times, *stacks, labels=list(OUTCOMES), colors=[COLOURS[o] for o in OUTCOMES], step="post",
+                 alpha=0.85)
+    ax.set_ylabel("participants")
+    ax.set_xlabel("arrival (UTC)")
+    ax.legend(loc="upper left", fontsize="small", frameon=False)
+    fig.autofmt_xdate()
+    return _svg(fig)
+
+
+def plot_progress(study: Study) -> str:
+    """Participants per schedule row by state, and trials per condition by state, as stacked horizontal bars."""
+    fig, (rows_ax, conditions_ax) = _figure(7.0, 1.4 + 0.3 * max(study.n_rows, len(study.conditions)), columns=2)
+    prog = progress(study)
+    _bars(rows_ax, [f"row {i}" for i in range(study.n_rows)], prog["rows"],
+          ("completed", "in_progress", "stale", "excluded"), "participants per schedule row")
+    _bars(conditions_ax, list(prog["conditions"]), list(prog["conditions"].values()), ("done", "open", "unfinished"),
+          "trials per condition")
+    return _svg(fig)
+
+
+def _bars(ax, labels: list[str], counts: list[Counter], states: tuple[str, ...], title: str) -> None:
+    left = np.zeros(len(labels))
+    for state in states:
+        values = np.array([c.get(state, 0) for c in counts], dtype=float)
+        name = state.replace("_", " ")
+        ax.barh(labels, values, left=left, label=name, color=COLOURS.get(name, COLOURS.get(state)))
+        left += values
+    ax.invert_yaxis()
+    ax.set_title(title, fontsize="medium")
+    ax.legend(fontsize="x-small", frameon=False, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=len(states))
+
+
+def plot_trial_times(study: Study) -> str:
+    """Box plots of trial seconds per scene, one box per condition side by side."""
+    times = _trial_times(study)
+    scenes = [s for s in study.scenes if any(scene == s for _, scene, _ in times)]  # (not the practice's)
+    conditions = [c.id for c in study.conditions]
+    fig, ax = _figure(7.0, 3.4)
+    if not times:
+        _empty(ax, "no trial is done yet")
+        return _svg(fig)
+    width = 0.8 / len(conditions)
+    for j, c in enumerate(conditions):
+        data = [[sec for cc, s, sec in times if cc == c and s == scene] for scene in scenes]
+        where = [i + (j - (len(conditions) - 1) / 2) * width for i, d in enumerate(data) if d]
+        parts = ax.boxplot([d for d in data if d], positions=where, widths=width * 0.9, patch_artist=True,
+                           manage_ticks=False)
+        for box in parts["boxes"]:
+            box.set(facecolor=SHADES[j % len(SHADES)], edgecolor="#1d2430")
+        ax.plot([], [], "s", color=SHADES[j % len(SHADES)], label=c)
+    ax.set_xticks(range(len(scenes)), scenes, rotation=20, ha="right", fontsize="small")
+    ax.set_ylabel("seconds per trial")
+    ax.legend(title="condition", fontsize="small", frameon=False)
+    return _svg(fig)
+
+
+def plot_flags(study: Study) -> str:
+    """Flags raised over time (cumulative), the ones still open and the ones the experimenter cleared."""
+    fig, ax = _figure(7.0, 2.6)
+    flags = _flags(study)
+    if not flags:
+        _empty(ax, "no participant has been flagged")
+        return _svg(fig)
+    times = [at for at, _, _ in flags]
+    ax.step(times, np.cumsum([not cleared for *_, cleared in flags]), where="post", color=COLOURS["raised"],
+            label="open")
+    ax.step(times, np.cumsum([cleared for *_, cleared in flags]), where="post", color=COLOURS["cleared"],
+            label="cleared")
+    ax.set_ylabel("flags")
+    ax.legend(fontsize="small", frameon=False)
+    fig.autofmt_xdate()
+    return _svg(fig)
+
+
+DRAW = {"participants": plot_participants, "progress": plot_progress, "trial-times": plot_trial_times,
+        "flags": plot_flags}
