@@ -124,7 +124,7 @@ def _column_types(folder: Path) -> dict[str, dict[str, str]]:
     if not path.exists():
         return {name: dict(_TEXT_BEFORE_PACKAGES) for name in REQUIRED}
     try:
-        package = json.loads(path.read_text())
+        package = json.loads(path.read_text(encoding="utf-8"))
         return {r["name"]: {f["name"]: d for f in r["schema"]["fields"] if (d := _dtype(f)) is not None}
                 for r in package["resources"]}
     except (ValueError, KeyError, TypeError) as e:
@@ -144,8 +144,11 @@ def read_export(folder: str | Path) -> StudyData:
             raise AnalysisError("is missing from the export", str(path))
         try:
             frame = pd.read_csv(path, dtype=types.get(name, {}), keep_default_na=False, na_values=[""])
-        except (pd.errors.ParserError, ValueError) as e:
-            raise AnalysisError(f"is not valid CSV of the types its datapackage.json gives ({e})", str(path)) from None
+        except (pd.errors.ParserError, ValueError) as e:  # (a ParserError is a ValueError: which one, say)
+            packaged = (folder / "datapackage.json").exists()
+            what = "does not hold the types its datapackage.json gives its columns" if packaged and not \
+                isinstance(e, pd.errors.ParserError) else "is not valid CSV"
+            raise AnalysisError(f"{what} ({e})", str(path)) from None
         tables[name] = _check_columns(name, _unescape(frame))
     manifest_path = folder / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}

@@ -106,8 +106,12 @@ def _participants(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
 
 
 def _trials(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
+    """The trials; ``seen["conditions"]`` and ``seen["scenes"]`` collect the ids they hold."""
+    conditions, scenes = seen.setdefault("conditions", set()), seen.setdefault("scenes", set())
     for t in _stream(select(Trial).where(Trial.participant_id.in_(ids)).order_by(Trial.participant_id,
                                                                                Trial.position)):
+        conditions.add(t.condition)
+        scenes.add(t.scene_id)
         yield {"participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
                "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
                "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
@@ -368,7 +372,8 @@ def write_export(rt: StudyRuntime, sink: _Sink) -> Iterator[dict | None]:
         yield None
     exported_at = datetime.now(UTC).isoformat()
     whole("data_dictionary.md", dictionary_markdown())
-    whole("datapackage.json", json.dumps(data_package(rt.study, hashes, exported_at), indent=1, ensure_ascii=False))
+    package = data_package(rt.study, hashes, exported_at, seen)
+    whole("datapackage.json", json.dumps(package, indent=1, ensure_ascii=False))
     whole("event_schema.json", json.dumps(json_schema(), indent=1))
     for version in sorted(seen.get("vocabularies", set()) - {VERSION}):  # older pages' events
         whole(f"event_schema_v{version}.json", json.dumps(json_schema(version), indent=1))

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from scenesuggest.contract.cells import safe_cell
 from scenesuggest.contract.events import VERSIONS, VOCABULARY
 from scenesuggest.contract.scoring import FORMULA
 
@@ -22,7 +23,8 @@ MISSING = ""
 STATUSES = ("in_progress", "completed", "no_consent", "screened_out", "returned", "excluded", "technical")
 STEPS = ("device", "consent", "demographics", "instructions", "trial", "exit", "done")
 PLATFORMS = ("prolific", "mturk", "link")
-#: Allowed values taken from the study when the package is written: key → what of the study.
+#: Allowed values taken from the study when the package is written: key → what of the study (to which the ids the
+#: data holds are added: a study file changed after collection began still describes its data).
 STUDY_VALUES = {"conditions": lambda s: [c.id for c in s.conditions], "scenes": lambda s: list(s.scenes)}
 
 
@@ -75,8 +77,8 @@ TABLES: tuple[Table, ...] = (
         _c("acked_seq", "integer", "highest contiguous event seq stored (−1: none)", required=True, minimum=-1),
         _c("flags", "string", "why the experimenter should review this participant (reasons separated by ' | '; "
                               "empty: none; flags the experimenter cleared are not listed)"),
-        _c("viewport_width", "integer", "browser window width at the device check (px)", minimum=0),
-        _c("viewport_height", "integer", "browser window height at the device check (px)", minimum=0),
+        _c("viewport_width", "integer", "browser window width at the device check (px)"),
+        _c("viewport_height", "integer", "browser window height at the device check (px)"),
         _c("user_agent", "string", "browser user agent"),
     ), ("participant",), participant_key=False),
     Table("trials", "one row per trial of a participant's plan (the practice trial first, when the study has one)", (
@@ -145,9 +147,9 @@ TABLES: tuple[Table, ...] = (
         _c("trial", "integer", "trial index", minimum=-1),
         _c("client_t_ms", "number", "client clock, ms since the epoch", required=True),
         _c("action", "string", "what placed it", required=True, enum=("insert", "replace")),
-        _c("object", "string", "editor object id", required=True),
-        _c("model", "string", "model id", required=True),
-        _c("category", "string", "category", required=True),
+        _c("object", "string", "editor object id"),
+        _c("model", "string", "model id"),
+        _c("category", "string", "category"),
         _c("rank", "integer", "rank in the list it was picked from (empty if none)", minimum=1),
         _c("reciprocal_rank", "number", "1 / rank (empty if none)", minimum=0),
         _c("source", "string", "the list it came from", required=True, enum=("context", "search", "fixed")),
@@ -197,7 +199,7 @@ def dictionary_markdown() -> str:
     return "\n".join(lines)
 
 
-def _field(c: Column, study: Study) -> dict:
+def _field(c: Column, study: Study, present: dict[str, set]) -> dict:
     out = {"name": c.name, "type": c.type, "description": c.description}
     if c.type == "datetime":
         out["format"] = "%Y-%m-%dT%H:%M:%S.%f"
@@ -206,14 +208,31 @@ def _field(c: Column, study: Study) -> dict:
     constraints = {}
     if c.required:
         constraints["required"] = True
-    enum = list(STUDY_VALUES[c.enum](study)) if isinstance(c.enum, str) else list(c.enum)
-    if enum:
-        constraints["enum"] = enum
+    if isinstance(c.enum, str):
+        ids = list(STUDY_VALUES[c.enum](study))
+        enum = ids + sorted(present.get(c.enum, set()) - set(ids))
+    else:
+        enum = list(c.enum)
+    if enum:  # as the cells hold them (a text that a spreadsheet would run is written escaped)
+        constraints["enum"] = [safe_cell(v) for v in enum]
     if c.minimum is not None:
         constraints["minimum"] = c.minimum
     if constraints:
         out["constraints"] = constraints
     return out
+
+
+def _variables() -> list[dict]:
+    """Every column name the tables use, once (Psych-DS names variables as the columns' headers), with its meaning
+    where it first appears and the tables that hold it."""
+    tables: dict[str, list[str]] = {}
+    first: dict[str, Column] = {}
+    for t in TABLES:
+        for c in t.columns:
+            tables.setdefault(c.name, []).append(t.name)
+            first.setdefault(c.name, c)
+    return [{"@type": "PropertyValue", "name": name, "description": f"{first[name].description} (in "
+             f"{', '.join(f'{t}.csv' for t in tables[name])})"} for name in tables]
 
 
 def package_name(study_id: str) -> str:
@@ -222,13 +241,15 @@ def package_name(study_id: str) -> str:
     return name.strip("-") or "study"
 
 
-def data_package(study: Study, files: dict[str, str], exported_at: str) -> dict:
+def data_package(study: Study, files: dict[str, str], exported_at: str, present: dict[str, set] | None = None) -> dict:
     """``datapackage.json`` for an export of ``study`` whose CSV files have the SHA-256 digests ``files`` (name →
-    hex): a Tabular Data Package, one resource per table with its schema, and the dataset's Psych-DS / schema.org
-    metadata."""
+    hex) and whose data holds the ids ``present`` (``conditions``, ``scenes``: added to the study's own as allowed
+    values): a Tabular Data Package, one resource per table with its schema, and the dataset's Psych-DS-style
+    schema.org metadata (``variableMeasured``: every column name the tables use, once)."""
+    present = present or {}
     resources = []
     for t in TABLES:
-        schema = {"fields": [_field(c, study) for c in t.columns], "missingValues": [MISSING]}
+        schema = {"fields": [_field(c, study, present) for c in t.columns], "missingValues": [MISSING]}
         if t.primary_key:
             schema["primaryKey"] = list(t.primary_key)
         if t.participant_key:
@@ -248,6 +269,5 @@ def data_package(study: Study, files: dict[str, str], exported_at: str) -> dict:
         "resources": resources,
         # Psych-DS (schema.org Dataset) metadata
         "@context": "https://schema.org/", "@type": "Dataset",
-        "variableMeasured": [{"@type": "PropertyValue", "name": f"{t.name}.{c.name}", "description": c.description}
-                             for t in TABLES for c in t.columns],
+        "variableMeasured": _variables(),
     }

@@ -9,6 +9,7 @@ without images. Times are the server's, UTC; trial time is from the trial page f
 from __future__ import annotations
 
 import io
+import threading
 from collections import Counter
 from datetime import datetime
 
@@ -48,17 +49,33 @@ def _trial_times(study: Study) -> list[tuple[str, str, float]]:
     return [(c, s, (done - started).total_seconds()) for c, s, started, done in rows]
 
 
-def _flags(study: Study) -> list[tuple[datetime, str, bool]]:
-    """(raised at, reason, cleared) of every flag of the study's participants."""
+def _when(value) -> datetime | None:
+    try:
+        return datetime.fromisoformat(value)
+    except (TypeError, ValueError):
+        return None
+
+
+def _flags(study: Study) -> list[tuple[datetime, datetime | None]]:
+    """(raised at, cleared at or None) of every flag of the study's participants, by the time raised."""
     out = []
     for flags, in db.session.execute(select(Participant.flags).where(Participant.study_id == study.id)):
         for f in flags or []:
-            try:
-                at = datetime.fromisoformat(f["at"])
-            except (KeyError, TypeError, ValueError):
-                continue
-            out.append((at, str(f.get("reason", "")), bool(f.get("cleared_at"))))
-    return sorted(out)
+            raised = _when(f.get("at"))
+            if raised is not None:
+                out.append((raised, _when(f.get("cleared_at"))))
+    return sorted(out, key=lambda f: f[0])
+
+
+def _flag_changes(flags: list[tuple[datetime, datetime | None]]) -> list[tuple[datetime, int, int]]:
+    """(time, open flags then, cleared flags then) after each raise and each clearing, in time order."""
+    changes = sorted([(raised, 1, 0) for raised, _ in flags]
+                     + [(cleared, -1, 1) for _, cleared in flags if cleared is not None])
+    out, still_open, cleared = [], 0, 0
+    for at, opened, closed in changes:
+        still_open, cleared = still_open + opened, cleared + closed
+        out.append((at, still_open, cleared))
+    return out
 
 
 def glance(study: Study) -> dict:
@@ -72,8 +89,10 @@ def glance(study: Study) -> dict:
     for c, s, sec in _trial_times(study):
         times.setdefault((c, s), []).append(sec)
     flag_days: dict[str, Counter] = {}
-    for at, _, cleared in _flags(study):
-        flag_days.setdefault(at.date().isoformat(), Counter())["cleared" if cleared else "raised"] += 1
+    for raised, cleared in _flags(study):
+        flag_days.setdefault(raised.date().isoformat(), Counter())["raised"] += 1
+        if cleared is not None:
+            flag_days.setdefault(cleared.date().isoformat(), Counter())["cleared"] += 1
     order = {c.id: i for i, c in enumerate(study.conditions)}
     return {"arrivals": sorted(days.items()), "progress": progress(study),
             "trial_times": [{"condition": c, "scene": s, "n": len(v), "median": float(np.median(v)),
@@ -91,11 +110,15 @@ def _figure(width: float = 7.0, height: float = 3.2, columns: int = 1):
     return fig, fig.subplots(1, columns)
 
 
+#: matplotlib's settings are global: one drawing at a time sets and restores them (a threaded server).
+_DRAWING = threading.Lock()
+
+
 def _svg(fig) -> str:
     from matplotlib import rc_context
 
     out = io.StringIO()
-    with rc_context({"svg.fonttype": "none", "svg.hashsalt": "scenesuggest"}):  # text as text; stable ids
+    with _DRAWING, rc_context({"svg.fonttype": "none", "svg.hashsalt": "scenesuggest"}):  # text as text; stable ids
         fig.savefig(out, format="svg", metadata={"Date": None})
     return out.getvalue()
 
@@ -112,8 +135,11 @@ def plot_participants(study: Study) -> str:
     if not arrivals:
         _empty(ax, "nobody has arrived yet")
         return _svg(fig)
-    times = [at for at, _ in arrivals]
-    stacks = [np.cumsum([name == o for _, name in arrivals]) for o in OUTCOMES]
+    # one point per minute of arrivals at most: the image's size is bounded by the collection's length
+    minutes = [at.replace(second=0, microsecond=0) for at, _ in arrivals]
+    last = [i for i in range(len(minutes)) if i + 1 == len(minutes) or minutes[i + 1] != minutes[i]]
+    times = [minutes[i] for i in last]
+    stacks = [np.cumsum([name == o for _, name in arrivals])[last] for o in OUTCOMES]
     ax.stackplot(times, *stacks, labels=list(OUTCOMES), colors=[COLOURS[o] for o in OUTCOMES], step="post",
                  alpha=0.85)
     ax.set_ylabel("participants")
@@ -149,39 +175,44 @@ def _bars(ax, labels: list[str], counts: list[Counter], states: tuple[str, ...],
 def plot_trial_times(study: Study) -> str:
     """Box plots of trial seconds per scene, one box per condition side by side."""
     times = _trial_times(study)
-    scenes = [s for s in study.scenes if any(scene == s for _, scene, _ in times)]  # (not the practice's)
+    present = {scene for _, scene, _ in times}
+    scenes = [s for s in study.scenes if s in present]  # in the study's order (not the practice's)
     conditions = [c.id for c in study.conditions]
     fig, ax = _figure(7.0, 3.4)
     if not times:
         _empty(ax, "no trial is done yet")
         return _svg(fig)
     width = 0.8 / len(conditions)
+    grouped: dict[tuple[str, str], list[float]] = {}
+    for c, scene, sec in times:
+        grouped.setdefault((c, scene), []).append(sec)
     for j, c in enumerate(conditions):
-        data = [[sec for cc, s, sec in times if cc == c and s == scene] for scene in scenes]
-        where = [i + (j - (len(conditions) - 1) / 2) * width for i, d in enumerate(data) if d]
-        parts = ax.boxplot([d for d in data if d], positions=where, widths=width * 0.9, patch_artist=True,
-                           manage_ticks=False)
+        shade = SHADES[j % len(SHADES)]
+        ax.plot([], [], "s", color=shade, label=c)
+        where = [(i + (j - (len(conditions) - 1) / 2) * width, grouped[c, scene]) for i, scene in enumerate(scenes)
+                 if (c, scene) in grouped]
+        if not where:  # no trial of this condition done yet
+            continue
+        parts = ax.boxplot([d for _, d in where], positions=[x for x, _ in where], widths=width * 0.9,
+                           patch_artist=True, manage_ticks=False, flierprops={"markersize": 3})
         for box in parts["boxes"]:
-            box.set(facecolor=SHADES[j % len(SHADES)], edgecolor="#1d2430")
-        ax.plot([], [], "s", color=SHADES[j % len(SHADES)], label=c)
-    ax.set_xticks(range(len(scenes)), scenes, rotation=20, ha="right", fontsize="small")
+            box.set(facecolor=shade, edgecolor="#1d2430")
+    ax.set_xticks(range(len(scenes)), scenes, rotation=20, ha="right", fontsize="small", parse_math=False)
     ax.set_ylabel("seconds per trial")
     ax.legend(title="condition", fontsize="small", frameon=False)
     return _svg(fig)
 
 
 def plot_flags(study: Study) -> str:
-    """Flags raised over time (cumulative), the ones still open and the ones the experimenter cleared."""
+    """Flags over time: how many were open (raised, not yet cleared) and how many the experimenter had cleared."""
     fig, ax = _figure(7.0, 2.6)
-    flags = _flags(study)
-    if not flags:
+    changes = _flag_changes(_flags(study))
+    if not changes:
         _empty(ax, "no participant has been flagged")
         return _svg(fig)
-    times = [at for at, _, _ in flags]
-    ax.step(times, np.cumsum([not cleared for *_, cleared in flags]), where="post", color=COLOURS["raised"],
-            label="open")
-    ax.step(times, np.cumsum([cleared for *_, cleared in flags]), where="post", color=COLOURS["cleared"],
-            label="cleared")
+    times = [at for at, _, _ in changes]
+    ax.step(times, [n for _, n, _ in changes], where="post", color=COLOURS["raised"], label="open")
+    ax.step(times, [n for _, _, n in changes], where="post", color=COLOURS["cleared"], label="cleared")
     ax.set_ylabel("flags")
     ax.legend(fontsize="small", frameon=False)
     fig.autofmt_xdate()

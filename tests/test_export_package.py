@@ -77,7 +77,24 @@ def test_an_export_is_a_valid_data_package_described_once(tmp_path, backend_url)
     assert trials["foreignKeys"][0]["reference"] == {"resource": "participants", "fields": ["participant"]}
     # Psych-DS: a schema.org Dataset naming every variable measured
     assert package["@type"] == "Dataset" and package["name"] == "demo" and package["description"]
-    assert len(package["variableMeasured"]) == sum(len(t.columns) for t in TABLES)
+    headers = {c.name for t in TABLES for c in t.columns}
+    assert sorted(v["name"] for v in package["variableMeasured"]) == sorted(headers)  # named as the columns
+
+
+def test_allowed_ids_are_the_studys_and_the_datas_as_the_cells_hold_them(demo_resources):
+    """A scene the study file no longer names still describes the data that holds it; an id a spreadsheet would run
+    as a formula is allowed as the cell writes it (escaped)."""
+    from conftest import DEMO_STUDY
+
+    from study_server.export_schema import data_package
+    from study_server.study_file import load_study
+
+    study = load_study(DEMO_STUDY)
+    files = {f"{t.name}.csv": "0" * 64 for t in TABLES}
+    package = data_package(study, files, "2026-12-04T00:00:00+00:00", {"scenes": {"-gone", *study.scenes}})
+    trials = next(r for r in package["resources"] if r["name"] == "trials")["schema"]["fields"]
+    allowed = next(f for f in trials if f["name"] == "scene")["constraints"]["enum"]
+    assert allowed == [*study.scenes, "'-gone"]
 
 
 def test_a_broken_cell_a_dangling_participant_or_a_changed_file_fails_validation(exported, tmp_path):

@@ -50,7 +50,7 @@ def test_the_numbers_are_the_studys(studied):
     assert sum(t["n"] for t in glance["trial_times"]) == 6 * 9  # every counted trial done
     assert {t["condition"] for t in glance["trial_times"]} == {"none", "basic", "full"}
     assert all(t["q1"] <= t["median"] <= t["q3"] for t in glance["trial_times"])
-    assert glance["flags"] == [("2026-12-01", {"raised": 1, "cleared": 1})]
+    assert glance["flags"] == [("2026-12-01", {"raised": 2, "cleared": 1})]  # raised that day; cleared that day
 
 
 def test_each_plot_is_an_svg_image_an_admin_gets(studied):
@@ -73,7 +73,7 @@ def test_the_dashboard_shows_the_plots_with_their_numbers_as_tables(studied):
         assert f'src="/admin/demo/plots/{name}.svg"' in page
     assert page.count("<img") == len(plots.DRAW) and page.count('alt="') >= len(plots.DRAW)
     assert 'id="glance-arrivals"' in page and 'id="glance-trial-times"' in page and 'id="glance-flags"' in page
-    assert "<td>2026-12-01</td><td>1</td><td>1</td>" in page
+    assert "<td>2026-12-01</td><td>2</td><td>1</td>" in page
 
 
 def test_a_study_without_data_draws_empty_plots(tmp_path, demo_resources):
@@ -82,3 +82,19 @@ def test_a_study_without_data_draws_empty_plots(tmp_path, demo_resources):
     for name in plots.DRAW:
         assert c.get(f"/admin/demo/plots/{name}.svg").status_code == 200
     assert "nobody yet" in c.get("/admin/").get_data(as_text=True)
+
+
+def test_the_plots_draw_early_in_collection_and_flags_count_when_they_change(studied):
+    """While a condition has no trial done yet (the first participants of a Williams design) its boxes are
+    missing, not the plot; a flag is open from when it was raised until it was cleared."""
+    from study_server.models import Trial
+
+    with studied.app_context():
+        db.session.query(Trial).filter(Trial.condition != "none").update({"done_at": None})
+        db.session.commit()
+        study = studied.extensions["studies"]["demo"].study
+        assert {t["condition"] for t in plots.glance(study)["trial_times"]} == {"none"}
+        assert ET.fromstring(plots.plot_trial_times(study)).tag == f"{SVG}svg"
+        flags = plots._flags(study)
+        assert [(at.hour, n_open, n_cleared) for at, n_open, n_cleared in plots._flag_changes(flags)] == [
+            (10, 1, 0), (11, 2, 0), (12, 1, 1)]

@@ -34,7 +34,10 @@ def violations(page) -> list[dict]:
     return [v for v in page.evaluate(RUN, RULES) if v["impact"] in ("serious", "critical")]
 
 
-def check(page, name: str, seen: dict) -> None:
+def check(page, name: str, seen: dict, step: str | None = None) -> None:
+    """axe on the page, once it is the one named (its ``data-step``, when given) and says its language."""
+    if step is not None:
+        until(page, f"document.body && document.body.dataset.step === {step!r}")
     assert page.evaluate("() => document.documentElement.lang") == "en", name
     seen[name] = violations(page)
 
@@ -69,25 +72,28 @@ def test_every_participant_page_passes_axe(server, browser):
     page = context.new_page()
     page.goto(f"{base}/study/demo/start?pid=axe-1")
     until(page, "document.body.dataset.step === 'consent'")
-    check(page, "consent", seen)
+    check(page, "consent", seen, "consent")
     page.click("text=I agree to take part")
-    check(page, "demographics", seen)
+    check(page, "demographics", seen, "demographics")
     page.click("button:has-text('Continue')")  # nothing answered: the errors shown are checked too
     until(page, "!!document.querySelector('.error')")
-    check(page, "demographics with errors", seen)
+    check(page, "demographics with errors", seen, "demographics")
     page.fill("input[name=age]", "29")
     page.check("input[name=experience_3d][value='A few times']")
     page.check("input[name=pointing_device][value=Trackpad]")
     page.click("button:has-text('Continue')")
-    check(page, "instructions", seen)
+    check(page, "instructions", seen, "instructions")
     while page.locator("button[name=go][value=next]").count():
+        if page.inner_text("button[name=go][value=next]") == "Start":  # the last page: the editor's shortcuts
+            check(page, "instructions, last page", seen, "instructions")
         page.click("button[name=go][value=next]")
+        page.wait_for_load_state()
     ready(page)
-    check(page, "trial", seen)
+    check(page, "trial", seen, "trial")
     page.click("#done-button")
     check(page, "trial, done confirmation", seen)
     page.goto(f"{base}/study/demo/leave")
-    check(page, "leave", seen)
+    check(page, "leave", seen, "leave")
     page.goto(f"{base}/study/demo/no-such-page")
     check(page, "message", seen)
     context.close()
@@ -97,7 +103,7 @@ def test_every_participant_page_passes_axe(server, browser):
     page = context.new_page()
     page.goto(f"{base}/study/demo/")
     until(page, "document.body.dataset.step === 'exit'")
-    check(page, "exit survey", seen)
+    check(page, "exit survey", seen, "exit")
     for name, value in EXIT.items():
         if name == "comments":
             page.fill("textarea[name=comments]", value)
@@ -113,14 +119,14 @@ def test_every_participant_page_passes_axe(server, browser):
     page.route("**/js/device.js", lambda route: route.abort())  # the check's page stays as it first shows
     page.goto(f"{base}/study/demo/start?pid=axe-3")
     until(page, "document.body.dataset.step === 'device'")
-    check(page, "device check", seen)
+    check(page, "device check", seen, "device")
     page.unroute("**/js/device.js")
     page.reload()
     until(page, "document.body.dataset.step === 'done'")  # a phone is screened out, with its code
     check(page, "screened out", seen)
     context.close()
     assert {k: v for k, v in seen.items() if v} == {}
-    assert len(seen) == 12
+    assert len(seen) == 13
 
 
 def test_the_admin_pages_pass_axe(authoring_server, browser):
@@ -155,18 +161,21 @@ def test_the_admin_pages_pass_axe(authoring_server, browser):
     assert {k: v for k, v in seen.items() if v} == {}
 
 
-def focus_visible(page) -> bool:
-    """Whether the focused element shows it (an outline or a box shadow of its own)."""
-    return page.evaluate("""() => { const s = getComputedStyle(document.activeElement);
-        return s.outlineStyle !== 'none' && parseFloat(s.outlineWidth) > 0 || s.boxShadow !== 'none'; }""")
+def focus_outline(page) -> str:
+    """The focused element's outline (style and width), and what it is."""
+    return page.evaluate("""() => { const e = document.activeElement, s = getComputedStyle(e);
+        return `${s.outlineStyle} ${s.outlineWidth} on ${e.tagName} ${e.name || e.id || e.className}`; }""")
 
 
 def tab_to(page, selector: str, limit: int = 60) -> None:
-    """Press Tab until ``selector`` has the focus, checking that every stop shows it."""
+    """Press Tab until ``selector`` has the focus, checking that every stop on the way shows it with the pages'
+    own focus style (3 px solid: :focus-visible in study.css, not only the browser's default ring)."""
     for _ in range(limit):
         page.keyboard.press("Tab")
+        outline = focus_outline(page)
+        if not outline.endswith(" on BODY "):  # (the page itself, between the last stop and the first)
+            assert outline.startswith("solid 3px"), outline
         if page.evaluate("(s) => document.activeElement && document.activeElement.matches(s)", selector):
-            assert focus_visible(page), selector
             return
     raise AssertionError(f"Tab never reached {selector}")
 

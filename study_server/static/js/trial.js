@@ -202,7 +202,7 @@ function describeTarget(target) {
     counts.set(name, (counts.get(name) || 0) + 1);
   }
   const listed = [...counts].map(([name, n]) => (n > 1 ? `${n} × ${name}` : name)).join(", ");
-  return strings.targetAlt.replace("{objects}", listed || strings.targetEmpty);
+  return strings.targetAlt.replace("{objects}", () => listed || strings.targetEmpty);
 }
 
 /** Done asks for confirmation, then finishes the trial. */
