@@ -9,7 +9,7 @@ NPM_STAMP := node_modules/.installed
 
 DEMO_STUDY := study_server/demo/study.toml
 
-.PHONY: setup wheel demo demo-report demo-power replication serve-replication test test-fast lint audit pytest serve bench clean
+.PHONY: translations setup wheel demo demo-report demo-power replication serve-replication test test-fast lint audit pytest serve bench clean
 
 setup: $(PIP_STAMP) $(NPM_STAMP)
 
@@ -38,6 +38,13 @@ wheel: setup
 	$(BIN)/python -m pip wheel --no-deps --quiet -w dist .
 	rm -rf build *.egg-info
 	@ls dist/*.whl
+
+# The participant pages' strings: extract them from the server's code and templates and bring every catalogue up
+# to date (new strings appear untranslated in study_server/translations/<language>/LC_MESSAGES/messages.po; the
+# tests fail until each is translated).
+translations: $(PIP_STAMP)
+	$(BIN)/pybabel extract -F study_server/translations/babel.cfg --no-location --sort-output -o var/messages.pot .
+	$(BIN)/pybabel update -i var/messages.pot -d study_server/translations --no-fuzzy-matching --ignore-obsolete -w 116
 
 lint: $(PIP_STAMP)
 	$(BIN)/ruff check .

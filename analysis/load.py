@@ -188,8 +188,10 @@ def read_database(url: str, study: str | None = None) -> StudyData:
             elif study not in set(studies["id"]):
                 raise AnalysisError(f"no study {study!r} in the database ({', '.join(studies['id'])})", "--study")
             q = {"s": study}
+            spoken = "language" in {c["name"] for c in inspect(con).get_columns("participants")}
             people = pd.read_sql(text("SELECT id AS participant, status, row, excluded_reason, created_at, "
-                                      "finished_at FROM participants WHERE study_id = :s ORDER BY id"), con, params=q)
+                                      "finished_at" + (", language" if spoken else "")
+                                      + " FROM participants WHERE study_id = :s ORDER BY id"), con, params=q)
             trials = pd.read_sql(text(
                 "SELECT t.participant_id AS participant, t.position, t.\"index\" AS trial, t.kind, t.condition, "
                 "t.scene_id AS scene, t.period, t.block, t.started_at, t.done_at"

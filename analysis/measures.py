@@ -205,6 +205,9 @@ def trials_table(data: StudyData) -> pd.DataFrame:
     ev, position = ev[position >= 0], position[position >= 0]
     measures = measures_by_trial(ev, position, len(unique)).iloc[unique.get_indexer(wanted)].reset_index(drop=True)
     out = pd.concat([trials, measures], axis=1)
+    if "language" in data.participants:  # the language the participant's pages spoke: a grouping like any other
+        spoke = data.participants.set_index("participant")["language"]
+        out["language"] = out["participant"].map(spoke)
     out["complete"] = np.isfinite(out["total_time"].astype(float))
     for name in TRIAL_MEASURES:
         out.loc[~out["complete"], name] = np.nan

@@ -100,6 +100,10 @@ def create_app(config: dict | None = None) -> Flask:
 
     app.extensions["studies"] = load_studies(app.config["STUDY_FILES"], check=app.config.get("CHECK_RESOURCES", True))
 
+    from . import i18n
+
+    i18n.init_app(app)
+
     from . import errors
     from .blueprints import admin, api, health, participant, vendor
     from .boot import api_base

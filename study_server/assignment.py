@@ -72,7 +72,8 @@ def arrivals_from(study: Study, address: str, now: datetime) -> int:
 
 
 def arrive(study: Study, platform: str, platform_id: str, meta: dict | None = None, user_agent: str = "",
-           address: str | None = None, now: datetime | None = None) -> tuple[Participant, bool]:
+           address: str | None = None, now: datetime | None = None, language: str | None = None
+           ) -> tuple[Participant, bool]:
     """The participant of ``platform_id`` (created=False), or a new one without a row (created=True).
     Raises :class:`QuotaExceeded` when ``address`` already brought the study's hourly quota of new arrivals."""
     now = now or utcnow()
@@ -85,7 +86,8 @@ def arrive(study: Study, platform: str, platform_id: str, meta: dict | None = No
     p = Participant(study_id=study.id, study_hash=study.hash, platform=platform, platform_id=platform_id,
                     platform_meta=meta or {}, token=secrets.token_urlsafe(32), row=-1,
                     seed=secrets.randbelow(2**31), status="in_progress", step="device", user_agent=user_agent[:512],
-                    created_at=now, last_seen_at=now, flags=[], address=address)
+                    created_at=now, last_seen_at=now, flags=[], address=address,
+                    language=language or study.languages[0])
     db.session.add(p)
     try:
         db.session.flush()

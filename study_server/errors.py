@@ -21,6 +21,7 @@ the events and sends them again) and participant pages say that the work is kept
 
 from __future__ import annotations
 
+from flask_babel import gettext as _
 from sqlalchemy.exc import DBAPIError
 
 RETRY_AFTER_S = 5
@@ -75,7 +76,7 @@ def _is_api() -> bool:
 def _page(status: int, message: str, reference: str | None = None):
     from flask import render_template
 
-    return render_template("message.html", title="Sorry", message=message, reference=reference, study=None), status
+    return render_template("message.html", title=_("Sorry"), message=message, reference=reference, study=None), status
 
 
 def _log_participant_failure(status: int, e: BaseException) -> str | None:
@@ -117,7 +118,7 @@ def http_error(e):
         return jsonify({"error": e.description or e.name, "field": None}), e.code
     db.session.rollback()
     message = e.description if e.code == 400 else (
-        "This page does not exist. Please use the link you were given." if e.code in (404, 405)
+        _("This page does not exist. Please use the link you were given.") if e.code in (404, 405)
         else (e.description or e.name))
     return _page(e.code, message, _log_participant_failure(e.code, e))
 
@@ -134,13 +135,13 @@ def unexpected(e: Exception):
         current_app.logger.error("database unavailable: %s", e)
         if _is_api():
             return jsonify({"error": UNAVAILABLE, "field": None}), 503, {"Retry-After": str(RETRY_AFTER_S)}
-        return _page(503, "We cannot save anything for a moment. Your work is kept in this browser; please wait a "
-                          "minute and reload this page.", _log_participant_failure(503, e))
+        return _page(503, _("We cannot save anything for a moment. Your work is kept in this browser; please wait "
+                            "a minute and reload this page."), _log_participant_failure(503, e))
     current_app.logger.exception("request failure")
     if _is_api():
         return jsonify({"error": "internal error; the request was not applied", "field": None}), 500
-    return _page(500, "Something went wrong on our side. Your work is saved; please reload this page in a moment.",
-                 _log_participant_failure(500, e))
+    return _page(500, _("Something went wrong on our side. Your work is saved; please reload this page in a "
+                        "moment."), _log_participant_failure(500, e))
 
 
 def database_unavailable(error: BaseException) -> bool:

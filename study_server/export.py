@@ -94,15 +94,18 @@ def _pick_rows(participant: int, events: list[dict]) -> Iterator[dict]:
 
 
 def _participants(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
+    languages = seen.setdefault("languages", set())
     for p in _stream(select(Participant).where(Participant.study_id == rt.study.id).order_by(Participant.id)):
         v = p.viewport or {}
+        if p.language:
+            languages.add(p.language)
         yield {"participant": p.id, "study": p.study_id, "study_hash": p.study_hash, "platform": p.platform,
                "platform_id": p.platform_id, "row": p.row, "status": p.status, "step": p.step,
                "consent_version": p.consent_version or "", "excluded_reason": p.excluded_reason or "",
                "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at),
                "finished_at": _iso(p.finished_at), "acked_seq": p.acked_seq,
                "flags": " | ".join(f["reason"] for f in open_flags(p)), "viewport_width": v.get("width", ""),
-               "viewport_height": v.get("height", ""), "user_agent": p.user_agent}
+               "viewport_height": v.get("height", ""), "user_agent": p.user_agent, "language": p.language or ""}
 
 
 def _trials(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:

@@ -25,7 +25,8 @@ STEPS = ("device", "consent", "demographics", "instructions", "trial", "exit", "
 PLATFORMS = ("prolific", "mturk", "link")
 #: Allowed values taken from the study when the package is written: key → what of the study (to which the ids the
 #: data holds are added: a study file changed after collection began still describes its data).
-STUDY_VALUES = {"conditions": lambda s: [c.id for c in s.conditions], "scenes": lambda s: list(s.scenes)}
+STUDY_VALUES = {"conditions": lambda s: [c.id for c in s.conditions], "scenes": lambda s: list(s.scenes),
+                "languages": lambda s: list(s.languages)}
 
 
 @dataclass(frozen=True)
@@ -80,6 +81,8 @@ TABLES: tuple[Table, ...] = (
         _c("viewport_width", "integer", "browser window width at the device check (px)"),
         _c("viewport_height", "integer", "browser window height at the device check (px)"),
         _c("user_agent", "string", "browser user agent"),
+        _c("language", "string", "the language the participant's pages spoke (chosen at arrival among the study's "
+                                 "languages)", enum="languages"),
     ), ("participant",), participant_key=False),
     Table("trials", "one row per trial of a participant's plan (the practice trial first, when the study has one)", (
         PARTICIPANT,

@@ -14,6 +14,7 @@ import re
 from datetime import timedelta
 from urllib.parse import quote
 
+from flask_babel import gettext as _
 from sqlalchemy import case, func, select, update
 
 from .errors import StudyError
@@ -118,17 +119,17 @@ def validate_answers(questions: tuple[Question, ...], form) -> tuple[dict, dict[
         raw = raw.strip() if isinstance(raw, str) else ""
         if not raw:
             if q.required:
-                errors[q.id] = "Please answer this question."
+                errors[q.id] = _("Please answer this question.")
             answers[q.id] = None
             continue
         if q.kind == "likert":
             if not raw.isdigit() or not 1 <= int(raw) <= q.scale:
-                errors[q.id] = f"Please choose a value from 1 to {q.scale}."
+                errors[q.id] = _("Please choose a value from 1 to %(scale)s.", scale=q.scale)
             else:
                 answers[q.id] = int(raw)
         elif q.kind == "choice":
             if raw not in q.options:
-                errors[q.id] = "Please choose one of the options."
+                errors[q.id] = _("Please choose one of the options.")
             else:
                 answers[q.id] = raw
         elif q.kind == "number":
@@ -137,10 +138,11 @@ def validate_answers(questions: tuple[Question, ...], form) -> tuple[dict, dict[
                 if not math.isfinite(value):
                     raise ValueError
             except ValueError:
-                errors[q.id] = "Please enter a number."
+                errors[q.id] = _("Please enter a number.")
                 continue
             if (q.minimum is not None and value < q.minimum) or (q.maximum is not None and value > q.maximum):
-                errors[q.id] = f"Please enter a number between {q.minimum:g} and {q.maximum:g}."
+                errors[q.id] = _("Please enter a number between %(low)s and %(high)s.", low=f"{q.minimum:g}",
+                                   high=f"{q.maximum:g}")
             else:
                 answers[q.id] = int(value) if value.is_integer() else value
         else:

@@ -64,6 +64,8 @@ class Participant(db.Model):
     code: Mapped[str | None] = mapped_column(String(64), nullable=True)
     excluded_reason: Mapped[str | None] = mapped_column(Text, nullable=True)
     user_agent: Mapped[str] = mapped_column(String(512), default="")
+    #: The language the participant's pages speak, chosen at arrival (study_server.i18n.choose); None before.
+    language: Mapped[str | None] = mapped_column(String(16), nullable=True)
     viewport: Mapped[dict | None] = mapped_column(JSON, nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
     last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)

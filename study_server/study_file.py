@@ -14,6 +14,7 @@ from scenesuggest.errors import SceneSuggestError
 
 from . import schedule
 from .config import data_home
+from .i18n import Text, shipped
 from .toml_reader import Reader, StudyFileError, parse
 
 __all__ = ["Condition", "Question", "Study", "StudyFileError", "TargetScene", "load_study"]
@@ -108,6 +109,8 @@ class Study:
     arrivals_per_address_per_hour: int = 100
     max_events_per_participant: int = 100_000
     max_mb_per_participant: float = 32.0
+    #: The languages the study speaks, its default first (its texts are :class:`study_server.i18n.Text`).
+    languages: tuple[str, ...] = ("en",)
 
     def condition(self, condition_id: str) -> Condition:
         return next(c for c in self.conditions if c.id == condition_id)
@@ -121,7 +124,51 @@ class Study:
                              [list(p) for p in self.periods], row, seed, self.practice)
 
 
-def _questions(r: Reader, items: list[dict], path: str) -> tuple[Question, ...]:
+def _languages(r: Reader, doc: dict) -> tuple[str, ...]:
+    """The study's languages, its default first: ``language = "de"`` (one) or ``languages = ["en", "de"]`` (the
+    participant's browser chooses); English when it says neither. Each must be one this server has a catalogue of."""
+    if "language" in doc and "languages" in doc:
+        raise r.fail("languages", "give either language (one) or languages (several), not both")
+    if "language" in doc:
+        found, where = [r.string(doc, "language", "language")], ["language"]
+    else:
+        found = doc.get("languages", ["en"])
+        if not isinstance(found, list) or not found or not all(isinstance(x, str) for x in found):
+            raise r.fail("languages", "expected a list of language codes, e.g. [\"en\", \"de\"]")
+        where = [f"languages[{i}]" for i in range(len(found))]
+    speaks = shipped()
+    for code, key in zip(found, where, strict=True):
+        if code not in speaks:
+            raise r.fail(key, f"no catalogue for the language {code!r} (this server speaks {', '.join(speaks)})")
+    if len(set(found)) != len(found):
+        raise r.fail("languages", "a language is given twice")
+    return tuple(found)
+
+
+def _text(r: Reader, doc: dict, key: str, path: str, languages: tuple[str, ...], default: str | None = None) -> Text:
+    """A study text: a string in the study's one language, or a table with one string per language of the study
+    (``label = { en = "…", de = "…" }``); the first language's is the text itself."""
+    value = doc.get(key, default)
+    if isinstance(value, dict):
+        for lang in value:
+            if lang not in languages:
+                raise r.fail(f"{path}.{lang}", f"not one of the study's languages ({', '.join(languages)})")
+        for lang in languages:
+            if not isinstance(value.get(lang), str) or not value[lang].strip():
+                raise r.fail(f"{path}.{lang}", f"missing: the text in {lang!r}, a language of the study"
+                             if lang not in value else "expected a non-empty string")
+        return Text(value[languages[0]], {lang: value[lang] for lang in languages})
+    if len(languages) > 1:
+        if not isinstance(value, str):
+            raise r.fail(path, "missing" if key not in doc else "expected a table with one string per language")
+        raise r.fail(path, f"the study speaks {', '.join(languages)}: give this text in each, as "
+                           f"{{ {', '.join(f'{lang} = …' for lang in languages)} }}")
+    if not isinstance(value, str) or not value.strip():
+        raise r.fail(path, "missing" if key not in doc else "expected a non-empty string")
+    return Text(value, {languages[0]: value})
+
+
+def _questions(r: Reader, items: list[dict], path: str, languages: tuple[str, ...]) -> tuple[Question, ...]:
     out, seen = [], set()
     for i, q in enumerate(items):
         p = f"{path}[{i}]"
@@ -133,13 +180,16 @@ def _questions(r: Reader, items: list[dict], path: str) -> tuple[Question, ...]:
         kind = r.choice(q, "kind", f"{p}.kind", QUESTION_KINDS)
         options = q.get("options", [])
         if kind == "choice" and (not isinstance(options, list) or len(options) < 2
-                                 or not all(isinstance(o, str) and o for o in options)):
+                                 or not all(isinstance(o, str | dict) and o for o in options)):
             raise r.fail(f"{p}.options", "a choice question needs at least two options")
+        # an answer is stored as the option in the study's default language, whatever the page showed
+        options = tuple(_text(r, {"o": o}, "o", f"{p}.options[{j}]", languages) for j, o in enumerate(options)) \
+            if kind == "choice" else ()
         scale = int(r.number(q, "scale", f"{p}.scale", 5, minimum=2)) if kind == "likert" else 5
-        out.append(Question(qid, kind, r.string(q, "label", f"{p}.label"), r.boolean(q, "required", f"{p}.required",
-                                                                                   True),
-                            tuple(options) if kind == "choice" else (), scale, str(q.get("low", "")),
-                            str(q.get("high", "")),
+        ends = {end: _text(r, q, end, f"{p}.{end}", languages) if end in q else "" for end in ("low", "high")}
+        out.append(Question(qid, kind, _text(r, q, "label", f"{p}.label", languages),
+                            r.boolean(q, "required", f"{p}.required", True), options, scale, ends["low"],
+                            ends["high"],
                             r.number(q, "min", f"{p}.min", minimum=-1e12) if "min" in q else None,
                             r.number(q, "max", f"{p}.max", minimum=-1e12) if "max" in q else None))
     return tuple(out)
@@ -153,7 +203,7 @@ def _engine(r: Reader, doc: dict, path: str, base: Path) -> engines.EngineSpec:
         raise r.fail(f"{path}.{e.field}" if e.field else path, e.message) from None
 
 
-def _conditions(r: Reader, doc: dict, base: Path) -> list[Condition]:
+def _conditions(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> list[Condition]:
     conditions: list[Condition] = []
     for i, c in enumerate(r.tables(doc, "conditions", "conditions")):
         p = f"conditions[{i}]"
@@ -161,13 +211,14 @@ def _conditions(r: Reader, doc: dict, base: Path) -> list[Condition]:
         cid = r.choice(c, "id", f"{p}.id", CONDITIONS)
         if any(x.id == cid for x in conditions):
             raise r.fail(f"{p}.id", f"condition {cid!r} given twice")
-        conditions.append(Condition(cid, str(c.get("label", cid)), str(c.get("instructions", "")),
+        instructions = _text(r, c, "instructions", f"{p}.instructions", languages) if "instructions" in c else ""
+        conditions.append(Condition(cid, _text(r, c, "label", f"{p}.label", languages, cid), instructions,
                                     _engine(r, r.table(c, "engine", f"{p}.engine", required=False), f"{p}.engine",
                                             base)))
     return conditions
 
 
-def _scenes(r: Reader, doc: dict, base: Path) -> dict[str, TargetScene]:
+def _scenes(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> dict[str, TargetScene]:
     scenes = {}
     for i, s in enumerate(r.tables(doc, "scenes", "scenes")):
         p = f"scenes[{i}]"
@@ -179,7 +230,7 @@ def _scenes(r: Reader, doc: dict, base: Path) -> dict[str, TargetScene]:
         start = base / s["start"] if "start" in s else None
         if start is not None and not start.is_file():
             raise r.fail(f"{p}.start", f"no such file: {start}")
-        scenes[sid] = TargetScene(sid, str(s.get("title", sid)), target, start)
+        scenes[sid] = TargetScene(sid, _text(r, s, "title", f"{p}.title", languages, sid), target, start)
     return scenes
 
 
@@ -231,19 +282,19 @@ def _platform(r: Reader, doc: dict) -> dict:
             else None}
 
 
-def _texts(r: Reader, doc: dict) -> dict:
-    """Consent, instructions and surveys."""
+def _texts(r: Reader, doc: dict, languages: tuple[str, ...]) -> dict:
+    """Consent, instructions and surveys, in each of the study's languages."""
     consent = r.table(doc, "consent", "consent")
     r.unknown(consent, ("version", "text"), "consent")
     instructions = []
     for i, page in enumerate(r.tables(doc, "instructions", "instructions")):
         r.unknown(page, ("title", "body"), f"instructions[{i}]")
-        instructions.append((r.string(page, "title", f"instructions[{i}].title"),
-                             r.string(page, "body", f"instructions[{i}].body")))
+        instructions.append((_text(r, page, "title", f"instructions[{i}].title", languages),
+                             _text(r, page, "body", f"instructions[{i}].body", languages)))
     return {"consent_version": r.string(consent, "version", "consent.version"),
-            "consent_text": r.string(consent, "text", "consent.text"), "instructions": tuple(instructions),
-            "demographics": _questions(r, doc.get("demographics", []) or [], "demographics"),
-            "exit_survey": _questions(r, r.tables(doc, "exit_survey", "exit_survey"), "exit_survey")}
+            "consent_text": _text(r, consent, "text", "consent.text", languages), "instructions": tuple(instructions),
+            "demographics": _questions(r, doc.get("demographics", []) or [], "demographics", languages),
+            "exit_survey": _questions(r, r.tables(doc, "exit_survey", "exit_survey"), "exit_survey", languages)}
 
 
 LIMITS = ("trial_minutes", "session_minutes", "stale_after_minutes", "min_objects_placed", "min_trial_seconds",
@@ -321,24 +372,27 @@ def load_study(path: str | Path) -> Study:
     base = path.parent
     r.unknown(doc, ("id", "title", "description", "resources", "design", "conditions", "scenes", "periods",
                     "practice", "platform", "consent", "instructions", "demographics", "exit_survey", "limits",
-                    "device"), "")
+                    "device", "language", "languages"), "")
     study_id = r.string(doc, "id", "id")
     if not study_id.replace("-", "").replace("_", "").isalnum():
         raise r.fail("id", "use letters, digits, '-' and '_' only")
     design = r.table(doc, "design", "design")
     r.unknown(design, ("kind", "blocking", "participants"), "design")
-    conditions = _conditions(r, doc, base)
-    scenes = _scenes(r, doc, base)
+    languages = _languages(r, doc)
+    conditions = _conditions(r, doc, base, languages)
+    scenes = _scenes(r, doc, base, languages)
     periods = _periods(r, doc, scenes)
     study = Study(
-        path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, title=r.string(doc, "title", "title"),
+        path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, title=_text(r, doc, "title", "title", languages),
+        languages=languages,
         description=str(doc.get("description", "")),
         **_resources(r, doc, base),
         design=r.choice(design, "kind", "design.kind", DESIGNS),
         blocking=r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition"),
         participants=int(r.number(design, "participants", "design.participants", minimum=1)),
         conditions=tuple(conditions), scenes=scenes, periods=tuple(periods),
-        practice=_practice(r, doc, scenes, conditions), **_platform(r, doc), **_texts(r, doc), **_limits(r, doc),
+        practice=_practice(r, doc, scenes, conditions), **_platform(r, doc), **_texts(r, doc, languages),
+        **_limits(r, doc),
     )
     if study.design == "williams" and len(conditions) < 2:
         raise r.fail("design.kind", "a Williams design needs at least two conditions")

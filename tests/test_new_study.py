@@ -11,11 +11,17 @@ from simulation.run import simulate
 from study_server.new_study import InitError, init_study
 from study_server.study_file import load_study
 
+LANGUAGES = {"en", "de"}
+
 
 def keys(doc, prefix=""):
-    """Every key path of a TOML document (arrays of tables merged)."""
+    """Every key path of a TOML document (arrays of tables merged; a text given per language counts as its key)."""
     out = set()
     for k, v in doc.items():
+        if isinstance(v, list) and v and all(isinstance(i, dict) and set(i) <= LANGUAGES for i in v):
+            v = v[0]["en"]  # options, each given per language
+        if isinstance(v, dict) and v and set(v) <= LANGUAGES:
+            v = v["en"]
         path = f"{prefix}{k}"
         out.add(path)
         for item in (v if isinstance(v, list) and all(isinstance(i, dict) for i in v) else [v]):

@@ -11,6 +11,12 @@ from conftest import DEMO_STUDY
 
 from study_server.study_file import StudyFileError, load_study
 
+#: Lines of the demo study the mistakes below are made in.
+TITLE = 'title = { en = "Furnish a room", de = "Ein Zimmer einrichten" }'
+LABEL = 'label = { en = "Suggestions", de = "Vorschläge" }'
+OPTIONS = ('options = [{ en = "Never", de = "Nie" }, { en = "A few times", de = "Ein paar Mal" }, '
+           '{ en = "Regularly", de = "Regelmäßig" }]')
+
 
 @pytest.fixture
 def study_dir(tmp_path):
@@ -37,7 +43,7 @@ def test_the_demo_study_is_valid():
 
 @pytest.mark.parametrize(("old", "new", "key", "words"), [
     ('id = "demo"', 'id = "de mo"', "id", "letters"),
-    ('title = "Furnish a room"\n', 'title = "Furnish a room"\ncolour = "red"\n', "colour", "unknown key"),
+    (TITLE + "\n", TITLE + '\ncolour = "red"\n', "colour", "unknown key"),
     ('id = "basic"', 'id = "fancy"', "conditions[1].id", "not one of"),
     ('[[conditions]]\nid = "full"', '[[conditions]]\nid = "none"', "conditions[2].id", "twice"),
     ('target = "scenes/bedside.json"', 'target = "scenes/nowhere.json"', "scenes[2].target", "no such file"),
@@ -45,9 +51,9 @@ def test_the_demo_study_is_valid():
      "no scene 'attic'"),
     ('kind = "williams"', 'kind = "latin"', "design.kind", "not one of"),
     ('participants = 12', 'participants = -3', "design.participants", "number"),
-    ('label = "Suggestions"\n', 'label = "Suggestions"\nengine = { lambda2 = -1 }\n', "conditions[1].engine.lambda2",
+    (LABEL + "\n", LABEL + "\nengine = { lambda2 = -1 }\n", "conditions[1].engine.lambda2",
      "≥ 0"),
-    ('label = "Suggestions"\n', 'label = "Suggestions"\nengine = { lambda9 = 1 }\n', "conditions[1].engine.lambda9",
+    (LABEL + "\n", LABEL + "\nengine = { lambda9 = 1 }\n", "conditions[1].engine.lambda9",
      "unknown key"),
     ('engine = { orientation = "learned" }', 'engine = { orientation = "sideways" }',
      "conditions[2].engine.orientation", "one of learned, paper"),
@@ -57,7 +63,7 @@ def test_the_demo_study_is_valid():
     ('kind = "link"', 'kind = "link"\ncompletion_url = "https://x.org/done"', "platform.completion_url", "{code}"),
     ('kind = "link"', 'kind = "link"\ncompletion_url = "javascript:alert({code})"', "platform.completion_url",
      "http(s) URL"),
-    ('options = ["Never", "A few times", "Regularly"]', 'options = ["Only"]', "demographics[1].options", "two"),
+    (OPTIONS, 'options = ["Only"]', "demographics[1].options", "two"),
     ('kind = "likert"', 'kind = "slider"', "exit_survey[0].kind", "not one of"),
     ('condition = "full"', 'condition = "sideways"', "practice.condition", "not one of"),
     ('kind = "link"', 'kind = "link"\nstudy_id = 5', "platform.study_id", "non-empty string"),
@@ -79,8 +85,9 @@ def test_mistakes_name_the_key(study_dir, old, new, key, words):
 
 
 def test_invalid_toml_reports_the_line(study_dir):
-    path = edit(study_dir, 'title = "Furnish a room"', 'title = "Furnish a room')
-    line = path.read_text().splitlines().index('title = "Furnish a room') + 1
+    path = edit(study_dir, 'title = { en = "Furnish a room",', 'title = { en = "Furnish a room')
+    broken = 'title = { en = "Furnish a room de'
+    line = next(i for i, t in enumerate(path.read_text().splitlines(), 1) if t.startswith(broken))
     with pytest.raises(StudyFileError) as info:
         load_study(path)
     assert info.value.line == line and str(info.value).startswith(f"{path}:{line}: not valid TOML")

@@ -9,11 +9,22 @@ import posixpath
 import re
 import secrets
 
-from flask import Blueprint, current_app, redirect, render_template, request, send_from_directory, session, url_for
+from flask import (
+    Blueprint,
+    current_app,
+    g,
+    redirect,
+    render_template,
+    request,
+    send_from_directory,
+    session,
+    url_for,
+)
+from flask_babel import gettext as _
 from sqlalchemy import select
 from werkzeug.exceptions import NotFound
 
-from .. import assignment, flow, trial_check
+from .. import assignment, flow, i18n, trial_check
 from ..boot import trial_boot
 from ..extensions import db
 from ..models import Participant, SessionLog, flag, log, log_again, utcnow
@@ -22,6 +33,18 @@ from ..studies import runtime
 
 bp = Blueprint("participant", __name__, url_prefix="/study/<study_id>")
 MTURK_PREVIEW = "ASSIGNMENT_ID_NOT_AVAILABLE"
+
+
+@bp.before_request
+def _language() -> None:
+    """The language of the page: the participant's (chosen at arrival), else the one this browser would get."""
+    study_id = (request.view_args or {}).get("study_id")
+    studies = current_app.extensions["studies"]
+    if study_id not in studies:
+        return
+    p = _participant(study_id)
+    g.language = p.language if p is not None and p.language else i18n.choose(studies[study_id].study,
+                                                                             request.accept_languages)
 
 
 def _participant(study_id: str) -> Participant | None:
@@ -101,10 +124,10 @@ def start(study_id: str):
         platform_id, meta = _platform_identity(study, request.args)
     except EntryError as e:  # the application log, not the database: anyone can send these
         current_app.logger.info("entry refused for study %s: %s", study_id, e)
-        return _entry_page(study, f"This link cannot start the study: {e}. Please open the study from the link "
-                                  "on your crowdsourcing platform.", 422)
+        return _entry_page(study, _("This link cannot start the study: %(problem)s. Please open the study from the "
+                                    "link on your crowdsourcing platform.", problem=str(e)), 422)
     if study.platform != "link" and not platform_id:
-        return _entry_page(study, "Please open this study from the link on your crowdsourcing platform.", 400)
+        return _entry_page(study, _("Please open this study from the link on your crowdsourcing platform."), 400)
     mine = _participant(study_id)
     if mine is not None and (not platform_id or mine.platform_id == platform_id):
         log_again("resume", mine, via="entry link")
@@ -117,11 +140,12 @@ def start(study_id: str):
         platform_id = "link-" + secrets.token_hex(8)
     try:
         p, created = assignment.arrive(study, study.platform, platform_id, meta,
-                                       request.headers.get("User-Agent", ""), address_key())
+                                       request.headers.get("User-Agent", ""), address_key(),
+                                       language=i18n.choose(study, request.accept_languages))
     except assignment.QuotaExceeded:
         current_app.logger.warning("arrival quota reached for an address in study %s", study_id)
-        return _entry_page(study, "Too many people have started this study from your network in the last hour. "
-                                  "Please try again later.", 429)
+        return _entry_page(study, _("Too many people have started this study from your network in the last hour. "
+                                    "Please try again later."), 429)
     if created and mine is not None:  # one browser, a second id: flag both for the experimenter
         reason = (f"this browser already took part as participant {mine.id} ({mine.status}, id "
                   f"{mine.platform_id[:40]!r})")
@@ -140,8 +164,8 @@ def _resume_elsewhere(study, existing: Participant, meta: dict):
         flag(existing, "the study was opened with this participant's id in another browser without the "
                        "platform's session id (refused)", by=address_key())
         db.session.commit()
-        return _entry_page(study, "This study is already in progress in another browser. Please continue there; "
-                                  "if you cannot, contact the researcher through your platform.", 409)
+        return _entry_page(study, _("This study is already in progress in another browser. Please continue there; "
+                                    "if you cannot, contact the researcher through your platform."), 409)
     log("resume", existing, via="platform session")
     db.session.commit()
     _remember(study.id, existing)
@@ -167,7 +191,7 @@ def current(study_id: str):
     p = _participant(study_id)
     if p is None:
         return render_template("message.html", title=study.title,
-                               message="Please start this study from the link you were given."), 200
+                               message=_("Please start this study from the link you were given.")), 200
     flow.check_session_time(p, study)
     p.last_seen_at = utcnow()
     _log_view(p)
@@ -182,7 +206,7 @@ def current(study_id: str):
     if p.step == "demographics":
         return render_template("survey.html", survey="demographics", questions=study.demographics, errors={},
                                answers={}, action=url_for(".demographics", study_id=study_id),
-                               heading="About you", **context)
+                               heading=_("About you"), **context)
     if p.step == "instructions":
         title, body = study.instructions[p.instruction_page]
         return render_template("instructions.html", title=title, body=body, page=p.instruction_page,
@@ -191,7 +215,7 @@ def current(study_id: str):
         return _trial_page(rt, p)
     if p.step == "exit":
         return render_template("survey.html", survey="exit", questions=study.exit_survey, errors={}, answers={},
-                               action=url_for(".exit_survey", study_id=study_id), heading="Almost done",
+                               action=url_for(".exit_survey", study_id=study_id), heading=_("Almost done"),
                                **context)
     return render_template("done.html", completion_url=flow.completion_url(study, p), **context)
 
@@ -295,7 +319,7 @@ def demographics(study_id: str):
         flow.submit_demographics(p, study, answers)
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
-    return _survey(study_id, "demographics", runtime(study_id).study.demographics, submit, "About you")
+    return _survey(study_id, "demographics", runtime(study_id).study.demographics, submit, _("About you"))
 
 
 @bp.post("/instructions")
@@ -325,7 +349,7 @@ def exit_survey(study_id: str):
         _unless_ended(flow.submit_exit, p, study, answers)
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
-    return _survey(study_id, "exit", runtime(study_id).study.exit_survey, submit, "Almost done")
+    return _survey(study_id, "exit", runtime(study_id).study.exit_survey, submit, _("Almost done"))
 
 
 @bp.get("/assets/<path:filename>")
