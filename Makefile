@@ -43,6 +43,7 @@ wheel: setup
 # to date (new strings appear untranslated in study_server/translations/<language>/LC_MESSAGES/messages.po; the
 # tests fail until each is translated).
 translations: $(PIP_STAMP)
+	mkdir -p var
 	$(BIN)/pybabel extract -F study_server/translations/babel.cfg --no-location --sort-output -o var/messages.pot .
 	$(BIN)/pybabel update -i var/messages.pot -d study_server/translations --no-fuzzy-matching --ignore-obsolete -w 116
 

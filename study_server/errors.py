@@ -119,7 +119,7 @@ def http_error(e):
     db.session.rollback()
     message = e.description if e.code == 400 else (
         _("This page does not exist. Please use the link you were given.") if e.code in (404, 405)
-        else (e.description or e.name))
+        else _("This request cannot be answered (%(status)s). Please go back and try again.", status=e.code))
     return _page(e.code, message, _log_participant_failure(e.code, e))
 
 

@@ -74,40 +74,62 @@ def check_catalogue(path: Path):
             continue
         ids = message.id if isinstance(message.id, tuple) else (message.id,)
         strings = message.string if isinstance(message.string, tuple) else (message.string,)
-        wanted = placeholders(ids[0])
+        wanted = set().union(*(placeholders(i) for i in ids))
         for translated in strings:
-            if translated and placeholders(translated) != wanted:
-                raise CatalogueError(f"the translation of {ids[0]!r} has the placeholders "
-                                     f"{sorted(placeholders(translated))}, its source {sorted(wanted)}",
-                                     file=str(path), line=message.lineno, field="msgstr")
+            found = placeholders(translated)
+            # a plural form may leave out the count its source names (German "ein Objekt"); no form adds one
+            if translated and (found != wanted if len(ids) == 1 else not found <= wanted):
+                raise CatalogueError(f"the translation of {ids[0]!r} has the placeholders {sorted(found)}, its "
+                                     f"source {sorted(wanted)}", file=str(path), line=message.lineno,
+                                     field="msgstr")
+            try:  # the pages format every translation with its named values: a lone % would break the page
+                translated % {name[2:-2]: "" for name in _PERCENT.findall(translated)}
+            except (ValueError, TypeError, KeyError) as e:
+                raise CatalogueError(f"the translation of {ids[0]!r} cannot be formatted ({e}): write a % as %%",
+                                     file=str(path), line=message.lineno, field="msgstr") from None
     return catalog
 
 
 def compile_catalogues(out: Path) -> Path:
-    """Check every shipped catalogue (:func:`check_catalogue`) and compile it into ``out`` (again where its .po is
-    newer); returns ``out``, the folder Flask-Babel reads."""
+    """Check every shipped catalogue (:func:`check_catalogue`) and compile it into ``out`` where what is there
+    differs (by content: a catalogue copied with an older time is compiled too); returns ``out``, the folder
+    Flask-Babel reads. Several processes may start at once: each writes a file of its own and renames it into
+    place, so a reader sees one whole catalogue or another."""
+    import io
+    import os
+    import secrets
+
     from babel.messages.mofile import write_mo
 
     for language in shipped()[1:]:
         source = TRANSLATIONS / language / "LC_MESSAGES" / f"{DOMAIN}.po"
         target = out / language / "LC_MESSAGES" / f"{DOMAIN}.mo"
-        catalog = check_catalogue(source)
-        if target.exists() and target.stat().st_mtime >= source.stat().st_mtime:
+        compiled = io.BytesIO()
+        write_mo(compiled, check_catalogue(source))
+        if target.exists() and target.read_bytes() == compiled.getvalue():
             continue
-        target.parent.mkdir(parents=True, exist_ok=True)
-        partial = target.with_suffix(".part")
-        with partial.open("wb") as f:
-            write_mo(f, catalog)
-        partial.replace(target)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            partial = target.with_name(f".{target.name}.{os.getpid()}.{secrets.token_hex(4)}")
+            partial.write_bytes(compiled.getvalue())
+            os.replace(partial, target)
+        except OSError as e:
+            raise CatalogueError(f"cannot write the compiled catalogue ({e.strerror}): the instance folder must "
+                                 "be writable", file=str(target)) from None
     return out
 
 
 def page_language() -> str:
-    """The language of the page being made: the participant's (set by the participant's routes), else the
-    source language."""
-    from flask import g
+    """The language of the page being made: the participant's (set by the participant's routes); on another
+    participant page (one that no route matched), the one of the server's languages the browser prefers; else the
+    source language (the admin's pages)."""
+    from flask import g, has_request_context, request
 
-    return g.get("language") or SOURCE
+    if g.get("language"):
+        return g.language
+    if has_request_context() and request.path.startswith("/study/"):
+        return preferred(shipped(), request.accept_languages, SOURCE)
+    return SOURCE
 
 
 def translated(text) -> str:
@@ -115,11 +137,24 @@ def translated(text) -> str:
     return text.in_language(page_language()) if isinstance(text, Text) else text
 
 
+def preferred(offered, accept_languages, default: str) -> str:
+    """The language of ``offered`` that ``accept_languages`` (a request's) prefers: its entries by quality (0: not
+    wanted), each matched exactly, else by its primary language (``de-CH`` → ``de``); ``default`` when none is
+    offered."""
+    for tag, quality in sorted(accept_languages, key=lambda entry: -entry[1]):
+        if quality <= 0:
+            continue
+        tag = tag.lower()
+        for candidate in (tag, tag.split("-")[0]):
+            if candidate in offered:
+                return candidate
+    return default
+
+
 def choose(study, accept_languages) -> str:
     """The language a new participant of ``study`` sees: the study's only one, or the one of its languages that
     ``accept_languages`` (the request's) prefers, else its default."""
-    return accept_languages.best_match(study.languages, default=study.languages[0]) if len(study.languages) > 1 \
-        else study.languages[0]
+    return preferred(study.languages, accept_languages, study.languages[0])
 
 
 def init_app(app) -> None:

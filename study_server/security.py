@@ -52,7 +52,9 @@ def csrf_ok(sent: str | None) -> bool:
 def check_csrf() -> None:
     """A state-changing form must carry this session's token."""
     if not csrf_ok(request.form.get("csrf_token", "")):
-        abort(400, "The form has expired; please go back and try again.")
+        from flask_babel import gettext
+
+        abort(400, gettext("The form has expired; please go back and try again."))
 
 
 def client_ip() -> str:

@@ -148,6 +148,8 @@ def _languages(r: Reader, doc: dict) -> tuple[str, ...]:
 def _text(r: Reader, doc: dict, key: str, path: str, languages: tuple[str, ...], default: str | None = None) -> Text:
     """A study text: a string in the study's one language, or a table with one string per language of the study
     (``label = { en = "…", de = "…" }``); the first language's is the text itself."""
+    if key not in doc and default is not None:  # an optional text left out: its default in every language
+        return Text(default, dict.fromkeys(languages, default))
     value = doc.get(key, default)
     if isinstance(value, dict):
         for lang in value:
@@ -385,7 +387,7 @@ def load_study(path: str | Path) -> Study:
     study = Study(
         path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, title=_text(r, doc, "title", "title", languages),
         languages=languages,
-        description=str(doc.get("description", "")),
+        description=_text(r, doc, "description", "description", languages) if "description" in doc else "",
         **_resources(r, doc, base),
         design=r.choice(design, "kind", "design.kind", DESIGNS),
         blocking=r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition"),

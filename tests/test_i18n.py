@@ -41,7 +41,8 @@ def test_every_string_the_pages_use_is_translated_in_every_catalogue(tmp_path):
     assert shipped() == ("en", "de")
     for language in shipped()[1:]:
         catalog = check_catalogue(TRANSLATIONS / language / "LC_MESSAGES" / "messages.po")
-        translated = {m.id for m in catalog if m.id and m.string and not m.fuzzy}
+        translated = {m.id for m in catalog if m.id and not m.fuzzy
+                      and (all(m.string) if isinstance(m.string, tuple) else m.string)}
         assert not wanted - translated, f"{language}: untranslated {sorted(wanted - translated)}"
         assert not translated - wanted, f"{language}: no longer used {sorted(translated - wanted)}"
 
@@ -121,3 +122,47 @@ def test_the_demo_speaks_english_and_german(demo_resources):
     assert study.consent_text.in_language("de").strip().startswith("Dies ist")
     assert [o.in_language("de") for o in study.demographics[1].options] == ["Nie", "Ein paar Mal", "Regelmäßig"]
     assert [str(o) for o in study.exit_survey[4].options][2] == "Suggestions, oriented"  # stored as the default's
+
+
+def test_the_browsers_preference_decides_by_quality_and_primary_language(tmp_path, demo_resources):
+    from werkzeug.datastructures import LanguageAccept
+    from werkzeug.http import parse_accept_header
+
+    from study_server.i18n import choose
+
+    study = load_study(DEMO_STUDY)
+    for header, language in (("de-CH,en;q=0.9", "de"), ("de-AT,en-US;q=0.7,en;q=0.3", "de"), ("fr,en;q=0.5", "en"),
+                             ("en-GB,de;q=0.8", "en"), ("de;q=0,en", "en"), ("fr", "en"), ("", "en")):
+        assert choose(study, parse_accept_header(header, LanguageAccept)) == language, header
+
+
+def test_pages_without_a_participant_speak_the_browsers_language_and_a_stored_one_the_study_dropped_is_not_used(
+        tmp_path, demo_resources):
+    app = make_app(tmp_path)
+    c = app.test_client()
+    assert "Diese Seite gibt es nicht" in c.get("/study/demo/nope", headers=GERMAN).get_data(as_text=True)
+    assert "Diese Seite gibt es nicht" in c.get("/study/unknown/", headers=GERMAN).get_data(as_text=True)
+    c.get("/study/demo/start?pid=de-2", headers=GERMAN)
+    expired = c.post("/study/demo/consent", data={"agree": "yes"}, headers=GERMAN)  # no form token
+    assert expired.status_code == 400 and "Das Formular ist abgelaufen" in expired.get_data(as_text=True)
+    with app.app_context():
+        db.session.query(Participant).update({"language": "fr"})  # a language the study no longer speaks
+        db.session.commit()
+    assert '<html lang="de">' in c.get("/study/demo/", headers=GERMAN).get_data(as_text=True)
+
+
+def test_a_lone_percent_sign_or_a_catalogue_copied_with_an_older_time_is_caught(tmp_path):
+    import os
+
+    from study_server.i18n import compile_catalogues
+
+    po = tmp_path / "messages.po"
+    po.write_text('msgid "Fine"\nmsgstr "50 % fertig"\n')
+    with pytest.raises(CatalogueError, match="write a % as %%"):
+        check_catalogue(po)
+    out = compile_catalogues(tmp_path / "compiled")
+    mo = out / "de" / "LC_MESSAGES" / "messages.mo"
+    mo.write_bytes(b"stale")
+    os.utime(mo, (2e9, 2e9))  # newer than the catalogue: compiled again all the same, by content
+    compile_catalogues(out)
+    assert mo.read_bytes() != b"stale"

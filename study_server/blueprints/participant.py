@@ -42,9 +42,11 @@ def _language() -> None:
     studies = current_app.extensions["studies"]
     if study_id not in studies:
         return
+    study = studies[study_id].study
+    g.language = i18n.choose(study, request.accept_languages)  # first: a database that fails still has a page
     p = _participant(study_id)
-    g.language = p.language if p is not None and p.language else i18n.choose(studies[study_id].study,
-                                                                             request.accept_languages)
+    if p is not None and p.language in study.languages:  # (a language the study no longer speaks: the browser's)
+        g.language = p.language
 
 
 def _participant(study_id: str) -> Participant | None:
@@ -81,7 +83,8 @@ def _platform_identity(study, args) -> tuple[str, dict]:
         if not v and not required:
             return ""
         if not pattern.fullmatch(v):
-            raise EntryError(f"{name} is missing" if not v else f"{name} is not a valid {study.platform} id")
+            raise EntryError(_("%(name)s is missing", name=name) if not v
+                             else _("%(name)s is not a valid %(platform)s id", name=name, platform=study.platform))
         return v
 
     if study.platform == "prolific":
@@ -89,13 +92,13 @@ def _platform_identity(study, args) -> tuple[str, dict]:
                 "STUDY_ID": value("STUDY_ID", PROLIFIC_ID, required=bool(study.platform_study_id)),
                 "SESSION_ID": value("SESSION_ID", PROLIFIC_ID, required=False)}
         if study.platform_study_id and meta["STUDY_ID"] != study.platform_study_id:
-            raise EntryError("STUDY_ID is not this study's Prolific id")
+            raise EntryError(_("STUDY_ID is not this study's Prolific id"))
         return meta["PROLIFIC_PID"], meta
     if study.platform == "mturk":
         meta = {k: value(k, MTURK_ID) for k in ("workerId", "assignmentId", "hitId")}
         submit = args.get("turkSubmitTo", "").rstrip("/")
         if submit not in MTURK_SUBMIT:
-            raise EntryError("turkSubmitTo is not one of MTurk's submit hosts")
+            raise EntryError(_("turkSubmitTo is not one of MTurk's submit hosts"))
         meta["turkSubmitTo"] = submit
         return meta["workerId"], meta
     pid = value("pid", LINK_ID, required=False)

@@ -5,6 +5,8 @@ survey and the done page are in test-artifacts/."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 from flowhelp import DEMOGRAPHICS
 
@@ -20,20 +22,36 @@ pytestmark = pytest.mark.browser
 GERMAN = {"Accept-Language": "de-DE,de;q=0.9"}
 
 
-def english(study) -> list[str]:
-    """Texts that must not show on a German page: the server's English strings and the study's English texts
-    (long enough not to be German too)."""
-    catalogue = [m.id for m in check_catalogue(TRANSLATIONS / "de" / "LC_MESSAGES" / "messages.po")
-                 if m.id and m.string != m.id and len(m.id) >= 12 and "%(" not in m.id and "{" not in m.id]
-    texts = [study.title, study.consent_text.strip().split("\n")[0], *(c.label for c in study.conditions),
-             *(q.label for q in (*study.demographics, *study.exit_survey)), *(t for t, _ in study.instructions)]
-    return catalogue + [str(t) for t in texts if len(str(t)) >= 12]
+def english(study) -> list[re.Pattern]:
+    """What must not show on a German page, as whole words: every English string of the server that German says
+    otherwise (the text around a placeholder), and the study's English texts."""
+    texts = []
+    for m in check_catalogue(TRANSLATIONS / "de" / "LC_MESSAGES" / "messages.po"):
+        if m.id and m.string and m.string != m.id:
+            texts += [part.strip() for part in re.split(r"%\([a-z_]+\)s|\{[a-z_]+\}", m.id)]
+    questions = (*study.demographics, *study.exit_survey)
+    texts += [study.title, study.description, *(c.label for c in study.conditions),
+              *(c.instructions for c in study.conditions), *(s.title for s in study.scenes.values()),
+              *(q.label for q in questions), *(o for q in questions for o in q.options),
+              *(e for q in questions for e in (q.low, q.high)),
+              *(line for t, body in study.instructions for line in (t, *body.strip().split("\n"))),
+              *study.consent_text.strip().split("\n")]
+    german = {t.in_language("de") for t in texts if hasattr(t, "in_language")}
+    return [re.compile(rf"(?<!\w){re.escape(str(t))}(?!\w)") for t in {str(t) for t in texts}
+            if len(str(t)) >= 4 and str(t) not in german]
+
+
+#: Everything a page says, shown or not: its text (the tooltip and the dialog too) and the attributes a reader or
+#: a screen reader shows (titles, labels, placeholders, alternatives).
+SAID = """() => [document.title, document.body.textContent, ...[...document.querySelectorAll(
+    '[title], [aria-label], [placeholder], [alt]')].flatMap((e) => ['title', 'aria-label', 'placeholder', 'alt']
+    .map((a) => e.getAttribute(a) || ''))].join('\\n')"""
 
 
 def in_german(page, study, name: str) -> None:
     assert page.evaluate("() => document.documentElement.lang") == "de", name
-    shown = page.inner_text("body")
-    leaked = [t for t in english(study) if t in shown]
+    said = page.evaluate(SAID)
+    leaked = sorted({p.pattern for p in english(study) if p.search(said)})
     assert not leaked, f"{name}: English on the page: {leaked}"
 
 
