@@ -134,3 +134,32 @@ def place_with_suggestions(page, mode_toggle=False):
     assert newest["parent"] == "room" and newest["surface_type"] == "up_interior"
     assert math.dist(newest["contact_point"], response["hit"]["point"]) < 1e-6  # on the clicked point
     return response, newest
+
+
+def walked_to_exit(base: str, pid: str, headers: dict | None = None):
+    """A participant walked over HTTP (with ``headers`` on arrival: a browser's language) through every trial to
+    the exit survey; the transport, whose cookies a browser takes to go on from there."""
+    from flowhelp import DEMOGRAPHICS
+
+    from simulation.transport import HttpTransport
+    from simulation.walker import Walker
+
+    http = HttpTransport(base)
+    seq = 0
+
+    def trial(b: dict) -> bool:
+        nonlocal seq
+        t, auth = b["trial"], {"Authorization": f"Bearer {b['token']}"}
+        events = [{"seq": seq, "t": 1.0e12 + seq, "type": "trial_start", "trial": t["index"],
+                   "payload": {"scene": t["scene"], "condition": t["condition"]}},
+                  {"seq": seq + 1, "t": 1.0e12 + seq + 12000, "type": "trial_done", "trial": t["index"],
+                   "payload": {"objects": 0}}]
+        seq += 2
+        assert http.post("/api/events", json_body={"page_id": "walk", "events": events}, headers=auth).status == 200
+        assert http.post("/api/trial/done", json_body={"trial": t["index"]}, headers=auth).status == 200
+        return True
+
+    walker = Walker(http, "demo")
+    page = walker.walk(lambda _: DEMOGRAPHICS, trial, until=("exit",), page=walker.enter({"pid": pid}, headers=headers))
+    assert page.step == "exit"
+    return http

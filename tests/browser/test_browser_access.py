@@ -9,13 +9,10 @@ import re
 
 import pytest
 from conftest import ROOT
-from flowhelp import DEMOGRAPHICS, EXIT
-
-from simulation.transport import HttpTransport
-from simulation.walker import Walker
+from flowhelp import EXIT
 
 from .conftest import new_context
-from .pagehelp import ready, screenshot, until
+from .pagehelp import ready, screenshot, until, walked_to_exit
 
 pytestmark = pytest.mark.browser
 
@@ -40,29 +37,6 @@ def check(page, name: str, seen: dict, step: str | None = None) -> None:
         until(page, f"document.body && document.body.dataset.step === {step!r}")
     assert page.evaluate("() => document.documentElement.lang") == "en", name
     seen[name] = violations(page)
-
-
-def walked_to_exit(base: str, pid: str) -> HttpTransport:
-    """A participant walked over HTTP through every trial to the exit survey (its cookies for a browser)."""
-    http = HttpTransport(base)
-    seq = 0
-
-    def trial(b: dict) -> bool:
-        nonlocal seq
-        t, auth = b["trial"], {"Authorization": f"Bearer {b['token']}"}
-        events = [{"seq": seq, "t": 1.0e12 + seq, "type": "trial_start", "trial": t["index"],
-                   "payload": {"scene": t["scene"], "condition": t["condition"]}},
-                  {"seq": seq + 1, "t": 1.0e12 + seq + 12000, "type": "trial_done", "trial": t["index"],
-                   "payload": {"objects": 0}}]
-        seq += 2
-        assert http.post("/api/events", json_body={"page_id": "walk", "events": events}, headers=auth).status == 200
-        assert http.post("/api/trial/done", json_body={"trial": t["index"]}, headers=auth).status == 200
-        return True
-
-    walker = Walker(http, "demo")
-    page = walker.walk(lambda _: DEMOGRAPHICS, trial, until=("exit",), page=walker.enter({"pid": pid}))
-    assert page.step == "exit"
-    return http
 
 
 def test_every_participant_page_passes_axe(server, browser):

@@ -8,15 +8,12 @@ from __future__ import annotations
 import re
 
 import pytest
-from flowhelp import DEMOGRAPHICS
 
-from simulation.transport import HttpTransport
-from simulation.walker import Walker
 from study_server.i18n import TRANSLATIONS, check_catalogue
 from study_server.study_file import load_study
 
 from .conftest import new_context
-from .pagehelp import place_with_suggestions, ready, screenshot, until
+from .pagehelp import place_with_suggestions, ready, screenshot, until, walked_to_exit
 
 pytestmark = pytest.mark.browser
 GERMAN = {"Accept-Language": "de-DE,de;q=0.9"}
@@ -89,24 +86,7 @@ def test_a_german_participant_sees_the_demo_in_german(server, browser):
     screenshot(page, "de-trial-suggestions")
     context.close()
 
-    http = HttpTransport(base)  # a second German participant walked to the exit survey over HTTP
-    walker = Walker(http, "demo")
-    seq = 0
-
-    def trial(b: dict) -> bool:
-        nonlocal seq
-        t, auth = b["trial"], {"Authorization": f"Bearer {b['token']}"}
-        events = [{"seq": seq, "t": 1.0e12 + seq, "type": "trial_start", "trial": t["index"],
-                   "payload": {"scene": t["scene"], "condition": t["condition"]}},
-                  {"seq": seq + 1, "t": 1.0e12 + seq + 12000, "type": "trial_done", "trial": t["index"],
-                   "payload": {"objects": 0}}]
-        seq += 2
-        assert http.post("/api/events", json_body={"page_id": "walk", "events": events}, headers=auth).status == 200
-        assert http.post("/api/trial/done", json_body={"trial": t["index"]}, headers=auth).status == 200
-        return True
-
-    assert walker.walk(lambda _: DEMOGRAPHICS, trial, until=("exit",),
-                       page=walker.enter({"pid": "de-exit"}, headers=GERMAN)).step == "exit"
+    http = walked_to_exit(base, "de-exit", GERMAN)  # a second German participant, to the exit survey
     context = new_context(browser, locale="de-DE")
     context.add_cookies(http.cookies())
     page = context.new_page()
