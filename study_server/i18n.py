@@ -15,6 +15,7 @@ language, or the one of its languages their browser prefers (``Accept-Language``
 
 from __future__ import annotations
 
+import functools
 import re
 from pathlib import Path
 
@@ -22,6 +23,9 @@ from scenesuggest.errors import SceneSuggestError
 
 TRANSLATIONS = Path(__file__).resolve().parent / "translations"
 DOMAIN = "messages"
+#: The names of a corpus's categories in other languages (``<language>/LC_MESSAGES/categories.po``: msgid the
+#: category, msgstr its name), read as they are: they are data of the corpus, not strings of the code.
+CATEGORIES = "categories"
 #: The language the server's strings are written in (it needs no catalogue).
 SOURCE = "en"
 #: A placeholder of the editor's strings (``{n}``) or of a Python format (``%(n)s``, ``{n}``).
@@ -119,6 +123,20 @@ def compile_catalogues(out: Path) -> Path:
     return out
 
 
+@functools.cache
+def category_names(language: str) -> dict[str, str]:
+    """Category → its name in ``language`` (checked as any catalogue; empty where none is shipped)."""
+    path = TRANSLATIONS / language / "LC_MESSAGES" / f"{CATEGORIES}.po"
+    if language == SOURCE or not path.exists():
+        return {}
+    return {m.id: m.string for m in check_catalogue(path) if m.id and m.string}
+
+
+def category_label(category: str, language: str | None) -> str | None:
+    """A category's name in ``language``, None where it has none (the page then words the category itself)."""
+    return category_names(language or SOURCE).get(category)
+
+
 def page_language() -> str:
     """The language of the page being made: the participant's (set by the participant's routes); on another
     participant page (one that no route matched), the one of the server's languages the browser prefers; else the
@@ -162,6 +180,8 @@ def init_app(app) -> None:
     from flask_babel import Babel
 
     compiled = compile_catalogues(Path(app.instance_path) / "translations")
+    for language in shipped():  # a broken category catalogue stops the start-up too, naming its file and line
+        category_names(language)
     app.config["BABEL_TRANSLATION_DIRECTORIES"] = str(compiled)
     Babel(app, locale_selector=page_language, default_locale=SOURCE)
     app.jinja_env.filters["tr"] = translated

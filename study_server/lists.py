@@ -20,6 +20,7 @@ from scenesuggest.errors import SceneSuggestError
 from scenesuggest.scenes import frames
 from scenesuggest.suggestion.suggest import ContextQuery, SuggestionList
 
+from . import i18n
 from .authoring import live_scene
 from .errors import StudyError
 from .extensions import db
@@ -97,6 +98,7 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
         if not models:
             continue  # a category without a model in this study's library cannot be placed
         items.append({"rank": len(items) + 1, "category": s.category, "score": s.score,
+                      "label": i18n.category_label(s.category, i18n.page_language()),
                       "placement": frames.to_column_major(s.placement), "attachment_face": s.attachment_face,
                       "heading_deg": s.heading_deg, "notes": list(s.notes),
                       "models": [describe(m) for m in models[:MODELS_PER_CATEGORY]]})

@@ -8,6 +8,7 @@ that creating the app stays cheap and each gunicorn worker holds one copy.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import threading
 from functools import cached_property
@@ -24,6 +25,7 @@ from scenesuggest.library.search import SearchIndex
 from scenesuggest.scenes import scene_json
 from scenesuggest.scenes.taxonomy import Taxonomy
 
+from . import i18n
 from .study_file import Study, StudyFileError, load_study
 
 
@@ -88,7 +90,8 @@ class StudyRuntime:
                 "tags": tuple(m.tags), "size": tuple(m.size),
                 **{key: url_for("participant.asset", study_id=self.study.id, filename=name)[len(prefix):]
                    for key, name in (("asset", m.asset), ("thumbnail", m.thumbnail))}}
-        return {**d, "asset": prefix + d["asset"], "thumbnail": prefix + d["thumbnail"]}
+        label = i18n.category_label(m.category, i18n.page_language())  # the participant's language's name, if any
+        return {**d, "asset": prefix + d["asset"], "thumbnail": prefix + d["thumbnail"], "label": label or m.name}
 
     def check_resources(self) -> None:
         """Fail at start-up, naming the key, when the priors file or the model library is missing or unreadable
@@ -203,7 +206,12 @@ class StudyRuntime:
 
     @cached_property
     def search_index(self) -> SearchIndex:
-        return SearchIndex.build(self.fixed_list)
+        """Keyword search over the study's models, which finds a model by its category's name in each of the
+        study's languages too (a German participant searches for "Stuhl")."""
+        names = [i18n.category_names(language) for language in self.study.languages]
+        return SearchIndex.build([dataclasses.replace(m, tags=[*m.tags, *(n[m.category] for n in names
+                                                                          if m.category in n)])
+                                  for m in self.fixed_list])
 
     @cached_property
     def taxonomy(self) -> Taxonomy:

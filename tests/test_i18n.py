@@ -166,3 +166,36 @@ def test_a_lone_percent_sign_or_a_catalogue_copied_with_an_older_time_is_caught(
     os.utime(mo, (2e9, 2e9))  # newer than the catalogue: compiled again all the same, by content
     compile_catalogues(out)
     assert mo.read_bytes() != b"stale"
+
+
+def test_the_corpus_speaks_german_too_on_tiles_and_in_search(tmp_path, demo_resources):
+    """The categories of the demo's corpus have German names: the model list, the suggestions and the search give
+    them to a German participant, and a German word finds its models; an English participant sees the models'
+    own names."""
+    from flowhelp import auth, boot, finish_all_trials  # noqa: F401 (the walk's helpers)
+
+    from study_server.i18n import category_names
+
+    app = make_app(tmp_path)
+    rt = app.extensions["studies"]["demo"]
+    named = category_names("de")
+    assert {m.category for m in rt.library.values()} <= set(named), "categories without a German name"
+    german = app.test_client()
+    page = german.get("/study/demo/start?pid=de-3", headers=GERMAN, follow_redirects=True)
+    german.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "1440", "height": "900"})
+    german.post("/study/demo/consent", data={"csrf_token": csrf(german.get("/study/demo/")), "agree": "yes"})
+    with app.app_context():
+        token = db.session.query(Participant).filter_by(platform_id="de-3").one().token
+    models = german.get("/api/models", headers={"Authorization": f"Bearer {token}"}).json["models"]
+    chair = next(m for m in models if m["category"] == "Chair")
+    assert chair["label"] == "Stuhl" and chair["name"] == "Chair"
+    hits = german.get("/api/search?q=Stuhl", headers={"Authorization": f"Bearer {token}"}).json["hits"]
+    assert hits and hits[0]["category"] == "Chair" and hits[0]["label"] == "Stuhl"
+    assert german.get("/api/search?q=Kühlschrank", headers={"Authorization": f"Bearer {token}"}).json[
+        "hits"][0]["category"] == "Fridge"
+    english = app.test_client()
+    english.get("/study/demo/start?pid=en-3", follow_redirects=True)
+    with app.app_context():
+        token = db.session.query(Participant).filter_by(platform_id="en-3").one().token
+    models = english.get("/api/models", headers={"Authorization": f"Bearer {token}"}).json["models"]
+    assert next(m for m in models if m["category"] == "Chair")["label"] == "Chair"

@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from flask import Blueprint, jsonify, request, url_for
+from flask import Blueprint, current_app, g, jsonify, request, url_for
 from sqlalchemy import bindparam, select
 
 from scenesuggest.contract.event_schema import json_schema
@@ -49,11 +49,23 @@ def caller() -> Participant | Preview:
         preview = read_preview_token(token)
         if preview is None:
             raise RequestError(401, "invalid preview token", "Authorization")
-        return Preview(*preview)
+        preview = Preview(*preview)
+        _speak(preview.study_id, None)
+        return preview
     p = db.session.scalar(_BY_TOKEN, {"token": token}) if len(token) <= 64 else None
     if p is None:
         raise RequestError(401, "unknown session token", "Authorization")
+    _speak(p.study_id, p.language)
     return p
+
+
+def _speak(study_id: str, language: str | None) -> None:
+    """What the answer's names are in (the model and suggestion tiles'): the participant's language, if the study
+    still speaks it, else the study's default."""
+    studies = current_app.extensions["studies"]
+    if study_id in studies:
+        spoken = studies[study_id].study.languages
+        g.language = language if language in spoken else spoken[0]
 
 
 #: What may decode to text no database can store: a JSON escape of a surrogate (paired ones are fine) or of NUL,

@@ -9,7 +9,8 @@ import re
 
 import pytest
 
-from study_server.i18n import TRANSLATIONS, check_catalogue
+from scenesuggest.library.search import split_camel
+from study_server.i18n import TRANSLATIONS, category_names, check_catalogue
 from study_server.study_file import load_study
 
 from .conftest import new_context
@@ -34,8 +35,11 @@ def english(study) -> list[re.Pattern]:
               *(line for t, body in study.instructions for line in (t, *body.strip().split("\n"))),
               *study.consent_text.strip().split("\n")]
     german = {t.in_language("de") for t in texts if hasattr(t, "in_language")}
-    return [re.compile(rf"(?<!\w){re.escape(str(t))}(?!\w)") for t in {str(t) for t in texts}
-            if len(str(t)) >= 4 and str(t) not in german]
+    names = category_names("de")  # the corpus's categories, as tiles would name them in English (any case)
+    corpus = [re.compile(rf"(?<!\w){re.escape(split_camel(c))}(?!\w)", re.IGNORECASE) for c, n in names.items()
+              if n.lower() != split_camel(c).lower()]
+    return corpus + [re.compile(rf"(?<!\w){re.escape(str(t))}(?!\w)") for t in {str(t) for t in texts}
+                     if len(str(t)) >= 4 and str(t) not in german]
 
 
 #: Everything a page says, shown or not: its text (the tooltip and the dialog too) and the attributes a reader or

@@ -64,7 +64,7 @@ export class ModelListPanel {
     const started = performance.now();
     const source = results ? "search" : "fixed";
     const items = results ? results.hits : this.models;
-    this.list.replaceChildren(...items.map((m, i) => tile(m, m.name || m.category, () => {
+    this.list.replaceChildren(...items.map((m, i) => tile(m, m.label || m.name || m.category, () => {
       for (const t of this.list.querySelectorAll(".tile")) t.classList.remove("chosen");
       this.list.children[i].classList.add("chosen");
       this.onChoose(m, { source, rank: i + 1, listId: results ? results.list_id : null });
@@ -119,7 +119,7 @@ export class SuggestionPanel {
     const items = this.response.suggestions;
     this.body.replaceChildren(...items.map((s, i) => {
       const group = el("div", { class: "category", role: "listitem" });
-      const main = tile(s.models[0], categoryLabel(s.category), () => this.onPick(s, s.models[0], {
+      const main = tile(s.models[0], s.label || categoryLabel(s.category), () => this.onPick(s, s.models[0], {
         source: "context", rank: i + 1, listId: this.response.list_id }),
       { "data-category": s.category, "data-rank": String(i + 1) });
       group.append(main);
@@ -127,7 +127,7 @@ export class SuggestionPanel {
         const more = el("button", { type: "button", class: "more", text: `+${s.models.length - 1}`, title: this.strings.more,
           onclick: () => {
             if (group.querySelector(".members")) { group.querySelector(".members").remove(); return; }
-            group.append(el("div", { class: "members" }, s.models.map((m) => tile(m, m.name, () =>
+            group.append(el("div", { class: "members" }, s.models.map((m) => tile(m, m.label || m.name, () =>
               this.onPick(s, m, { source: "context", rank: i + 1, listId: this.response.list_id }), { "data-model": m.id }))));
           } });
         group.append(more);
@@ -139,7 +139,7 @@ export class SuggestionPanel {
   showSearch(results) {
     if (!results) { this.showRanked(); return; }
     this.log("list_shown", { source: "search", items: results.hits.map((m) => m.id), list_id: results.list_id });
-    this.body.replaceChildren(...results.hits.map((m, i) => tile(m, m.name || m.category, () =>
+    this.body.replaceChildren(...results.hits.map((m, i) => tile(m, m.label || m.name || m.category, () =>
       this.onPick(null, m, { source: "search", rank: i + 1, listId: results.list_id }), { "data-model": m.id, "data-rank": String(i + 1) })));
   }
 }

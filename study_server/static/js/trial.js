@@ -193,12 +193,15 @@ function wireToolbar(viewer, editor) {
   }
 }
 
-/** The target picture's text alternative: the objects the target scene holds, by category ("2 × chair"). */
-function describeTarget(target) {
+/** The target picture's text alternative: the objects the target scene holds, by category ("2 × chair"), named as
+ * the model list names them in the participant's language (``label``). */
+function describeTarget(target, models) {
+  const labels = new Map(models.filter((m) => m.label).map((m) => [m.category, m.label]));
   const counts = new Map();
   for (const o of target.objects || []) {
     if (o.parent === null || o.parent === undefined) continue;  // the room
-    const name = o.category.replace(/([a-z0-9])([A-Z])/g, "$1 $2").toLowerCase();
+    const shown = labels.get(o.category) || o.category.replace(/([a-z0-9])([A-Z])/g, "$1 $2");
+    const name = document.documentElement.lang === "en" ? shown.toLowerCase() : shown;  // (German nouns keep capitals)
     counts.set(name, (counts.get(name) || 0) + 1);
   }
   const listed = [...counts].map(([name, n]) => (n > 1 ? `${n} × ${name}` : name)).join(", ");
@@ -222,7 +225,7 @@ async function main() {
   viewer.startControls();
   viewer.setRoom(scene);
   viewer.setTarget(new SceneModel(target), (o) => library.instance(o.modelId, o.size), $("target"));
-  $("target").setAttribute("aria-label", describeTarget(target));
+  $("target").setAttribute("aria-label", describeTarget(target, models));
   logInputs(viewer);
   logStart(saved);
   setUpCondition(trial.condition, { editor, scene, models, trial: trial.index, api, log, strings, say,
