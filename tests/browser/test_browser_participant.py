@@ -165,6 +165,7 @@ def test_a_whole_participant_run(page, server):
 def test_a_moving_view_may_drop_resolution_and_is_sharp_again_when_still(page, server):
     base, _ = server
     start(page, base, "browser-resolution")
+    until(page, "window.sceneSuggestTest.resolution().scale === 1", timeout=10.0)  # the first frames have settled
     sharp = hook(page, "resolution()")
     assert sharp["buffer"] == sharp["css"] and sharp["scale"] == 1
     page.evaluate("() => window.sceneSuggestTest.setSlowFrameMs(0)")  # every moving frame counts as slow
