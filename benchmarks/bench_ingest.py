@@ -27,23 +27,18 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import random
-import signal
-import sqlite3
 import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import checkout
 from demostudy import make_app, to_first_trial
-from serverproc import StudyServer, demo_missing, nginx_missing
+from serverproc import demo_missing, nginx_missing
+from stacks import Stack, postgres_stack, sqlite_stack
 
 from scenesuggest.contract.events import SCENE_CHANGES
 from simulation.transport import HttpTransport
@@ -178,68 +173,6 @@ def percentile(values, q):
     return values[min(len(values) - 1, int(round(q / 100 * (len(values) - 1))))]
 
 
-@dataclass
-class Stack:
-    """What the load goes to: the base URL, the app servers' CPU seconds so far, the proxy's (0 without one), and
-    (stored, distinct) event rows in the database."""
-
-    base: str
-    label: str
-    cpu_seconds: Callable[[], float]
-    count: Callable[[], tuple[int, int]]
-    proxy_cpu_seconds: Callable[[], float] = lambda: 0.0
-
-
-COUNT = "SELECT count(*), (SELECT count(*) FROM (SELECT DISTINCT participant_id, seq FROM events) d) FROM events"
-
-
-@contextmanager
-def sqlite_stack(tmp: Path, workers: int):
-    """`make serve`'s server: gunicorn on SQLite in WAL mode."""
-    database = tmp / "bench.sqlite3"
-    with StudyServer(tmp / "instance", f"sqlite:///{database}", workers) as server:
-        def count():
-            with sqlite3.connect(database) as conn:
-                return conn.execute(COUNT).fetchone()
-        yield Stack(server.base, "sqlite-wal", server.cpu_seconds, count)
-
-
-@contextmanager
-def postgres_stack(tmp: Path, workers: int, via_proxy: bool):
-    """One app server on a throwaway PostgreSQL, or two behind nginx over TLS (the deployment the README gives:
-    ``study deploy-files``), each with ``workers`` gunicorn workers."""
-    from serverproc import NginxProxy, ThrowawayPostgres
-    from sqlalchemy import create_engine, text
-
-    with ThrowawayPostgres() as pg:
-        url = pg.create("bench")
-        env = {"SCENESUGGEST_PROXY_HOPS": "1"} if via_proxy else {}
-        apps = [StudyServer(tmp / f"instance-{i}", url, workers, migrate=i == 0, env=env)
-                for i in range(2 if via_proxy else 1)]
-        proxy = NginxProxy(tmp / "nginx", [a.port for a in apps]) if via_proxy else None
-        engine = create_engine(url)
-        try:
-            for a in apps:
-                a.start().wait_ready()
-            if proxy:
-                proxy.start()
-                os.environ["SSL_CERT_FILE"] = os.environ["REQUESTS_CA_BUNDLE"] = str(proxy.cert)
-
-            def count():
-                with engine.connect() as con:
-                    return tuple(con.execute(text(COUNT)).one())
-            yield Stack(proxy.https if proxy else apps[0].base,
-                        "postgresql" + (f" behind nginx (TLS), {len(apps)} app servers" if proxy else ""),
-                        lambda: sum(a.cpu_seconds() for a in apps), count,
-                        proxy.cpu_seconds if proxy else (lambda: 0.0))
-        finally:
-            engine.dispose()
-            if proxy:
-                proxy.stop()
-            for a in apps:
-                a.kill(signal.SIGTERM)
-
-
 def measure(stack: Stack, args, mix: list[dict]) -> dict:
     """Enrol the participants, run the paced then the saturated phase; the figures."""
     with ThreadPoolExecutor(max_workers=8) as pool:
@@ -301,7 +234,26 @@ def main() -> int:
     parser.add_argument("--database", choices=("sqlite", "postgresql"), default="sqlite",
                         help="postgresql: a throwaway server; SQLite is then measured too, in the same run")
     parser.add_argument("--via-proxy", action="store_true",
-                        help="with --database postgresql: two app servers behind nginx over TLS")
+                        help="with --database postgresql: app servers behind nginx over TLS")
+    parser.add_argument("--apps", type=int, default=None,
+                        help="app servers on PostgreSQL (default: one, or two behind the proxy)")
+    realistic_args = parser.add_argument_group("a realistic crowd (--realistic)")
+    realistic_args.add_argument("--realistic", action="store_true",
+                                help="participants take the whole study at once, each sending what a simulated "
+                                     "person sends when (instead of the paced and saturated phases)")
+    realistic_args.add_argument("--pace", type=float, default=1.0,
+                                help="times a person's speed (1: as fast as people; the load of pace × "
+                                     "participants people)")
+    realistic_args.add_argument("--arrival", type=float, default=30.0,
+                                help="seconds over which the participants arrive")
+    realistic_args.add_argument("--record", type=int, default=12, help="simulated participants recorded")
+    realistic_args.add_argument("--full-study", dest="short_study", action="store_false",
+                                help="the whole demo study (ten trials) instead of its practice and one scene")
+    realistic_args.add_argument("--kill", action="store_true",
+                                help="SIGKILL one app server a third of the way in, start it again 3 s later")
+    realistic_args.add_argument("--capacity", action="store_true",
+                                help="also on SQLite; print participants per app-server core for each")
+    realistic_args.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     checkout.require(ROOT)
     if demo_missing():
@@ -311,6 +263,13 @@ def main() -> int:
         print(json.dumps({"benchmark": "ingest", "error": nginx_missing() or "--via-proxy needs --database "
                                                                              "postgresql"}))
         return 1
+    if args.realistic:
+        import realistic
+
+        out = realistic.main(args)
+        ok = out.pop("ok")
+        print(json.dumps(out, indent=1))
+        return 0 if ok else 1
     mix = event_mix(args.vocabulary)
     sizes = sorted(len(json.dumps({"seq": 12345, "t": 1.7e12, **e})) for e in mix)
     out = {"benchmark": "ingest", "participants": args.participants, "batch_size": args.batch_size,
@@ -318,7 +277,7 @@ def main() -> int:
            "median_event_bytes": sizes[len(sizes) // 2], "mean_event_bytes": round(sum(sizes) / len(sizes), 1)}
     with tempfile.TemporaryDirectory() as tmp:
         if args.database == "postgresql":
-            with postgres_stack(Path(tmp) / "pg", args.workers, args.via_proxy) as stack:
+            with postgres_stack(Path(tmp) / "pg", args.workers, args.via_proxy, apps=args.apps) as stack:
                 out |= measure(stack, args, mix)
             with sqlite_stack(Path(tmp) / "sqlite", args.workers) as stack:  # the same load, the same run
                 out["sqlite"] = {k: v for k, v in measure(stack, args, mix).items()

@@ -14,7 +14,7 @@ from sqlalchemy import event
 from werkzeug.exceptions import HTTPException
 
 from . import config as settings
-from .extensions import db, json_text, json_value, migrate
+from .extensions import Answers, db, json_text, json_value, migrate
 
 MIGRATIONS = settings.MIGRATIONS
 
@@ -81,6 +81,7 @@ def create_app(config: dict | None = None) -> Flask:
     """Build the app. ``config`` overrides the environment (tests pass a database URL and study files)."""
     instance = Path((config or {}).get("INSTANCE_PATH") or settings.instance_path())
     app = Flask(__name__, instance_path=str(instance))  # templates/ and static/ of the package
+    app.json = Answers(app)
     app.config.update(settings.from_environment(instance))
     app.config.update(config or {})
     options = app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})

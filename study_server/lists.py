@@ -7,9 +7,7 @@ say what a participant saw at which rank; an admin's preview builds the same lis
 
 from __future__ import annotations
 
-import json
 import uuid
-from collections.abc import Callable
 from contextlib import contextmanager
 from datetime import timedelta
 
@@ -23,7 +21,7 @@ from scenesuggest.suggestion.suggest import ContextQuery, SuggestionList
 from . import i18n
 from .authoring import live_scene
 from .errors import StudyError
-from .extensions import db
+from .extensions import db, json_text
 from .models import Participant, ShownList, log, log_again, utcnow
 from .studies import EngineUnavailable, StudyRuntime
 
@@ -81,27 +79,26 @@ def check_room(who: Participant, size: int, quota_bytes: int) -> None:
         raise TooManyLists("this session has stored as much as a study allows", 300)
 
 
-def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal,
-                 describe: Callable) -> tuple[list[dict], SuggestionList]:
+def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal) -> tuple[list[dict], SuggestionList]:
     """(items, the engine's answer) for a click on ``parent`` at ``point`` (metres, world frame) with ``normal``:
     ranked categories that this study's library can place, each with its placement (4×4, column-major, world
-    frame), attachment face, heading and models (as ``describe(model)`` gives them); the answer says which engine
-    answered and, when the condition's engine could not, why (``fallback``). Raises
+    frame), attachment face, heading and models (as :meth:`StudyRuntime.describe` gives them); the answer says
+    which engine answered and, when the condition's engine could not, why (``fallback``). Raises
     :class:`scenesuggest.errors.SceneSuggestError` for a query the engine cannot answer."""
     engine = rt.engine(condition)
     query = ContextQuery(scene, parent, point, normal)
     found = engine.suggest(query, "full" if condition == "full" else "basic", top=SUGGESTIONS_SHOWN,
                            only=rt.placeable(condition))
-    items = []
+    items, language = [], i18n.page_language()
     for s in found:
         models = [rt.library[m] for m in s.models if m in rt.library] or rt.by_category.get(s.category, [])
         if not models:
             continue  # a category without a model in this study's library cannot be placed
         items.append({"rank": len(items) + 1, "category": s.category, "score": s.score,
-                      "label": i18n.category_label(s.category, i18n.page_language()),
+                      "label": i18n.category_label(s.category, language),
                       "placement": frames.to_column_major(s.placement), "attachment_face": s.attachment_face,
                       "heading_deg": s.heading_deg, "notes": list(s.notes),
-                      "models": [describe(m) for m in models[:MODELS_PER_CATEGORY]]})
+                      "models": [rt.describe(m, language) for m in models[:MODELS_PER_CATEGORY]]})
         if len(items) >= SUGGESTIONS_SHOWN:
             break
     return items, found
@@ -112,7 +109,7 @@ def _store(who: Participant, trial: int | None, source: str, query: dict, items:
     """Store a shown list for ``who``; returns its id. The list counts against the participant's storage quota
     (:class:`TooManyLists`; the rate is checked before the list is made, :func:`check_rate`)."""
     list_id = uuid.uuid4().hex
-    size = len(json.dumps(query)) + len(json.dumps(items))
+    size = len(json_text(query).encode()) + len(json_text(items).encode())  # as stored
     # one UPDATE that adds and checks at once: an event batch stored meanwhile is counted, never overwritten
     counted = db.session.execute(update(Participant).where(
         Participant.id == who.id, func.coalesce(Participant.bytes_stored, 0) + size <= quota_bytes)
@@ -160,7 +157,7 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
         scene = live_scene(data.get("scene"), rt.scene_type(scene_id))
         try:
             items, found = context_list(rt, condition, scene, data.get("parent"), data.get("point"),
-                                        data.get("normal"), rt.describe)
+                                        data.get("normal"))
         except SceneSuggestError as e:
             raise QueryRejected(e.message, e.field) from None
         except EngineUnavailable as e:
@@ -193,5 +190,6 @@ def search(rt: StudyRuntime, who: Participant | None, trial: int | None, text: s
         hits = rt.search_index.search(text, limit)
         shown = [{"rank": i + 1, "model": h.model_id, "category": h.category} for i, h in enumerate(hits)]
         list_id = _store(who, trial, "search", {"text": text}, shown, _quota_bytes(rt)) if who else uuid.uuid4().hex
+    language = i18n.page_language()
     return {"list_id": list_id, "query": text,
-            "hits": [dict(rt.describe(rt.library[h.model_id]), rank=i + 1) for i, h in enumerate(hits)]}
+            "hits": [dict(rt.describe(rt.library[h.model_id], language), rank=i + 1) for i, h in enumerate(hits)]}

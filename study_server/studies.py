@@ -78,10 +78,10 @@ class StudyRuntime:
         self._documents: dict[Path, tuple[tuple[int, int, int, int], str, dict]] = {}
         self._documents_lock = threading.Lock()
 
-    def describe(self, m: ModelInfo) -> dict:
-        """What the API says of model ``m`` (size in metres, asset and thumbnail URLs), in a request context: a
-        new dict each call. Made once per model (:attr:`model_descriptions`, URLs below the mount point, which is
-        prefixed per request)."""
+    def describe(self, m: ModelInfo, language: str | None = None) -> dict:
+        """What the API says of model ``m`` (size in metres, asset and thumbnail URLs, its category's name in
+        ``language``, default the page's), in a request context: a new dict each call. Made once per model
+        (:attr:`model_descriptions`, URLs below the mount point, which is prefixed per request)."""
         prefix = request.script_root
         d = self.model_descriptions.get(m.id)
         if d is None:
@@ -90,7 +90,7 @@ class StudyRuntime:
                 "tags": tuple(m.tags), "size": tuple(m.size),
                 **{key: url_for("participant.asset", study_id=self.study.id, filename=name)[len(prefix):]
                    for key, name in (("asset", m.asset), ("thumbnail", m.thumbnail))}}
-        label = i18n.category_label(m.category, i18n.page_language())  # the participant's language's name, if any
+        label = i18n.category_label(m.category, language or i18n.page_language())  # the participant's, if any
         return {**d, "asset": prefix + d["asset"], "thumbnail": prefix + d["thumbnail"], "label": label or m.name}
 
     def check_resources(self) -> None:

@@ -38,3 +38,25 @@ def test_text_json_wrote_that_orjson_refuses_is_read_by_json():
         json_value(b'{"a": ')
     with pytest.raises(RecursionError):
         json_value(b"[" * 100_000 + b"]" * 100_000)
+
+
+def test_the_apps_answers_are_orjsons_and_flasks_where_orjson_cannot(tmp_path):
+    """The app's answers (jsonify) are orjson's text: keys in the order made, NaN as null; dates as Flask writes
+    them, an integer past 64 bits exactly (json), indented answers by json."""
+    from datetime import UTC, datetime
+
+    from flask import Flask
+
+    from study_server.extensions import Answers
+
+    app = Flask(__name__)
+    app.json = Answers(app)
+    with app.app_context():
+        assert app.json.dumps({"b": 1, "a": [0.5, float("nan")]}) == '{"b":1,"a":[0.5,null]}'
+        when = datetime(2026, 12, 4, 8, 0, tzinfo=UTC)
+        assert app.json.loads(app.json.dumps({"at": when})) == {"at": "Fri, 04 Dec 2026 08:00:00 GMT"}
+        assert app.json.loads(app.json.dumps({"huge": 10**30})) == {"huge": 10**30}
+        assert app.json.dumps({"b": 1, "a": 2}, indent=2) == '{\n  "a": 2,\n  "b": 1\n}'
+        response = app.json.response({"list_id": "x", "suggestions": []})
+        assert response.mimetype == "application/json" and json.loads(response.get_data()) == {
+            "list_id": "x", "suggestions": []}

@@ -16,7 +16,7 @@ from scenesuggest.contract.event_schema import json_schema
 from scenesuggest.contract.events import MAX_SEQ, EventError, text_problem
 from scenesuggest.scenes import scene_json
 
-from .. import flow, ingest, lists, trial_check
+from .. import flow, i18n, ingest, lists, trial_check
 from ..authoring import live_scene
 from ..errors import RequestError
 from ..extensions import db, json_value
@@ -254,7 +254,8 @@ def search():
 def models():
     who = caller()
     rt = runtime(who.study_id)
-    return jsonify({"models": [rt.describe(m) for m in rt.fixed_list]})
+    language = i18n.page_language()
+    return jsonify({"models": [rt.describe(m, language) for m in rt.fixed_list]})
 
 
 @bp.get("/scenes/<scene_id>")
