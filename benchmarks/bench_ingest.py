@@ -38,6 +38,7 @@ from pathlib import Path
 import checkout
 from demostudy import make_app, to_first_trial
 from serverproc import demo_missing, nginx_missing
+from realistic import client_cpu_seconds
 from stacks import Stack, postgres_stack, sqlite_stack
 
 from scenesuggest.contract.events import SCENE_CHANGES
@@ -151,6 +152,7 @@ def run_phase(server, tokens: list[str], seqs: list[int], args, interval: float,
     lat, errors, lock = [], [], threading.Lock()
     suggest_lat, suggest_errors, stop = [], [], threading.Event()
     started, cpu, proxy_cpu = time.perf_counter(), server.cpu_seconds(), server.proxy_cpu_seconds()
+    client_cpu = client_cpu_seconds()
     with ThreadPoolExecutor(max_workers=2 * len(tokens)) as pool:
         helpers = [pool.submit(suggester, base, tokens[k], suggest_every, random.Random(1000 + k), stop,
                                suggest_lat, suggest_errors, lock) for k in range(len(tokens)) if suggest_every]
@@ -162,7 +164,8 @@ def run_phase(server, tokens: list[str], seqs: list[int], args, interval: float,
         for h in helpers:
             h.result()
     return {"seconds": time.perf_counter() - started, "cpu_s": server.cpu_seconds() - cpu,
-            "proxy_cpu_s": server.proxy_cpu_seconds() - proxy_cpu, "lat": lat,
+            "proxy_cpu_s": server.proxy_cpu_seconds() - proxy_cpu, "client_cpu_s": client_cpu_seconds() - client_cpu,
+            "lat": lat,
             "errors": errors, "ends": ends,
             "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True)), "suggest_lat": suggest_lat,
             "suggest_errors": suggest_errors}
@@ -203,6 +206,9 @@ def measure(stack: Stack, args, mix: list[dict]) -> dict:
         "saturated_p95_ms": round(percentile(saturated["lat"], 95), 1),
         "server_cpu_ms_per_1000_events": round(1e6 * saturated["cpu_s"] / saturated["events"], 1),
         "paced_server_cpu_ms_per_1000_events": round(1e6 * paced["cpu_s"] / paced["events"], 1),
+        # the load generator shares the machine's cores (two here): its own CPU, beside the server's
+        "paced_load_generator_cpu_ms_per_1000_events": round(1e6 * paced["client_cpu_s"] / paced["events"], 1),
+        "load_generator_cpu_ms_per_1000_events": round(1e6 * saturated["client_cpu_s"] / saturated["events"], 1),
         "posts": len(paced["lat"]) + len(saturated["lat"]),
         "events_sent": sent_total,
         "events_stored": stored,
