@@ -37,8 +37,8 @@ from pathlib import Path
 
 import checkout
 from demostudy import make_app, to_first_trial
-from serverproc import demo_missing, nginx_missing
 from realistic import client_cpu_seconds
+from serverproc import demo_missing, nginx_missing
 from stacks import Stack, postgres_stack, sqlite_stack
 
 from scenesuggest.contract.events import SCENE_CHANGES
