@@ -1,0 +1,63 @@
+"""The realistic crowd of the ingestion benchmark (benchmarks/crowd.py, realistic.py): the outbox's batches, the
+shape of what a participant sends, and a small crowd taking the whole study over real HTTP with the server killed
+midway (the short form of ``bench_ingest.py --realistic --kill``)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from conftest import ROOT
+
+import crowd
+import realistic
+
+
+def test_the_outbox_sends_what_was_logged_one_second_after_the_first_unsent_event():
+    times = [0, 200, 999, 1000, 1001, 5000, 5100, 9000]
+    assert crowd.outbox_batches(times) == [[0, 1, 2, 3], [4], [5, 6], [7]]
+    assert crowd.outbox_batches(list(range(0, 500, 100)), most=2) == [[0, 1], [2, 3], [4]]
+    assert crowd.outbox_batches([]) == []
+
+
+def test_the_shape_counts_per_minute_of_trial_time():
+    trial = crowd.TrialTrace("basic", "desk", events=[{"t": 0.0}, {"t": 500.0}, {"t": 30_000.0}, {"t": 60_000.0}],
+                             suggests=[({}, "a")], searches=[("/search?q=mug", "b"), ("/search?q=cup", "c")])
+    shape = crowd.shape([[trial]])
+    assert shape["events_per_min"] == {"median": 4.0, "p95": 4.0}
+    assert shape["batches_per_min"]["median"] == 3.0  # [0, 500], [30 000], [60 000]
+    assert shape["suggestions_per_min"]["median"] == 1.0 and shape["searches_per_min"]["median"] == 2.0
+    assert shape["batch_size"] == {"median": 1, "p95": 2, "max": 2}
+
+
+def test_capacity_keeps_the_headroom():
+    assert realistic.capacity(30.0) == 1000  # 30 ms a participant-minute: half of a core's 60 000 ms
+    assert realistic.capacity(30.0, headroom=1.0) == 2000
+
+
+def test_the_short_study_keeps_the_practice_and_one_scene(tmp_path):
+    from study_server.study_file import load_study
+
+    study = load_study(crowd.short_study(tmp_path / "short"))
+    assert sorted(study.scenes) == ["desk-corner", "practice"]
+    assert [list(p) for p in study.periods] == [["desk-corner"]]
+    assert len(study.conditions) == 3 and study.practice == ("practice", "full") and study.consent_text
+
+
+@pytest.mark.slow
+def test_a_crowd_takes_the_whole_study_and_loses_nothing_when_the_server_is_killed(demo_resources):
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_ingest.py"), "--realistic",
+                           "--participants", "6", "--pace", "40", "--arrival", "1", "--record", "3", "--kill"],
+                          capture_output=True, text=True, timeout=600, cwd=ROOT)
+    out = json.loads(proc.stdout)
+    (run,) = out["runs"]
+    assert [f[0] for f in run["faults"]] == ["killed", "restarted"], run
+    assert run["retries"] > 0, run  # the participants did meet a dead server
+    assert run["codes_given"] == run["completed_in_db"] == run["participants_in_db"] == 6, run
+    assert run["events_sent"] == run["events_stored"] > 0 and run["lost"] == run["duplicates"] == 0, run
+    assert run["rows_balanced"] and not run["failures"], run
+    assert {"events", "suggest", "search", "page", "done"} <= set(run["latency"]), run
+    assert out["shape"]["events_per_min"]["median"] > 0
+    assert proc.returncode == 0, proc.stderr
