@@ -346,15 +346,22 @@ def run_crowd(base: str, study: str, participants: int, people: list[list[TrialT
     return tally
 
 
-def short_study(folder: Path, scenes: tuple[str, ...] = ("desk-corner",)) -> Path:
-    """The demo study with only the practice and ``scenes`` as targets (each condition once per scene): the whole
-    study path in a few minutes of a person's time. Written into ``folder`` beside a link to the demo's scenes."""
+def bench_study(folder: Path, scenes: tuple[str, ...] | None = ("desk-corner",), arrivals: int = 100_000) -> Path:
+    """The demo study for a crowd: with only the practice and ``scenes`` as targets (each condition once per
+    scene: the whole study path in a few minutes of a person's time; None: every scene), and a quota of
+    ``arrivals`` new participants per address and hour (a crowd on loopback arrives from one address, a real one
+    from as many as it has people). Written into ``folder`` beside a link to the demo's scenes."""
     text = DEMO_STUDY.read_text()
-    kept = {"practice", *scenes}
-    blocks = re.split(r"(?m)^(?=\[)", text)  # a block per table, from its header to the next
-    text = "".join(b for b in blocks if not b.startswith("[[scenes]]") or
-                   re.search(r'(?m)^id = "([^"]+)"', b).group(1) in kept)
-    text = re.sub(r"(?m)^scenes = \[[^\]]*\]$", "scenes = [" + ", ".join(f'"{s}"' for s in scenes) + "]", text)
+    if scenes is not None:
+        kept = {"practice", *scenes}
+        blocks = re.split(r"(?m)^(?=\[)", text)  # a block per table, from its header to the next
+        text = "".join(b for b in blocks if not b.startswith("[[scenes]]") or
+                       re.search(r'(?m)^id = "([^"]+)"', b).group(1) in kept)
+        text = re.sub(r"(?m)^scenes = \[[^\]]*\]$", "scenes = [" + ", ".join(f'"{s}"' for s in scenes) + "]", text)
+    text, n = re.subn(r"(?m)^arrivals_per_address_per_hour = \d+$", f"arrivals_per_address_per_hour = {arrivals}",
+                      text)
+    if n != 1:
+        raise RuntimeError(f"{DEMO_STUDY} sets no arrivals_per_address_per_hour to raise")
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "scenes").symlink_to(DEMO_STUDY.parent / "scenes")
     (folder / "study.toml").write_text(text)

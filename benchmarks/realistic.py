@@ -108,7 +108,8 @@ def main(args) -> dict:
     ``--capacity``, on SQLite too); the figures, with ``ok``."""
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        study = crowd.short_study(tmp / "study") if args.short_study else crowd.DEMO_STUDY
+        study = crowd.bench_study(tmp / "study", ("desk-corner",) if args.short_study else None,
+                                  arrivals=10 * args.participants)
         people = crowd.record_trials(args.record, study, seed=args.seed)
         study_id = crowd.study_id(study)
         out = {"benchmark": "ingest-realistic", "study": "demo, practice + desk-corner" if args.short_study else

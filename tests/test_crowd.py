@@ -37,13 +37,16 @@ def test_capacity_keeps_the_headroom():
     assert realistic.capacity(30.0, headroom=1.0) == 2000
 
 
-def test_the_short_study_keeps_the_practice_and_one_scene(tmp_path):
+def test_the_crowds_study_keeps_the_practice_and_one_scene_and_lets_the_crowd_in(tmp_path):
     from study_server.study_file import load_study
 
-    study = load_study(crowd.short_study(tmp_path / "short"))
+    study = load_study(crowd.bench_study(tmp_path / "short", arrivals=5000))
+    assert study.arrivals_per_address_per_hour == 5000
     assert sorted(study.scenes) == ["desk-corner", "practice"]
     assert [list(p) for p in study.periods] == [["desk-corner"]]
     assert len(study.conditions) == 3 and study.practice == ("practice", "full") and study.consent_text
+    whole = load_study(crowd.bench_study(tmp_path / "whole", scenes=None))
+    assert len(whole.scenes) == 4 and len(whole.periods[0]) == 3
 
 
 @pytest.mark.slow

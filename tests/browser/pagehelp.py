@@ -101,6 +101,18 @@ def db_events(database: Path, pid: str) -> list[tuple[int, str]]:
                             "WHERE p.platform_id = ? ORDER BY e.seq", (pid,)).fetchall()
 
 
+def db_batches(database: Path, pid: str) -> list[list[float]]:
+    """The batches the page sent, as stored (the events of a batch share its page and arrival time): each as its
+    events' client times (ms), in seq order."""
+    batches: dict[tuple, list[float]] = {}
+    with sqlite3.connect(database) as conn:
+        for page_id, arrived, t in conn.execute(
+                "SELECT e.page_id, e.server_t, e.client_t FROM events e JOIN participants p ON "
+                "p.id = e.participant_id WHERE p.platform_id = ? ORDER BY e.seq", (pid,)):
+            batches.setdefault((page_id, arrived), []).append(t)
+    return list(batches.values())
+
+
 def db_replays(database: Path, pid: str) -> dict[int, str]:
     """Trial index → whether its events rebuild the scene it submitted (``match``), for the trials done."""
     with sqlite3.connect(database) as conn:

@@ -11,6 +11,8 @@ import sqlite3
 import pytest
 
 from .pagehelp import (
+    ARTIFACTS,
+    db_batches,
     db_events,
     db_replays,
     done,
@@ -160,6 +162,25 @@ def test_a_whole_participant_run(page, server):
     assert {"trial_start", "trial_done", "context_query", "list_shown", "insert", "replace", "move_start", "move_end",
             "rotate_start", "rotate_end", "delete", "undo", "search", "select", "pointer"} <= types
     assert not page.console_problems, page.console_problems
+    record_what_the_page_sent(db_batches(database, pid), len(events))
+
+
+def record_what_the_page_sent(batches: list[list[float]], n_events: int) -> None:
+    """What a real page sent in this run (at a test's speed, not a person's): batch sizes and events per minute,
+    written to test-artifacts/browser-batches.json beside the outbox's limit it must keep."""
+    import json
+
+    sizes = sorted(len(b) for b in batches)
+    p95 = sizes[min(len(sizes) - 1, round(0.95 * (len(sizes) - 1)))]
+    minutes = (max(map(max, batches)) - min(map(min, batches))) / 60000
+    assert sum(sizes) == n_events and len(batches) < n_events  # batched, every event in one batch
+    assert sizes[-1] <= 200  # the outbox's MAX_BATCH
+    ARTIFACTS.mkdir(exist_ok=True)
+    (ARTIFACTS / "browser-batches.json").write_text(json.dumps({
+        "events": n_events, "batches": len(batches), "minutes": round(minutes, 2),
+        "events_per_min": round(n_events / minutes, 1), "batches_per_min": round(len(batches) / minutes, 1),
+        "batch_size": {"median": sizes[len(sizes) // 2], "p95": p95, "max": sizes[-1]},
+        "batch_span_ms": {"max": round(max(max(b) - min(b) for b in batches))}}, indent=1))
 
 
 def test_a_moving_view_may_drop_resolution_and_is_sharp_again_when_still(page, server):
