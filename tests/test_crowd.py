@@ -8,11 +8,10 @@ import json
 import subprocess
 import sys
 
-import pytest
-from conftest import ROOT
-
 import crowd
+import pytest
 import realistic
+from conftest import ROOT
 
 
 def test_the_outbox_sends_what_was_logged_one_second_after_the_first_unsent_event():
