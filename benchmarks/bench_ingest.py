@@ -275,6 +275,8 @@ def main() -> int:
         out = realistic.main(args)
         ok = out.pop("ok")
         print(json.dumps(out, indent=1))
+        if "capacity" in out:  # the README's table, for this machine
+            print(realistic.table_text(out["capacity"]), file=sys.stderr)
         return 0 if ok else 1
     mix = event_mix(args.vocabulary)
     sizes = sorted(len(json.dumps({"seq": 12345, "t": 1.7e12, **e})) for e in mix)

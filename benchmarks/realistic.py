@@ -94,7 +94,9 @@ def run(stack, args, people, study_id: str) -> dict:
                "participant_minutes": round(person_minutes, 1),
                "app_cpu_ms_per_participant_minute": round(1000 * cpu / person_minutes, 1) if person_minutes else None}
     figures |= check_database(stack, tally)
-    if figures["app_cpu_ms_per_participant_minute"]:
+    if log:  # a killed server's processes took their CPU time with them: the figure would be too low
+        figures["app_cpu_s"] = figures["app_cpu_ms_per_participant_minute"] = None
+    elif figures["app_cpu_ms_per_participant_minute"]:
         figures["participants_per_app_core"] = capacity(figures["app_cpu_ms_per_participant_minute"])
     figures["ok"] = (not tally.failures and figures["codes_given"] == args.participants
                      and figures["completed_in_db"] == args.participants and figures["lost"] == 0
@@ -126,6 +128,15 @@ def main(args) -> dict:
         out["capacity"] = capacity_table(runs)
     out["ok"] = all(r.pop("ok") for r in runs)
     return out
+
+
+def table_text(rows: list[dict]) -> str:
+    """The capacity table as the README prints it (Markdown)."""
+    lines = ["| database | app CPU per participant-minute | participants at once per app-server core "
+             f"(cores busy ≤ {HEADROOM:.0%}) | events p95 | suggestions p95 |", "|---|---|---|---|---|"]
+    lines += [f"| {r['database']} | {r['app_cpu_ms_per_participant_minute']} ms | {r['participants_per_app_core']} | "
+              f"{r['events_p95_ms']} ms | {r['suggest_p95_ms']} ms |" for r in rows]
+    return "\n".join(lines)
 
 
 def capacity_table(runs: list[dict]) -> list[dict]:
