@@ -38,6 +38,9 @@ OUTBOX_MAX = 200
 #: Answers that mean "no server here now" (nginx with its app servers away, a server starting): sent again.
 RETRIED = (502, 503, 504)
 RETRY_FOR_S = 120.0
+#: Latencies count as "settled" from this many seconds after the last arrival on (arrivals walk the pages to
+#: their first trial in about a minute).
+SETTLE_S = 60.0
 
 
 # -- what a person sends ------------------------------------------------------------------------------------------
@@ -158,6 +161,9 @@ class Tally:
     """What the crowd saw: latencies (ms) by kind of request, retries, failures, codes, events sent."""
 
     latency: dict[str, list[float]] = field(default_factory=dict)
+    #: the same, of the requests sent once everyone has arrived (from ``settled_at``, a monotonic time, on)
+    settled: dict[str, list[float]] = field(default_factory=dict)
+    settled_at: float = float("inf")
     retries: int = 0
     failures: list[str] = field(default_factory=list)
     codes: dict[str, str | None] = field(default_factory=dict)
@@ -190,7 +196,10 @@ class Person:
             except (TimeoutError, aiohttp.ClientError) as e:
                 status, body = None, str(e).encode()
             if status is not None and status not in RETRIED:
-                self.tally.latency.setdefault(kind, []).append((time.perf_counter() - started) * 1000.0)
+                ms = (time.perf_counter() - started) * 1000.0
+                self.tally.latency.setdefault(kind, []).append(ms)
+                if time.monotonic() - ms / 1000.0 >= self.tally.settled_at:
+                    self.tally.settled.setdefault(kind, []).append(ms)
                 return status, body
             if time.monotonic() > deadline:
                 raise RuntimeError(f"{method} {path}: no server for {RETRY_FOR_S:.0f} s ({status})")
@@ -325,6 +334,7 @@ async def _crowd(base: str, study: str, participants: int, pace: float, arrival_
                 tally.failures.append(f"{pid}: {e}")
             tally.seconds[pid] = time.monotonic() - started
 
+    tally.settled_at = time.monotonic() + arrival_s + SETTLE_S
     tasks = [asyncio.create_task(one(i)) for i in range(participants)]
     if during is not None:
         tasks.append(asyncio.create_task(during()))

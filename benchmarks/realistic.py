@@ -82,11 +82,13 @@ def run(stack, args, people, study_id: str) -> dict:
     cpu, proxy_cpu = stack.cpu_seconds() - cpu, stack.proxy_cpu_seconds() - proxy_cpu
     client_cpu = client_cpu_seconds() - client_cpu
     person_minutes = sum(tally.seconds.values()) * args.pace / 60.0
-    latency = {kind: {"n": len(v), "p50_ms": round(crowd.percentile(v, 50), 1),
-                      "p95_ms": round(crowd.percentile(v, 95), 1), "max_ms": round(max(v), 1)}
-               for kind, v in sorted(tally.latency.items())}
+    latency, settled = (
+        {kind: {"n": len(v), "p50_ms": round(crowd.percentile(v, 50), 1), "p95_ms": round(crowd.percentile(v, 95), 1),
+                "max_ms": round(max(v), 1)} for kind, v in sorted(latencies.items())}
+        for latencies in (tally.latency, tally.settled))
     figures = {"database": stack.label, "participants": args.participants, "pace": args.pace,
                "arrival_s": args.arrival, "seconds": round(seconds, 1), "latency": latency,
+               "latency_once_arrived": settled,
                "codes_given": sum(1 for c in tally.codes.values() if c), "failures": tally.failures[:10],
                "failed": len(tally.failures), "retries": tally.retries, "faults": log,
                "app_cpu_s": round(cpu, 1), "proxy_cpu_s": round(proxy_cpu, 1),
