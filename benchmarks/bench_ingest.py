@@ -16,11 +16,16 @@ median size of an event as sent. Budget on a 2-core machine: ≥ 5,000 events/s 
 duplicated, ≤ 80 ms of server CPU per 1,000 events. The paced rate is events stored over the whole phase, whose
 first second staggers the participants' starts, so it stays ~1–2% under the offered rate (printed beside it)
 even when the server keeps up; ``--participants 55`` offers 5,500 events/s to show a paced rate above 5,000.
-``--database postgresql`` runs the same load on a throwaway PostgreSQL server (``--via-proxy``: two app servers
-behind nginx over TLS, the deployment ``study deploy-files`` writes; nginx's CPU is reported apart), then on
-SQLite in the same run, whose main figures are printed beside.
+``--database postgresql`` runs the same load on a throwaway PostgreSQL server (``--via-proxy``: two app servers,
+or ``--apps``, behind nginx over TLS, the deployment ``study deploy-files`` writes; nginx's CPU is reported apart),
+then on SQLite in the same run, whose main figures are printed beside. The load generator runs on the same machine:
+its own CPU is printed beside the server's.
+``--realistic`` instead sends what people send: participants take the whole study at once (realistic.py;
+``--kill`` kills an app server midway; ``--capacity`` prints how many participants an app-server core carries).
 Usage: .venv/bin/python benchmarks/bench_ingest.py [--participants 50] [--batches 20] [--batch-size 100]
-       [--database postgresql [--via-proxy]]
+       [--database postgresql [--via-proxy] [--apps N]]
+       .venv/bin/python benchmarks/bench_ingest.py --realistic --participants 1000 [--pace 1] [--arrival 120]
+       [--kill | --capacity] [--database postgresql --via-proxy]
 """
 
 from __future__ import annotations
@@ -36,7 +41,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import checkout
-from demostudy import make_app, to_first_trial
+from crowd import percentile
+from demostudy import to_first_trial
 from realistic import client_cpu_seconds
 from serverproc import demo_missing, nginx_missing
 from stacks import Stack, postgres_stack, sqlite_stack
@@ -55,23 +61,10 @@ def enrol(base: str, pid: str) -> str:
 def event_mix(vocabulary: int) -> list[dict]:
     """The events (type, trial, payload) one simulated participant logs taking the demo study, in order, as a page
     of ``vocabulary`` sends them: recorded in process on a throwaway database."""
-    from simulation.participant import Bot
-    from simulation.transport import FlaskTransport
+    from crowd import record_trials
 
-    with tempfile.TemporaryDirectory() as tmp:
-        app = make_app(Path(tmp))
-        sent = []
-        transport = FlaskTransport(app.test_client())
-        post = transport.post
-
-        def recording(path, form=None, json_body=None, headers=None):
-            if path == "/api/events":
-                sent.extend(json_body["events"])
-            return post(path, form=form, json_body=json_body, headers=headers)
-
-        transport.post = recording
-        Bot(transport, "demo", "mix", __import__("numpy").random.default_rng(0)).run()
-    mix = [{"type": e["type"], "trial": e["trial"], "payload": e["payload"]} for e in sent]
+    mix = [{"type": e["type"], "trial": e["trial"], "payload": e["payload"]}
+           for trial in record_trials(1)[0] for e in trial.events]
     if vocabulary == 1:
         mix = [{**e, "payload": {k: v for k, v in e["payload"].items() if k != "objects"}}
                if e["type"] in SCENE_CHANGES else e for e in mix]
@@ -171,11 +164,6 @@ def run_phase(server, tokens: list[str], seqs: list[int], args, interval: float,
             "suggest_errors": suggest_errors}
 
 
-def percentile(values, q):
-    values = sorted(values)
-    return values[min(len(values) - 1, int(round(q / 100 * (len(values) - 1))))]
-
-
 def measure(stack: Stack, args, mix: list[dict]) -> dict:
     """Enrol the participants, run the paced then the saturated phase; the figures."""
     with ThreadPoolExecutor(max_workers=8) as pool:
@@ -268,6 +256,14 @@ def main() -> int:
     if args.via_proxy and (args.database != "postgresql" or nginx_missing()):
         print(json.dumps({"benchmark": "ingest", "error": nginx_missing() or "--via-proxy needs --database "
                                                                              "postgresql"}))
+        return 1
+    if args.apps and args.apps > 1 and not args.via_proxy:
+        print(json.dumps({"benchmark": "ingest", "error": "--apps above 1 needs --via-proxy (something must spread "
+                                                          "the load over them)"}))
+        return 1
+    if args.realistic and args.kill and args.capacity:
+        print(json.dumps({"benchmark": "ingest", "error": "--kill and --capacity apart: a killed server's CPU "
+                                                          "cannot be counted"}))
         return 1
     if args.realistic:
         import realistic

@@ -26,11 +26,14 @@ import re
 import ssl
 import tempfile
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from demostudy import DEMOGRAPHICS, make_app
 from serverproc import DEMO_STUDY
+
+from simulation.walker import MAX_PAGES
 
 #: The page's outbox: a send one second after the first unsent event, at most this many events per batch.
 OUTBOX_DELAY_S = 1.0
@@ -38,9 +41,6 @@ OUTBOX_MAX = 200
 #: Answers that mean "no server here now" (nginx with its app servers away, a server starting): sent again.
 RETRIED = (502, 503, 504)
 RETRY_FOR_S = 120.0
-#: Latencies count as "settled" from this many seconds after the last arrival on (arrivals walk the pages to
-#: their first trial in about a minute).
-SETTLE_S = 60.0
 
 
 # -- what a person sends ------------------------------------------------------------------------------------------
@@ -158,18 +158,25 @@ def shape(people: list[list[TrialTrace]]) -> dict:
 # -- a crowd ------------------------------------------------------------------------------------------------------
 @dataclass
 class Tally:
-    """What the crowd saw: latencies (ms) by kind of request, retries, failures, codes, events sent."""
+    """What the crowd saw: latencies (ms, from a request's first attempt to its answer, retries included) by kind
+    of request, retries by cause, failures, codes, events acknowledged, the person-time played."""
 
+    participants: int = 0
     latency: dict[str, list[float]] = field(default_factory=dict)
-    #: the same, of the requests sent once everyone has arrived (from ``settled_at``, a monotonic time, on)
+    #: the same, of the requests sent once every participant has reached a first trial (``settled_at``, monotonic)
     settled: dict[str, list[float]] = field(default_factory=dict)
     settled_at: float = float("inf")
-    retries: int = 0
+    #: participants who have reached a first trial
+    arrived: int = 0
+    #: attempts sent again, by cause: "no server" (refused, reset, timed out; nginx's 502 and 504) or the app's
+    #: own "503" (its database away or locked, suggestions unavailable)
+    retries: Counter = field(default_factory=Counter)
     failures: list[str] = field(default_factory=list)
     codes: dict[str, str | None] = field(default_factory=dict)
-    events_sent: dict[str, int] = field(default_factory=dict)
-    #: seconds each participant spent from the entry link to the completion code (or failure)
-    seconds: dict[str, float] = field(default_factory=dict)
+    #: per participant, the highest seq the server acknowledged (every event up to it stored, said the server)
+    acked: dict[str, int] = field(default_factory=dict)
+    #: minutes of a person's trial time played (the recorded trials' lengths), over all participants
+    person_minutes: float = 0.0
 
 
 class Person:
@@ -182,13 +189,13 @@ class Person:
         self.models_fetched = False
 
     async def request(self, kind: str, method: str, path: str, **kw) -> tuple[int, bytes]:
-        """Send, again with backoff while no server answers (as the page does); the status and body of the
-        answer. The latency of the attempt that was answered is counted under ``kind``."""
-        deadline, wait = time.monotonic() + RETRY_FOR_S, 0.1
+        """Send, again with backoff while no server answers or the app answers 503 (as the page does); the status
+        and body of the answer. Its latency, from the first attempt on, is counted under ``kind``."""
         import aiohttp
 
+        first = time.monotonic()
+        deadline, wait = first + RETRY_FOR_S, 0.1
         while True:
-            started = time.perf_counter()
             try:
                 async with self.http.request(method, self.base + path, **kw) as r:
                     body = await r.read()
@@ -196,14 +203,16 @@ class Person:
             except (TimeoutError, aiohttp.ClientError) as e:
                 status, body = None, str(e).encode()
             if status is not None and status not in RETRIED:
-                ms = (time.perf_counter() - started) * 1000.0
+                ms = (time.monotonic() - first) * 1000.0
                 self.tally.latency.setdefault(kind, []).append(ms)
-                if time.monotonic() - ms / 1000.0 >= self.tally.settled_at:
+                if first >= self.tally.settled_at:
                     self.tally.settled.setdefault(kind, []).append(ms)
                 return status, body
             if time.monotonic() > deadline:
-                raise RuntimeError(f"{method} {path}: no server for {RETRY_FOR_S:.0f} s ({status})")
-            self.tally.retries += 1
+                raise RuntimeError(f"{method} {path}: no answer for {RETRY_FOR_S:.0f} s ({status})")
+            # nginx answers 502/504 itself, in HTML, when no app server does; the app's 503 is JSON
+            app_said = status == 503 and body.lstrip().startswith(b"{")
+            self.tally.retries["503" if app_said else "no server"] += 1
             await asyncio.sleep(wait * self.rng.uniform(0.5, 1.5))
             wait = min(wait * 2, 2.0)
 
@@ -228,10 +237,12 @@ class Person:
     async def run(self, recorded: dict[tuple[str, str], list[TrialTrace]]) -> None:
         """The whole study: entry link to completion code."""
         page = await self.page("GET", f"/start?pid={self.pid}")
-        for _ in range(100):
+        for _ in range(MAX_PAGES):
             if page.step == "done":
                 self.tally.codes[self.pid] = page.code
                 return
+            if page.step == "saving":  # the exit survey waits for events the server does not have: lost
+                raise RuntimeError("the exit survey waits for events the server never acknowledged")
             if page.step == "trial":
                 await self.play(page.boot, self.rng.choice(recorded[page.boot["trial"]["condition"],
                                                                     page.boot["trial"]["scene"]]))
@@ -244,6 +255,11 @@ class Person:
     async def play(self, boot: dict, trace: TrialTrace) -> None:
         """One trial as ``trace`` was played, at ``pace`` times a person's speed."""
         token, index = boot["token"], boot["trial"]["index"]
+        if self.pid not in self.tally.acked:  # a first trial: this participant has arrived
+            self.tally.acked[self.pid] = -1
+            self.tally.arrived += 1
+            if self.tally.arrived == self.tally.participants:
+                self.tally.settled_at = time.monotonic()
         for which in ("target", "start"):
             await self.api("scene", "GET", f"/scenes/{boot['trial']['scene']}?which={which}", token)
         if not self.models_fetched:
@@ -251,7 +267,7 @@ class Person:
             self.models_fetched = True
         lists: dict[str, str] = {}  # recorded list id → the one the server gave this participant
         suggests, searches = iter(trace.suggests), iter(trace.searches)
-        first_seq, t0, started = self.seq, trace.events[0]["t"], time.monotonic()
+        t0, started = trace.events[0]["t"], time.monotonic()
         pending: list[dict] = []
         due = None  # when the outbox sends what is pending
 
@@ -263,6 +279,7 @@ class Person:
                 acked = (await self.api("events", "POST", "/events", token, body))["acked_seq"]
                 if acked != batch[-1]["seq"]:
                     raise RuntimeError(f"events up to {batch[-1]['seq']} sent, {acked} acknowledged")
+                self.tally.acked[self.pid] = acked
             due = None
 
         for e in trace.events:
@@ -272,13 +289,13 @@ class Person:
                 await send()
             await _sleep_until(at)
             payload = dict(e["payload"])
-            if "list_id" in payload:
-                payload["list_id"] = lists.get(payload["list_id"], payload["list_id"])
+            if payload.get("list_id") is not None:  # a list this participant was shown, under the server's id
+                payload["list_id"] = lists[payload["list_id"]]
             pending.append({"seq": self.seq, "t": time.time() * 1000.0, "type": e["type"], "trial": index,
                             "payload": payload})
             self.seq += 1
-            if due is None:
-                due = time.monotonic() + OUTBOX_DELAY_S
+            if due is None:  # a second of the person's time after the first unsent event
+                due = time.monotonic() + OUTBOX_DELAY_S / self.pace
             if e["type"] == "context_query":
                 body, recorded_id = next(suggests)
                 answer = await self.api("suggest", "POST", "/suggest", token, {**body, "trial": index})
@@ -288,7 +305,7 @@ class Person:
                 lists[recorded_id] = (await self.api("search", "GET", path, token))["list_id"]
         await send()
         await self.api("done", "POST", "/trial/done", token, {**trace.done, "trial": index, "last_seq": self.seq - 1})
-        self.tally.events_sent[self.pid] = self.tally.events_sent.get(self.pid, 0) + self.seq - first_seq
+        self.tally.person_minutes += trace.minutes
 
 
 async def _sleep_until(at: float) -> None:
@@ -327,14 +344,12 @@ async def _crowd(base: str, study: str, participants: int, pace: float, arrival_
         timeout = aiohttp.ClientTimeout(total=60)
         async with aiohttp.ClientSession(connector=connector, timeout=timeout,
                                          cookie_jar=aiohttp.CookieJar(unsafe=True)) as session:
-            pid, started = f"crowd-{seed}-{i}", time.monotonic()
+            pid = f"crowd-{seed}-{i}"
             try:
                 await Person(session, base, study, pid, pace, tally, rng).run(recorded)
             except Exception as e:  # counted: the run fails, the others go on
                 tally.failures.append(f"{pid}: {e}")
-            tally.seconds[pid] = time.monotonic() - started
 
-    tally.settled_at = time.monotonic() + arrival_s + SETTLE_S
     tasks = [asyncio.create_task(one(i)) for i in range(participants)]
     if during is not None:
         tasks.append(asyncio.create_task(during()))
@@ -351,7 +366,7 @@ def run_crowd(base: str, study: str, participants: int, people: list[list[TrialT
         for t in trials:
             if t.events and t.done is not None:
                 recorded.setdefault((t.condition, t.scene), []).append(t)
-    tally = Tally()
+    tally = Tally(participants)
     asyncio.run(_crowd(base, study, participants, pace, arrival_s, recorded, tally, cafile, seed, during))
     return tally
 

@@ -20,8 +20,10 @@ from pathlib import Path
 import crowd
 from stacks import postgres_stack, sqlite_stack
 
+from study_server.study_file import load_study
+
 #: The headroom rule: plan for the app servers' cores to be busy at most this share of the time on average, so a
-#: wave of arrivals or a slow minute (twice the average) still finds them free.
+#: wave of arrivals or a busy minute (up to twice the average) still finds a core to run on rather than a queue.
 HEADROOM = 0.5
 
 
@@ -52,36 +54,44 @@ def killer(stack, at_s: float, down_s: float, log: list):
     return during
 
 
-def check_database(stack, tally: crowd.Tally) -> dict:
-    """What the database holds against what the crowd sent: events per participant (lost, duplicated), completed
-    participants and their codes, rows of the schedule among them."""
-    per_participant = dict(stack.query(
-        "SELECT p.platform_id, count(e.id) FROM participants p LEFT JOIN events e ON e.participant_id = p.id "
-        "GROUP BY p.platform_id"))
+def check_database(stack, tally: crowd.Tally, rows_in_schedule: int) -> dict:
+    """What the database holds against what the crowd was told: per participant, every event up to the seq the
+    server acknowledged stored (else lost) and once (else duplicated); completed participants; the schedule's
+    ``rows_in_schedule`` rows among them (balanced: no two differ by more than one participant, an empty row
+    counting as none)."""
+    stored_seqs: dict[str, set[int]] = {}
+    for pid, seq in stack.query("SELECT p.platform_id, e.seq FROM events e JOIN participants p "
+                                "ON p.id = e.participant_id"):
+        stored_seqs.setdefault(pid, set()).add(seq)
+    lost = sum(sum(1 for seq in range(acked + 1) if seq not in stored_seqs.get(pid, ()))
+               for pid, acked in tally.acked.items())
     stored, distinct = stack.count()
     status = Counter(s for (s,) in stack.query("SELECT status FROM participants"))
-    rows = Counter(r for (r,) in stack.query("SELECT row FROM participants WHERE status = 'completed'"))
-    lost = sum(max(0, n - per_participant.get(pid, 0)) for pid, n in tally.events_sent.items())
-    return {"events_sent": sum(tally.events_sent.values()), "events_stored": stored, "lost": lost,
-            "duplicates": stored - distinct, "participants_in_db": sum(status.values()),
+    rows = Counter({r: 0 for r in range(rows_in_schedule)})
+    rows.update(r for (r,) in stack.query("SELECT row FROM participants WHERE status = 'completed'"))
+    return {"events_acknowledged": sum(a + 1 for a in tally.acked.values()), "events_stored": stored,
+            "lost": lost, "duplicates": stored - distinct, "participants_in_db": sum(status.values()),
             "completed_in_db": status.get("completed", 0), "rows": dict(sorted(rows.items())),
-            "rows_balanced": bool(rows) and max(rows.values()) - min(rows.values()) <= 1}
+            "rows_balanced": max(rows.values()) - min(rows.values()) <= 1 and rows.total() > 0}
 
 
-def run(stack, args, people, study_id: str) -> dict:
+def run(stack, args, people, study) -> dict:
     """One crowd against ``stack``; its figures."""
     shape = crowd.shape(people)
     minutes = shape["trial_minutes_per_participant"]["median"]
     log: list = []
     during = killer(stack, args.arrival + 60 * minutes / args.pace / 3, 3.0, log) if args.kill else None
     cpu, proxy_cpu, client_cpu = stack.cpu_seconds(), stack.proxy_cpu_seconds(), client_cpu_seconds()
+    database_cpu = stack.database_cpu_seconds()
     started = time.perf_counter()
-    tally = crowd.run_crowd(stack.base, study_id, args.participants, people, args.pace, args.arrival,
+    tally = crowd.run_crowd(stack.base, study.id, args.participants, people, args.pace, args.arrival,
                             stack.cafile, args.seed, during)
     seconds = time.perf_counter() - started
     cpu, proxy_cpu = stack.cpu_seconds() - cpu, stack.proxy_cpu_seconds() - proxy_cpu
-    client_cpu = client_cpu_seconds() - client_cpu
-    person_minutes = sum(tally.seconds.values()) * args.pace / 60.0
+    client_cpu, database_cpu = client_cpu_seconds() - client_cpu, stack.database_cpu_seconds() - database_cpu
+    # a participant-minute is a minute of a person's trial time, as recorded (their pages before the first trial
+    # add CPU but no minutes: the figure errs high)
+    person_minutes = tally.person_minutes
     latency, settled = (
         {kind: {"n": len(v), "p50_ms": round(crowd.percentile(v, 50), 1), "p95_ms": round(crowd.percentile(v, 95), 1),
                 "max_ms": round(max(v), 1)} for kind, v in sorted(latencies.items())}
@@ -90,12 +100,15 @@ def run(stack, args, people, study_id: str) -> dict:
                "arrival_s": args.arrival, "seconds": round(seconds, 1), "latency": latency,
                "latency_once_arrived": settled,
                "codes_given": sum(1 for c in tally.codes.values() if c), "failures": tally.failures[:10],
-               "failed": len(tally.failures), "retries": tally.retries, "faults": log,
+               "failed": len(tally.failures), "retries": dict(tally.retries), "faults": log,
                "app_cpu_s": round(cpu, 1), "proxy_cpu_s": round(proxy_cpu, 1),
+               "database_cpu_s": round(database_cpu, 1) if database_cpu is not None else "in the app servers",
                "load_generator_cpu_s": round(client_cpu, 1),
                "participant_minutes": round(person_minutes, 1),
                "app_cpu_ms_per_participant_minute": round(1000 * cpu / person_minutes, 1) if person_minutes else None}
-    figures |= check_database(stack, tally)
+    from study_server.schedule import n_rows
+
+    figures |= check_database(stack, tally, n_rows(study.design, len(study.conditions), len(study.periods)))
     if log:  # a killed server's processes took their CPU time with them: the figure would be too low
         figures["app_cpu_s"] = figures["app_cpu_ms_per_participant_minute"] = None
     elif figures["app_cpu_ms_per_participant_minute"]:
@@ -103,7 +116,7 @@ def run(stack, args, people, study_id: str) -> dict:
     figures["ok"] = (not tally.failures and figures["codes_given"] == args.participants
                      and figures["completed_in_db"] == args.participants and figures["lost"] == 0
                      and figures["duplicates"] == 0 and figures["rows_balanced"]
-                     and figures["events_stored"] == figures["events_sent"])
+                     and figures["events_stored"] == figures["events_acknowledged"])
     return figures
 
 
@@ -112,19 +125,19 @@ def main(args) -> dict:
     ``--capacity``, on SQLite too); the figures, with ``ok``."""
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        study = crowd.bench_study(tmp / "study", ("desk-corner",) if args.short_study else None,
-                                  arrivals=10 * args.participants)
-        people = crowd.record_trials(args.record, study, seed=args.seed)
-        study_id = crowd.study_id(study)
+        path = crowd.bench_study(tmp / "study", ("desk-corner",) if args.short_study else None,
+                                 arrivals=10 * max(args.participants, args.record))
+        people = crowd.record_trials(args.record, path, seed=args.seed)
+        study = load_study(path)
         out = {"benchmark": "ingest-realistic", "study": "demo, practice + desk-corner" if args.short_study else
                "demo", "shape": crowd.shape(people)}
         runs = []
         if args.database == "postgresql":
-            with postgres_stack(tmp / "pg", args.workers, args.via_proxy, study, args.apps) as stack:
-                runs.append(run(stack, args, people, study_id))
+            with postgres_stack(tmp / "pg", args.workers, args.via_proxy, path, args.apps) as stack:
+                runs.append(run(stack, args, people, study))
         if args.database == "sqlite" or args.capacity:
-            with sqlite_stack(tmp / "sqlite", args.workers, study) as stack:
-                runs.append(run(stack, args, people, study_id))
+            with sqlite_stack(tmp / "sqlite", args.workers, path) as stack:
+                runs.append(run(stack, args, people, study))
     out["runs"] = runs
     if args.capacity:
         out["capacity"] = capacity_table(runs)
@@ -134,10 +147,12 @@ def main(args) -> dict:
 
 def table_text(rows: list[dict]) -> str:
     """The capacity table as the README prints it (Markdown)."""
-    lines = ["| database | app CPU per participant-minute | participants at once per app-server core "
-             f"(cores busy ≤ {HEADROOM:.0%}) | events p95 | suggestions p95 |", "|---|---|---|---|---|"]
+    lines = ["| database | app servers' CPU per participant-minute | participants at once per app-server core "
+             f"(cores busy ≤ {HEADROOM:.0%}) | database's CPU per participant-minute | events p95 | "
+             "suggestions p95 |", "|---|---|---|---|---|---|"]
     lines += [f"| {r['database']} | {r['app_cpu_ms_per_participant_minute']} ms | {r['participants_per_app_core']} | "
-              f"{r['events_p95_ms']} ms | {r['suggest_p95_ms']} ms |" for r in rows]
+              f"{r['database_cpu_ms_per_participant_minute']} | {r['events_p95_ms']} ms | {r['suggest_p95_ms']} ms |"
+              for r in rows]
     return "\n".join(lines)
 
 
@@ -146,5 +161,8 @@ def capacity_table(runs: list[dict]) -> list[dict]:
     participants at once one app-server core carries under the headroom rule, and the latencies seen."""
     return [{"database": r["database"], "app_cpu_ms_per_participant_minute": r["app_cpu_ms_per_participant_minute"],
              "participants_per_app_core": r.get("participants_per_app_core"), "headroom": HEADROOM,
+             "database_cpu_ms_per_participant_minute": (
+                 f"{round(1000 * r['database_cpu_s'] / r['participant_minutes'], 1)} ms"
+                 if isinstance(r["database_cpu_s"], float) else r["database_cpu_s"]),
              "events_p95_ms": r["latency"].get("events", {}).get("p95_ms"),
              "suggest_p95_ms": r["latency"].get("suggest", {}).get("p95_ms")} for r in runs]

@@ -232,6 +232,20 @@ class ThrowawayPostgres:
             time.sleep(0.1)
         return self
 
+    def cpu_seconds(self) -> float:
+        """CPU time (user + system, seconds) used so far by the server: its postmaster and the processes it
+        started (backends, writers), those alive now."""
+        postmaster = int((self.data / "db" / "postmaster.pid").read_text().split()[0])
+        total, tick = 0.0, os.sysconf("SC_CLK_TCK")
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                pid, fields = int(stat.parent.name), stat.read_text().rsplit(")", 1)[1].split()
+            except OSError:  # the process ended meanwhile
+                continue
+            if pid == postmaster or int(fields[1]) == postmaster:  # fields from the state on: state, ppid, …
+                total += (int(fields[11]) + int(fields[12])) / tick
+        return total
+
     def create(self, name: str, owner: str | None = None) -> str:
         """A new empty database; returns its URL. With ``owner``, that login role (made if missing, not a
         superuser) owns it and the URL signs in as it, as an app's role does in production."""

@@ -24,6 +24,8 @@ class Stack:
     cpu_seconds: Callable[[], float]
     query: Callable[[str], list[tuple]]
     proxy_cpu_seconds: Callable[[], float] = lambda: 0.0
+    #: the database server's CPU seconds so far (None: SQLite, whose work is the app servers')
+    database_cpu_seconds: Callable[[], float | None] = lambda: None
     servers: list[StudyServer] = field(default_factory=list)
     cafile: str | None = None
 
@@ -76,7 +78,8 @@ def postgres_stack(tmp: Path, workers: int, via_proxy: bool, study: Path = DEMO_
                                     (f", {apps} app servers" if apps > 1 else ""))
             yield Stack(proxy.https if proxy else servers[0].base, label,
                         lambda: sum(a.cpu_seconds() for a in servers), query,
-                        proxy.cpu_seconds if proxy else (lambda: 0.0), servers, str(proxy.cert) if proxy else None)
+                        proxy.cpu_seconds if proxy else (lambda: 0.0), pg.cpu_seconds, servers,
+                        str(proxy.cert) if proxy else None)
         finally:
             engine.dispose()
             if proxy:

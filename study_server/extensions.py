@@ -56,11 +56,15 @@ def json_value(text: str | bytes):
 
 
 class Answers(DefaultJSONProvider):
-    """The app's JSON answers (``jsonify``) written by orjson: a suggestion list's answer (about 23 kB) took
-    json.dumps, with Flask's sorted keys, a quarter of a millisecond, orjson a sixtieth. Keys stay in the order
-    the answer was made in; not-a-number writes as null (standard JSON, which a browser's ``JSON.parse`` reads;
-    json would write NaN); dates, and what orjson cannot write (an integer past 64 bits), as Flask writes them;
-    an indented answer (debug mode) by json."""
+    """The app's JSON (``jsonify``, the templates' ``tojson``) written by orjson: a suggestion list's answer
+    (about 23 kB) took json.dumps, with Flask's sorted keys, a quarter of a millisecond, orjson a sixtieth. Keys
+    stay in the order the answer was made in (json's fallback too); text is UTF-8, not \\u-escaped (the
+    templates' ``tojson`` still escapes what HTML needs); not-a-number writes as null (standard JSON, which a
+    browser's ``JSON.parse`` reads; json would write NaN); dates, and what orjson cannot write (an integer past
+    64 bits), as Flask writes them; an indented answer (debug mode) by json."""
+
+    sort_keys = False
+    ensure_ascii = False
 
     def dumps(self, obj, **kwargs) -> str:
         if "indent" in kwargs:

@@ -56,7 +56,8 @@ def test_the_apps_answers_are_orjsons_and_flasks_where_orjson_cannot(tmp_path):
         when = datetime(2026, 12, 4, 8, 0, tzinfo=UTC)
         assert app.json.loads(app.json.dumps({"at": when})) == {"at": "Fri, 04 Dec 2026 08:00:00 GMT"}
         assert app.json.loads(app.json.dumps({"huge": 10**30})) == {"huge": 10**30}
-        assert app.json.dumps({"b": 1, "a": 2}, indent=2) == '{\n  "a": 2,\n  "b": 1\n}'
+        assert app.json.dumps({"b": 1, "a": 2}, indent=2) == '{\n  "b": 1,\n  "a": 2\n}'  # in order too
+        assert app.json.dumps({"huge": 10**30, "a": "é"}) == '{"huge": 1000000000000000000000000000000, "a": "é"}'
         response = app.json.response({"list_id": "x", "suggestions": []})
         assert response.mimetype == "application/json" and json.loads(response.get_data()) == {
             "list_id": "x", "suggestions": []}
