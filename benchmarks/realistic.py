@@ -88,7 +88,9 @@ def run(stack, args, people, study) -> dict:
                             stack.cafile, args.seed, during)
     seconds = time.perf_counter() - started
     cpu, proxy_cpu = stack.cpu_seconds() - cpu, stack.proxy_cpu_seconds() - proxy_cpu
-    client_cpu, database_cpu = client_cpu_seconds() - client_cpu, stack.database_cpu_seconds() - database_cpu
+    client_cpu = client_cpu_seconds() - client_cpu
+    if database_cpu is not None:
+        database_cpu = stack.database_cpu_seconds() - database_cpu
     # a participant-minute is a minute of a person's trial time, as recorded (their pages before the first trial
     # add CPU but no minutes: the figure errs high)
     person_minutes = tally.person_minutes
