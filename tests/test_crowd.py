@@ -63,3 +63,15 @@ def test_a_crowd_takes_the_whole_study_and_loses_nothing_when_the_server_is_kill
     assert {"events", "suggest", "search", "page", "done"} <= set(run["latency"]), run
     assert out["shape"]["events_per_min"]["median"] > 0
     assert proc.returncode == 0, proc.stderr
+
+
+def test_the_capacity_table_is_made_from_the_runs():
+    runs = [{"database": "postgresql", "app_cpu_ms_per_participant_minute": 50.0, "participants_per_app_core": 600,
+             "database_cpu_s": 12.0, "participant_minutes": 1000.0,
+             "latency": {"events": {"p95_ms": 20.0}, "suggest": {"p95_ms": 30.0}}},
+            {"database": "sqlite-wal", "app_cpu_ms_per_participant_minute": 40.0, "participants_per_app_core": 750,
+             "database_cpu_s": "in the app servers", "participant_minutes": 1000.0, "latency": {}}]
+    rows = realistic.capacity_table(runs)
+    assert [r["database_cpu_ms_per_participant_minute"] for r in rows] == ["12.0 ms", "in the app servers"]
+    text = realistic.table_text(rows).splitlines()
+    assert len(text) == 4 and "| postgresql | 50.0 ms | 600 | 12.0 ms | 20.0 ms | 30.0 ms |" in text
