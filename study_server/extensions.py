@@ -56,21 +56,19 @@ def json_value(text: str | bytes):
 
 
 class Answers(DefaultJSONProvider):
-    """The app's JSON (``jsonify``, the templates' ``tojson``) written by orjson: a suggestion list's answer
-    (about 23 kB) took json.dumps, with Flask's sorted keys, a quarter of a millisecond, orjson a sixtieth. Keys
-    stay in the order the answer was made in (json's fallback too); text is UTF-8, not \\u-escaped (the
-    templates' ``tojson`` still escapes what HTML needs); not-a-number writes as null (standard JSON, which a
-    browser's ``JSON.parse`` reads; json would write NaN); dates, and what orjson cannot write (an integer past
-    64 bits), as Flask writes them; an indented answer (debug mode) by json."""
+    """The app's JSON answers (``jsonify``) written by orjson: a suggestion list's answer (about 23 kB) took
+    json.dumps, with Flask's sorted keys, a quarter of a millisecond, orjson a sixtieth. Keys stay in the order
+    the answer was made in; text is UTF-8, not \\u-escaped; not-a-number writes as null (standard JSON, which a
+    browser's ``JSON.parse`` reads; json would write NaN); dates as Flask writes them. What orjson cannot write
+    (an integer past 64 bits) and indented answers (debug mode) are Flask's own, as is the JSON the templates
+    write (``tojson``)."""
 
-    sort_keys = False
-    ensure_ascii = False
-
-    def dumps(self, obj, **kwargs) -> str:
-        if "indent" in kwargs:
-            return super().dumps(obj, **kwargs)
+    def response(self, *args, **kwargs):
+        if (self.compact is None and self._app.debug) or self.compact is False:
+            return super().response(*args, **kwargs)
+        obj = self._prepare_response_obj(args, kwargs)
         try:
-            return orjson.dumps(obj, default=self.default,
-                                option=_OPTIONS | orjson.OPT_PASSTHROUGH_DATETIME).decode()
+            text = orjson.dumps(obj, default=self.default, option=_OPTIONS | orjson.OPT_PASSTHROUGH_DATETIME)
         except orjson.JSONEncodeError:
-            return super().dumps(obj, **kwargs)
+            return super().response(*args, **kwargs)
+        return self._app.response_class(text + b"\n", mimetype=self.mimetype)
