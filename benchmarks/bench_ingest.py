@@ -43,8 +43,7 @@ from pathlib import Path
 import checkout
 from crowd import percentile
 from demostudy import to_first_trial
-from realistic import client_cpu_seconds
-from serverproc import demo_missing, nginx_missing
+from serverproc import demo_missing, nginx_missing, own_cpu_seconds
 from stacks import Stack, postgres_stack, sqlite_stack
 
 from scenesuggest.contract.events import SCENE_CHANGES
@@ -145,7 +144,7 @@ def run_phase(server, tokens: list[str], seqs: list[int], args, interval: float,
     lat, errors, lock = [], [], threading.Lock()
     suggest_lat, suggest_errors, stop = [], [], threading.Event()
     started, cpu, proxy_cpu = time.perf_counter(), server.cpu_seconds(), server.proxy_cpu_seconds()
-    client_cpu = client_cpu_seconds()
+    client_cpu = own_cpu_seconds()
     with ThreadPoolExecutor(max_workers=2 * len(tokens)) as pool:
         helpers = [pool.submit(suggester, base, tokens[k], suggest_every, random.Random(1000 + k), stop,
                                suggest_lat, suggest_errors, lock) for k in range(len(tokens)) if suggest_every]
@@ -157,7 +156,7 @@ def run_phase(server, tokens: list[str], seqs: list[int], args, interval: float,
         for h in helpers:
             h.result()
     return {"seconds": time.perf_counter() - started, "cpu_s": server.cpu_seconds() - cpu,
-            "proxy_cpu_s": server.proxy_cpu_seconds() - proxy_cpu, "client_cpu_s": client_cpu_seconds() - client_cpu,
+            "proxy_cpu_s": server.proxy_cpu_seconds() - proxy_cpu, "client_cpu_s": own_cpu_seconds() - client_cpu,
             "lat": lat,
             "errors": errors, "ends": ends,
             "events": sum(e - s0 for e, s0 in zip(ends, seqs, strict=True)), "suggest_lat": suggest_lat,

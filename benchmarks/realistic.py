@@ -10,7 +10,6 @@ CPU per minute of a participant's time, how many participants one app-server cor
 from __future__ import annotations
 
 import asyncio
-import resource
 import signal
 import tempfile
 import time
@@ -18,8 +17,10 @@ from collections import Counter
 from pathlib import Path
 
 import crowd
+from serverproc import own_cpu_seconds
 from stacks import postgres_stack, sqlite_stack
 
+from study_server.schedule import n_rows
 from study_server.study_file import load_study
 
 #: The headroom rule: plan for the app servers' cores to be busy at most this share of the time on average, so a
@@ -31,12 +32,6 @@ def capacity(cpu_ms_per_participant_minute: float, headroom: float = HEADROOM) -
     """Participants at once that one app-server core carries: a core gives 60,000 ms of CPU a minute, of which
     ``headroom`` is planned for."""
     return int(headroom * 60_000 / cpu_ms_per_participant_minute)
-
-
-def client_cpu_seconds() -> float:
-    """This process's CPU time (user + system, seconds): the load generator's own."""
-    usage = resource.getrusage(resource.RUSAGE_SELF)
-    return usage.ru_utime + usage.ru_stime
 
 
 def killer(stack, at_s: float, down_s: float, log: list):
@@ -75,20 +70,18 @@ def check_database(stack, tally: crowd.Tally, rows_in_schedule: int) -> dict:
             "rows_balanced": max(rows.values()) - min(rows.values()) <= 1 and rows.total() > 0}
 
 
-def run(stack, args, people, study) -> dict:
-    """One crowd against ``stack``; its figures."""
-    shape = crowd.shape(people)
-    minutes = shape["trial_minutes_per_participant"]["median"]
+def run(stack, args, people, study, minutes: float) -> dict:
+    """One crowd against ``stack``; its figures. ``minutes``: a participant's trials (the median recorded)."""
     log: list = []
     during = killer(stack, args.arrival + 60 * minutes / args.pace / 3, 3.0, log) if args.kill else None
-    cpu, proxy_cpu, client_cpu = stack.cpu_seconds(), stack.proxy_cpu_seconds(), client_cpu_seconds()
+    cpu, proxy_cpu, client_cpu = stack.cpu_seconds(), stack.proxy_cpu_seconds(), own_cpu_seconds()
     database_cpu = stack.database_cpu_seconds()
     started = time.perf_counter()
     tally = crowd.run_crowd(stack.base, study.id, args.participants, people, args.pace, args.arrival,
                             stack.cafile, args.seed, during)
     seconds = time.perf_counter() - started
     cpu, proxy_cpu = stack.cpu_seconds() - cpu, stack.proxy_cpu_seconds() - proxy_cpu
-    client_cpu = client_cpu_seconds() - client_cpu
+    client_cpu = own_cpu_seconds() - client_cpu
     if database_cpu is not None:
         database_cpu = stack.database_cpu_seconds() - database_cpu
     # a participant-minute is a minute of a person's trial time, as recorded (their pages before the first trial
@@ -108,8 +101,6 @@ def run(stack, args, people, study) -> dict:
                "load_generator_cpu_s": round(client_cpu, 1),
                "participant_minutes": round(person_minutes, 1),
                "app_cpu_ms_per_participant_minute": round(1000 * cpu / person_minutes, 1) if person_minutes else None}
-    from study_server.schedule import n_rows
-
     figures |= check_database(stack, tally, n_rows(study.design, len(study.conditions), len(study.periods)))
     if log:  # a killed server's processes took their CPU time with them: the figure would be too low
         figures["app_cpu_s"] = figures["app_cpu_ms_per_participant_minute"] = None
@@ -131,15 +122,17 @@ def main(args) -> dict:
                                  arrivals=10 * max(args.participants, args.record))
         people = crowd.record_trials(args.record, path, seed=args.seed)
         study = load_study(path)
+        shape = crowd.shape(people)
+        minutes = shape["trial_minutes_per_participant"]["median"]
         out = {"benchmark": "ingest-realistic", "study": "demo, practice + desk-corner" if args.short_study else
-               "demo", "shape": crowd.shape(people)}
+               "demo", "shape": shape}
         runs = []
         if args.database == "postgresql":
             with postgres_stack(tmp / "pg", args.workers, args.via_proxy, path, args.apps) as stack:
-                runs.append(run(stack, args, people, study))
+                runs.append(run(stack, args, people, study, minutes))
         if args.database == "sqlite" or args.capacity:
             with sqlite_stack(tmp / "sqlite", args.workers, path) as stack:
-                runs.append(run(stack, args, people, study))
+                runs.append(run(stack, args, people, study, minutes))
     out["runs"] = runs
     if args.capacity:
         out["capacity"] = capacity_table(runs)

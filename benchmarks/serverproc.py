@@ -4,6 +4,7 @@ loopback port: for the benchmarks and for the tests that need real HTTP and real
 from __future__ import annotations
 
 import os
+import resource
 import signal
 import socket
 import subprocess
@@ -25,17 +26,30 @@ def demo_missing() -> str | None:
     return "; ".join(found.values()) + " (run `make demo`)" if found else None
 
 
-def group_cpu_seconds(group: int) -> float:
-    """CPU time (user + system, seconds) used so far by the live processes of process group ``group``."""
+def cpu_seconds_of(chosen) -> float:
+    """CPU time (user + system, seconds) used so far by the live processes for which ``chosen(pid, ppid, pgrp)``
+    is true."""
     total, tick = 0.0, os.sysconf("SC_CLK_TCK")
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             fields = stat.read_text().rsplit(")", 1)[1].split()
         except OSError:  # the process ended meanwhile
             continue
-        if int(fields[2]) == group:  # fields from the state on: state, ppid, pgrp, …, utime, stime
+        # fields from the state on: state, ppid, pgrp, …, utime (11), stime (12)
+        if chosen(int(stat.parent.name), int(fields[1]), int(fields[2])):
             total += (int(fields[11]) + int(fields[12])) / tick
     return total
+
+
+def group_cpu_seconds(group: int) -> float:
+    """CPU time (user + system, seconds) used so far by the live processes of process group ``group``."""
+    return cpu_seconds_of(lambda pid, ppid, pgrp: pgrp == group)
+
+
+def own_cpu_seconds() -> float:
+    """This process's CPU time (user + system, seconds, all its threads): a load generator's own."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
 
 
 def free_port() -> int:
@@ -236,15 +250,7 @@ class ThrowawayPostgres:
         """CPU time (user + system, seconds) used so far by the server: its postmaster and the processes it
         started (backends, writers), those alive now."""
         postmaster = int((self.data / "db" / "postmaster.pid").read_text().split()[0])
-        total, tick = 0.0, os.sysconf("SC_CLK_TCK")
-        for stat in Path("/proc").glob("[0-9]*/stat"):
-            try:
-                pid, fields = int(stat.parent.name), stat.read_text().rsplit(")", 1)[1].split()
-            except OSError:  # the process ended meanwhile
-                continue
-            if pid == postmaster or int(fields[1]) == postmaster:  # fields from the state on: state, ppid, …
-                total += (int(fields[11]) + int(fields[12])) / tick
-        return total
+        return cpu_seconds_of(lambda pid, ppid, pgrp: postmaster in (pid, ppid))
 
     def create(self, name: str, owner: str | None = None) -> str:
         """A new empty database; returns its URL. With ``owner``, that login role (made if missing, not a
