@@ -41,6 +41,8 @@ OUTBOX_MAX = 200
 #: Answers that mean "no server here now" (nginx with its app servers away, a server starting): sent again.
 RETRIED = (502, 503, 504)
 RETRY_FOR_S = 120.0
+#: How often the crowd looks at how late its own timers are (s).
+LAG_EVERY_S = 0.05
 
 
 # -- what a person sends ------------------------------------------------------------------------------------------
@@ -166,6 +168,11 @@ class Tally:
     #: the same, of the requests sent once every participant has reached a first trial (``settled_at``, monotonic)
     settled: dict[str, list[float]] = field(default_factory=dict)
     settled_at: float = float("inf")
+    #: the same moment as wall-clock time (epoch s), to split the server's own log
+    settled_epoch: float = float("inf")
+    #: the load generator's own delays: (when, monotonic; ms late) of a timer due every LAG_EVERY_S — a crowd that
+    #: cannot keep up with itself measures its own lateness as the server's latency
+    lag: list[tuple[float, float]] = field(default_factory=list)
     #: participants who have reached a first trial
     arrived: int = 0
     #: attempts sent again, by cause: "no server" (refused, reset, timed out; nginx's 502 and 504) or the app's
@@ -259,7 +266,7 @@ class Person:
             self.tally.acked[self.pid] = -1
             self.tally.arrived += 1
             if self.tally.arrived == self.tally.participants:
-                self.tally.settled_at = time.monotonic()
+                self.tally.settled_at, self.tally.settled_epoch = time.monotonic(), time.time()
         for which in ("target", "start"):
             await self.api("scene", "GET", f"/scenes/{boot['trial']['scene']}?which={which}", token)
         if not self.models_fetched:
@@ -350,10 +357,18 @@ async def _crowd(base: str, study: str, participants: int, pace: float, arrival_
             except Exception as e:  # counted: the run fails, the others go on
                 tally.failures.append(f"{pid}: {e}")
 
+    async def watch():
+        while True:
+            due = time.monotonic() + LAG_EVERY_S
+            await asyncio.sleep(LAG_EVERY_S)
+            tally.lag.append((due, (time.monotonic() - due) * 1000.0))
+
     tasks = [asyncio.create_task(one(i)) for i in range(participants)]
     if during is not None:
         tasks.append(asyncio.create_task(during()))
+    watcher = asyncio.create_task(watch())
     await asyncio.gather(*tasks)
+    watcher.cancel()
 
 
 def run_crowd(base: str, study: str, participants: int, people: list[list[TrialTrace]], pace: float = 1.0,

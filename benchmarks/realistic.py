@@ -70,12 +70,40 @@ def check_database(stack, tally: crowd.Tally, rows_in_schedule: int) -> dict:
             "rows_balanced": max(rows.values()) - min(rows.values()) <= 1 and rows.total() > 0}
 
 
+def summary(latencies: dict[str, list[float]]) -> dict:
+    """Per kind of request: how many, and their latency's median, 95th percentile and maximum (ms)."""
+    return {kind: {"n": len(v), "p50_ms": round(crowd.percentile(v, 50), 1),
+                   "p95_ms": round(crowd.percentile(v, 95), 1), "max_ms": round(max(v), 1)}
+            for kind, v in sorted(latencies.items())}
+
+
+#: The crowd's kinds of request by the path nginx logged (a crowd's "page" is a form's POST and the GET it is
+#: sent on to, nginx's one request each).
+SERVER_KINDS = (("/api/events", "events"), ("/api/suggest", "suggest"), ("/api/search", "search"),
+                ("/api/trial/done", "done"), ("/api/scenes/", "scene"), ("/api/models", "models"), ("/study/", "page"))
+
+
+def server_side(timings, settled_epoch: float) -> dict:
+    """The latencies nginx measured (from a request's first byte to its answer's last, without the load
+    generator's own delays), by kind, over the run and once every participant had arrived."""
+    whole: dict[str, list[float]] = {}
+    settled: dict[str, list[float]] = {}
+    for at, _method, path, _status, ms in timings:
+        kind = next((k for prefix, k in SERVER_KINDS if path.startswith(prefix)), None)
+        if kind is not None:
+            whole.setdefault(kind, []).append(ms)
+            if at >= settled_epoch:
+                settled.setdefault(kind, []).append(ms)
+    return {"server_latency": summary(whole), "server_latency_once_arrived": summary(settled)}
+
+
 def run(stack, args, people, study, minutes: float) -> dict:
     """One crowd against ``stack``; its figures. ``minutes``: a participant's trials (the median recorded)."""
     log: list = []
     during = killer(stack, args.arrival + 60 * minutes / args.pace / 3, 3.0, log) if args.kill else None
     cpu, proxy_cpu, client_cpu = stack.cpu_seconds(), stack.proxy_cpu_seconds(), own_cpu_seconds()
     database_cpu = stack.database_cpu_seconds()
+    log_from = stack.proxy.log_size() if stack.proxy else None
     started = time.perf_counter()
     tally = crowd.run_crowd(stack.base, study.id, args.participants, people, args.pace, args.arrival,
                             stack.cafile, args.seed, during)
@@ -87,13 +115,14 @@ def run(stack, args, people, study, minutes: float) -> dict:
     # a participant-minute is a minute of a person's trial time, as recorded (their pages before the first trial
     # add CPU but no minutes: the figure errs high)
     person_minutes = tally.person_minutes
-    latency, settled = (
-        {kind: {"n": len(v), "p50_ms": round(crowd.percentile(v, 50), 1), "p95_ms": round(crowd.percentile(v, 95), 1),
-                "max_ms": round(max(v), 1)} for kind, v in sorted(latencies.items())}
-        for latencies in (tally.latency, tally.settled))
+    latency, settled = (summary(latencies) for latencies in (tally.latency, tally.settled))
+    lag = [ms for _, ms in tally.lag]
     figures = {"database": stack.label, "participants": args.participants, "pace": args.pace,
                "arrival_s": args.arrival, "seconds": round(seconds, 1), "latency": latency,
                "latency_once_arrived": settled,
+               "load_generator_lag_ms": {"p95": round(crowd.percentile(lag, 95), 1), "max": round(max(lag), 1),
+                                         "p95_once_arrived": round(crowd.percentile(
+                                             [ms for at, ms in tally.lag if at >= tally.settled_at] or [0.0], 95), 1)},
                "codes_given": sum(1 for c in tally.codes.values() if c), "failures": tally.failures[:10],
                "failed": len(tally.failures), "retries": dict(tally.retries), "faults": log,
                "app_cpu_s": round(cpu, 1), "proxy_cpu_s": round(proxy_cpu, 1),
@@ -101,6 +130,8 @@ def run(stack, args, people, study, minutes: float) -> dict:
                "load_generator_cpu_s": round(client_cpu, 1),
                "participant_minutes": round(person_minutes, 1),
                "app_cpu_ms_per_participant_minute": round(1000 * cpu / person_minutes, 1) if person_minutes else None}
+    if stack.proxy:
+        figures |= server_side(stack.proxy.timings(log_from), tally.settled_epoch)
     figures |= check_database(stack, tally, n_rows(study.design, len(study.conditions), len(study.periods)))
     if log:  # a killed server's processes took their CPU time with them: the figure would be too low
         figures["app_cpu_s"] = figures["app_cpu_ms_per_participant_minute"] = None

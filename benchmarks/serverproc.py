@@ -131,7 +131,9 @@ events {{ worker_connections 4096; }}
 http {{
     include /etc/nginx/mime.types;
     default_type application/octet-stream;
-    access_log {prefix}/access.log;
+    # when (epoch s), what, and how long nginx took from the request's first byte to the answer's last (s)
+    log_format timing '$msec $request_method $uri $status $request_time';
+    access_log {prefix}/access.log timing;
     client_body_temp_path {prefix}/tmp/body;
     proxy_temp_path {prefix}/tmp/proxy;
     fastcgi_temp_path {prefix}/tmp/fastcgi;
@@ -197,6 +199,23 @@ class NginxProxy:
     def cpu_seconds(self) -> float:
         """CPU time used so far by nginx's master and worker."""
         return group_cpu_seconds(self.proc.pid)
+
+    def log_size(self) -> int:
+        """Bytes of the access log so far (where :meth:`timings` starts reading)."""
+        log = self.prefix / "access.log"
+        return log.stat().st_size if log.exists() else 0
+
+    def timings(self, start: int = 0) -> list[tuple[float, str, str, int, float]]:
+        """The requests nginx answered, from byte ``start`` of its access log on: (when, epoch s; method; path;
+        status; how long nginx took, ms — the server's side of a latency, without the client's own delays)."""
+        with open(self.prefix / "access.log", "rb") as f:
+            f.seek(start)
+            lines = f.read().decode(errors="replace").splitlines()
+        out = []
+        for line in lines:
+            at, method, path, status, took = line.split(" ")
+            out.append((float(at), method, path, int(status), float(took) * 1000.0))
+        return out
 
     def stop(self) -> None:
         if self.proc and self.proc.poll() is None:

@@ -11,7 +11,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from serverproc import DEMO_STUDY, StudyServer
+from serverproc import DEMO_STUDY, NginxProxy, StudyServer
 
 
 @dataclass
@@ -28,6 +28,8 @@ class Stack:
     database_cpu_seconds: Callable[[], float | None] = lambda: None
     servers: list[StudyServer] = field(default_factory=list)
     cafile: str | None = None
+    #: nginx in front, when there is one (its access log times every request on the server's side)
+    proxy: NginxProxy | None = None
 
     def count(self) -> tuple[int, int]:
         """(stored, distinct by participant and seq) event rows."""
@@ -53,7 +55,7 @@ def postgres_stack(tmp: Path, workers: int, via_proxy: bool, study: Path = DEMO_
     """App servers (``apps``; default one, or two behind the proxy) of ``workers`` gunicorn workers each on a
     throwaway PostgreSQL, behind nginx over TLS when ``via_proxy`` (the deployment the README gives:
     ``study deploy-files``)."""
-    from serverproc import NginxProxy, ThrowawayPostgres
+    from serverproc import ThrowawayPostgres
     from sqlalchemy import create_engine, text
 
     apps = apps or (2 if via_proxy else 1)
@@ -79,7 +81,7 @@ def postgres_stack(tmp: Path, workers: int, via_proxy: bool, study: Path = DEMO_
             yield Stack(proxy.https if proxy else servers[0].base, label,
                         lambda: sum(a.cpu_seconds() for a in servers), query,
                         proxy.cpu_seconds if proxy else (lambda: 0.0), pg.cpu_seconds, servers,
-                        str(proxy.cert) if proxy else None)
+                        str(proxy.cert) if proxy else None, proxy)
         finally:
             engine.dispose()
             if proxy:

@@ -3,10 +3,11 @@ schedule row. Arrivals that have not consented hold no row (``row = −1``) and 
 
 Concurrency assumptions (true with several threads, several gunicorn workers and several app servers on one
 PostgreSQL): :func:`assign` is one short transaction whose *first* statement increments the study's row in
-``studies``. That write takes SQLite's database write lock (WAL, ``busy_timeout``) or PostgreSQL's row lock
-before anything is read, so concurrent assignments run one after the other, each counting the rows as the
-previous one committed them. :func:`arrive` only inserts; the unique constraint on (study, platform, platform
-id) makes a second arrival of one id (another tab, another server) find the first one's session.
+``studies`` (writing it first if it is missing: :func:`_lock_study`). That write takes SQLite's database write
+lock (WAL, ``busy_timeout``) or PostgreSQL's row lock before anything is read, so concurrent assignments run one
+after the other, each counting the rows as the previous one committed them. :func:`arrive` only inserts; the
+unique constraint on (study, platform, platform id) makes a second arrival of one id (another tab, another server)
+find the first one's session.
 """
 
 from __future__ import annotations
@@ -18,15 +19,26 @@ from sqlalchemy import func, or_, select, update
 from sqlalchemy.exc import IntegrityError
 
 from .errors import StudyError
-from .extensions import db, insert_ignore
+from .extensions import db, dialect_insert, insert_ignore
 from .models import Participant, StudyRecord, Trial, log, utcnow
 from .study_file import Study
 
 
-def ensure_study_record(study: Study) -> None:
-    db.session.execute(insert_ignore(StudyRecord), [{"id": study.id, "title": study.title, "hash": study.hash,
-                                                     "assignments": 0, "registered_at": utcnow()}])
-    db.session.commit()
+def _study_row(study: Study) -> dict:
+    return {"id": study.id, "title": study.title, "hash": study.hash, "assignments": 0, "registered_at": utcnow()}
+
+
+def _record_study(study: Study) -> None:
+    """The study's row in ``studies`` (what participants refer to), written in the current transaction if missing."""
+    db.session.execute(insert_ignore(StudyRecord), _study_row(study))
+
+
+def _lock_study(study: Study) -> None:
+    """Count one more assignment on the study's row, writing the row if it is missing: one statement, which takes
+    the row's lock (the module's concurrency assumptions)."""
+    upsert = dialect_insert(StudyRecord).on_conflict_do_update(index_elements=["id"],
+                                                               set_={"assignments": StudyRecord.assignments + 1})
+    db.session.execute(upsert, _study_row(study) | {"assignments": 1})
 
 
 def fresh_after(study: Study, now: datetime) -> datetime:
@@ -82,7 +94,7 @@ def arrive(study: Study, platform: str, platform_id: str, meta: dict | None = No
         return existing, False
     if address is not None and arrivals_from(study, address, now) >= study.arrivals_per_address_per_hour:
         raise QuotaExceeded()
-    ensure_study_record(study)
+    _record_study(study)
     p = Participant(study_id=study.id, study_hash=study.hash, platform=platform, platform_id=platform_id,
                     platform_meta=meta or {}, token=secrets.token_urlsafe(32), row=-1,
                     seed=secrets.randbelow(2**31), status="in_progress", step="device", user_agent=user_agent[:512],
@@ -108,9 +120,7 @@ def assign(study: Study, p: Participant, now: datetime | None = None) -> int:
     now = now or utcnow()
     participant_id = p.id
     db.session.commit()
-    ensure_study_record(study)
-    db.session.execute(update(StudyRecord).where(StudyRecord.id == study.id)
-                       .values(assignments=StudyRecord.assignments + 1))  # the lock: first statement
+    _lock_study(study)  # the lock: first statement
     row = db.session.scalar(select(Participant.row).where(Participant.id == participant_id))
     if row is not None and row >= 0:  # assigned already (a second tab consented first)
         db.session.rollback()

@@ -18,14 +18,19 @@ db = SQLAlchemy(model_class=Base)
 migrate = Migrate()
 
 
-def insert_ignore(model, index_elements: list[str] | None = None):
-    """``INSERT … ON CONFLICT DO NOTHING`` for the session's database (SQLite or PostgreSQL spell it alike but
-    through their own dialect)."""
+def dialect_insert(model):
+    """An ``INSERT`` for the session's database that can say ``ON CONFLICT`` (SQLite and PostgreSQL spell it alike
+    but through their own dialect)."""
     if db.session.get_bind().dialect.name == "postgresql":
         from sqlalchemy.dialects.postgresql import insert
     else:
         from sqlalchemy.dialects.sqlite import insert
-    return insert(model).on_conflict_do_nothing(index_elements=index_elements)
+    return insert(model)
+
+
+def insert_ignore(model, index_elements: list[str] | None = None):
+    """``INSERT … ON CONFLICT DO NOTHING`` for the session's database."""
+    return dialect_insert(model).on_conflict_do_nothing(index_elements=index_elements)
 
 
 #: orjson's options for the database's JSON: dict keys that are not text become text (as with json), numpy values

@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from datetime import timedelta
 
 from flask import current_app
-from sqlalchemy import func, select, update
+from sqlalchemy import func, insert, select, update
 
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.scenes import frames
@@ -106,19 +106,20 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal)
 
 def _store(who: Participant, trial: int | None, source: str, query: dict, items: list[dict],
            quota_bytes: int) -> str:
-    """Store a shown list for ``who``; returns its id. The list counts against the participant's storage quota
-    (:class:`TooManyLists`; the rate is checked before the list is made, :func:`check_rate`)."""
-    list_id = uuid.uuid4().hex
+    """Store a shown list for ``who`` (seen now); returns its id. The list counts against the participant's storage
+    quota (:class:`TooManyLists`; the rate is checked before the list is made, :func:`check_rate`)."""
+    list_id, now = uuid.uuid4().hex, utcnow()
     size = len(json_text(query).encode()) + len(json_text(items).encode())  # as stored
-    # one UPDATE that adds and checks at once: an event batch stored meanwhile is counted, never overwritten
+    # one UPDATE that adds and checks at once (an event batch stored meanwhile is counted, never overwritten) and
+    # says the participant was seen now
     counted = db.session.execute(update(Participant).where(
         Participant.id == who.id, func.coalesce(Participant.bytes_stored, 0) + size <= quota_bytes)
-        .values(bytes_stored=func.coalesce(Participant.bytes_stored, 0) + size)
+        .values(bytes_stored=func.coalesce(Participant.bytes_stored, 0) + size, last_seen_at=now)
         .execution_options(synchronize_session=False))
     if counted.rowcount != 1:
         raise TooManyLists("this session has stored as much as a study allows", 300, source)
-    db.session.add(ShownList(id=list_id, participant_id=who.id, trial=trial, source=source, query=query,
-                             items=items, created_at=utcnow()))
+    db.session.execute(insert(ShownList), {"id": list_id, "participant_id": who.id, "trial": trial, "source": source,
+                                           "query": query, "items": items, "created_at": now})
     return list_id
 
 
@@ -169,12 +170,9 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
         shown = [{"rank": i["rank"], "category": i["category"], "score": i["score"],
                   "models": [m["id"] for m in i["models"]]} for i in items]
         list_id = _store(who, trial, "context", query, shown, _quota_bytes(rt)) if who else uuid.uuid4().hex
-    if who is not None:
-        if found.fallback:
-            log("engine_fallback", who, condition=condition, trial=trial,
-                engine=rt.study.condition(condition).engine.name, answered_by=found.engine, reason=found.fallback,
-                list_id=list_id)
-        who.last_seen_at = utcnow()
+    if who is not None and found.fallback:
+        log("engine_fallback", who, condition=condition, trial=trial, engine=rt.study.condition(condition).engine.name,
+            answered_by=found.engine, reason=found.fallback, list_id=list_id)
     return {"list_id": list_id, "condition": condition, "mode": "full" if condition == "full" else "basic",
             "surface_type": found.surface_type, "engine": found.engine, "suggestions": items}
 

@@ -50,10 +50,15 @@ def _language() -> None:
 
 
 def _participant(study_id: str) -> Participant | None:
+    """The participant this browser's cookie names in ``study_id``: read once per request (the page's language
+    needs it before the view does)."""
     token = (session.get("participants") or {}).get(study_id)
     if not token:
         return None
-    return db.session.scalar(select(Participant).where(Participant.token == token))
+    known = g.setdefault("participants", {})
+    if token not in known:
+        known[token] = db.session.scalar(select(Participant).where(Participant.token == token))
+    return known[token]
 
 
 def _remember(study_id: str, p: Participant) -> None:
@@ -136,9 +141,6 @@ def start(study_id: str):
         log_again("resume", mine, via="entry link")
         db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
-    existing = assignment.find(study, study.platform, platform_id) if platform_id else None
-    if existing is not None:
-        return _resume_elsewhere(study, existing, meta)
     if not platform_id:  # an anonymous link: a new id, remembered by this browser
         platform_id = "link-" + secrets.token_hex(8)
     try:
@@ -155,7 +157,7 @@ def start(study_id: str):
         flag(p, reason)
         flag(mine, f"this browser came back as participant {p.id} under another id")
         db.session.commit()
-    elif not created:  # the same id arrived a moment earlier (another tab, another server)
+    elif not created:  # the id has a session already (begun in another browser, or a moment ago in another tab)
         return _resume_elsewhere(study, p, meta)
     _remember(study_id, p)
     return redirect(url_for(".current", study_id=study_id))
@@ -198,7 +200,14 @@ def current(study_id: str):
     flow.check_session_time(p, study)
     p.last_seen_at = utcnow()
     _log_view(p)
+    page = _page(rt, p)  # made before the commit, which would expire what it reads
     db.session.commit()
+    return page
+
+
+def _page(rt, p: Participant):
+    """The page of the participant's current step (a trial's starts it)."""
+    study, study_id = rt.study, p.study_id
     context = {"study": study, "p": p}
     if not flow.is_open(p):  # finished, declined, screened out or excluded: only the end page
         return render_template("done.html", completion_url=flow.completion_url(study, p), **context)
@@ -225,7 +234,6 @@ def current(study_id: str):
 
 def _trial_page(rt, p: Participant):
     t = flow.start_trial(p)
-    db.session.commit()
     plan = [x for x in flow.trials(p) if x.kind == "trial"]
     condition = rt.study.condition(t.condition)
     boot = trial_boot(rt.study, p.token, {"index": t.index, "kind": t.kind, "condition": t.condition,
