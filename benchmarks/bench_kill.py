@@ -18,16 +18,17 @@ import sys
 import tempfile
 import threading
 import time
-from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import checkout
 import numpy as np
-from serverproc import StudyServer, demo_missing
+from demostudy import rows_balance
+from serverproc import DEMO_STUDY, StudyServer, demo_missing
 
 from simulation.participant import Bot
 from simulation.transport import FlowError, HttpTransport
+from study_server.study_file import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -77,16 +78,16 @@ def run(participants: int, kills: int, seed: int, workers: int) -> dict:
         with sqlite3.connect(database) as con:
             stored, distinct = con.execute("SELECT COUNT(*), COUNT(DISTINCT CAST(participant_id AS TEXT) || '-' || "
                                            "CAST(seq AS TEXT)) FROM events").fetchone()
-            rows = Counter(r for (r,) in con.execute("SELECT row FROM participants"))
+            rows, balanced = rows_balance((r for (r,) in con.execute(
+                "SELECT row FROM participants WHERE status = 'completed'")), load_study(DEMO_STUDY))
             people = con.execute("SELECT COUNT(*), SUM(status = 'completed') FROM participants").fetchone()
             integrity = con.execute("PRAGMA integrity_check").fetchone()[0]
     generated = sum(r["events"] for r in results)
     completed = sum(1 for r in results if r.get("code"))
-    balanced = max(rows.values()) - min(rows.values()) <= 1 if rows else False
     return {"benchmark": "kill", "kills": len(killed), "participants": participants, "completed": completed,
             "participants_in_db": people[0], "completed_in_db": int(people[1] or 0), "events_generated": generated,
             "events_stored": stored, "duplicates": stored - distinct, "rows_balanced": balanced,
-            "rows": dict(sorted(rows.items())), "integrity": integrity,
+            "rows": rows, "integrity": integrity,
             "retries": sum(r["retries"] for r in results), "elapsed_s": round(elapsed, 1),
             "errors": [r["error"] for r in results if "error" in r]}
 

@@ -3,6 +3,7 @@ database (driven by its test client), and a participant walked from the entry li
 
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 
 from serverproc import DEMO_STUDY
@@ -38,3 +39,14 @@ def to_first_trial(transport, pid: str, study: str = "demo"):
     if page.step != "trial":
         raise RuntimeError(f"{pid} could not reach the trials (stopped at {page.step!r})")
     return page
+
+
+def rows_balance(rows_of_completed, study) -> tuple[dict[int, int], bool]:
+    """Completed participants per schedule row of ``study`` (loaded: :func:`study_server.study_file.load_study`;
+    every row, an empty one counting as none) and whether they are balanced: no two rows differ by more than one
+    participant, and someone completed."""
+    from study_server.schedule import n_rows
+
+    rows = Counter({r: 0 for r in range(n_rows(study.design, len(study.conditions), len(study.periods)))})
+    rows.update(rows_of_completed)
+    return dict(sorted(rows.items())), max(rows.values()) - min(rows.values()) <= 1 and rows.total() > 0

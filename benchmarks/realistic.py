@@ -17,10 +17,10 @@ from collections import Counter
 from pathlib import Path
 
 import crowd
+from demostudy import rows_balance
 from serverproc import own_cpu_seconds
 from stacks import postgres_stack, sqlite_stack
 
-from study_server.schedule import n_rows
 from study_server.study_file import load_study
 
 #: The headroom rule: plan for the app servers' cores to be busy at most this share of the time on average, so a
@@ -49,11 +49,10 @@ def killer(stack, at_s: float, down_s: float, log: list):
     return during
 
 
-def check_database(stack, tally: crowd.Tally, rows_in_schedule: int) -> dict:
+def check_database(stack, tally: crowd.Tally, study) -> dict:
     """What the database holds against what the crowd was told: per participant, every event up to the seq the
-    server acknowledged stored (else lost) and once (else duplicated); completed participants; the schedule's
-    ``rows_in_schedule`` rows among them (balanced: no two differ by more than one participant, an empty row
-    counting as none)."""
+    server acknowledged stored (else lost) and once (else duplicated); completed participants; the rows of
+    ``study``'s schedule among them (:func:`demostudy.rows_balance`)."""
     stored_seqs: dict[str, set[int]] = {}
     for pid, seq in stack.query("SELECT p.platform_id, e.seq FROM events e JOIN participants p "
                                 "ON p.id = e.participant_id"):
@@ -62,12 +61,11 @@ def check_database(stack, tally: crowd.Tally, rows_in_schedule: int) -> dict:
                for pid, acked in tally.acked.items())
     stored, distinct = stack.count()
     status = Counter(s for (s,) in stack.query("SELECT status FROM participants"))
-    rows = Counter({r: 0 for r in range(rows_in_schedule)})
-    rows.update(r for (r,) in stack.query("SELECT row FROM participants WHERE status = 'completed'"))
+    rows, balanced = rows_balance((r for (r,) in stack.query("SELECT row FROM participants "
+                                                             "WHERE status = 'completed'")), study)
     return {"events_acknowledged": sum(a + 1 for a in tally.acked.values()), "events_stored": stored,
             "lost": lost, "duplicates": stored - distinct, "participants_in_db": sum(status.values()),
-            "completed_in_db": status.get("completed", 0), "rows": dict(sorted(rows.items())),
-            "rows_balanced": max(rows.values()) - min(rows.values()) <= 1 and rows.total() > 0}
+            "completed_in_db": status.get("completed", 0), "rows": rows, "rows_balanced": balanced}
 
 
 def summary(latencies: dict[str, list[float]]) -> dict:
@@ -132,7 +130,7 @@ def run(stack, args, people, study, minutes: float) -> dict:
                "app_cpu_ms_per_participant_minute": round(1000 * cpu / person_minutes, 1) if person_minutes else None}
     if stack.proxy:
         figures |= server_side(stack.proxy.timings(log_from), tally.settled_epoch)
-    figures |= check_database(stack, tally, n_rows(study.design, len(study.conditions), len(study.periods)))
+    figures |= check_database(stack, tally, study)
     if log:  # a killed server's processes took their CPU time with them: the figure would be too low
         figures["app_cpu_s"] = figures["app_cpu_ms_per_participant_minute"] = None
     elif figures["app_cpu_ms_per_participant_minute"]:

@@ -206,16 +206,22 @@ class NginxProxy:
         return log.stat().st_size if log.exists() else 0
 
     def timings(self, start: int = 0) -> list[tuple[float, str, str, int, float]]:
-        """The requests nginx answered, from byte ``start`` of its access log on: (when, epoch s; method; path;
-        status; how long nginx took, ms — the server's side of a latency, without the client's own delays)."""
-        with open(self.prefix / "access.log", "rb") as f:
-            f.seek(start)
-            lines = f.read().decode(errors="replace").splitlines()
-        out = []
-        for line in lines:
-            at, method, path, status, took = line.split(" ")
-            out.append((float(at), method, path, int(status), float(took) * 1000.0))
-        return out
+        """The requests nginx answered, from byte ``start`` of its access log on (:func:`read_timings`)."""
+        return read_timings(self.prefix / "access.log", start)
+
+
+def read_timings(log: Path, start: int = 0) -> list[tuple[float, str, str, int, float]]:
+    """The requests of an access log in :data:`NGINX_CONF`'s ``timing`` format, from byte ``start`` on: (when,
+    epoch s; method; path; status; how long nginx took, ms — the server's side of a latency, from the request's
+    first byte to the answer's last, without the client's own delays)."""
+    with open(log, "rb") as f:
+        f.seek(start)
+        lines = f.read().decode(errors="replace").splitlines()
+    out = []
+    for line in lines:
+        at, method, path, status, took = line.split(" ")
+        out.append((float(at), method, path, int(status), float(took) * 1000.0))
+    return out
 
     def stop(self) -> None:
         if self.proc and self.proc.poll() is None:

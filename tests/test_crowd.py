@@ -61,6 +61,7 @@ def test_a_crowd_takes_the_whole_study_and_loses_nothing_when_the_server_is_kill
     assert run["events_acknowledged"] == run["events_stored"] > 0 and run["lost"] == 0, run
     assert run["rows_balanced"] and not run["failures"], run
     assert {"events", "suggest", "search", "page", "done"} <= set(run["latency"]), run
+    assert run["load_generator_lag_ms"]["max"] >= run["load_generator_lag_ms"]["p95"] >= 0, run
     assert out["shape"]["events_per_min"]["median"] > 0
     assert proc.returncode == 0, proc.stderr
 
@@ -75,3 +76,37 @@ def test_the_capacity_table_is_made_from_the_runs():
     assert [r["database_cpu_ms_per_participant_minute"] for r in rows] == ["12.0 ms", "in the app servers"]
     text = realistic.table_text(rows).splitlines()
     assert len(text) == 4 and "| postgresql | 50.0 ms | 600 | 12.0 ms | 20.0 ms | 30.0 ms |" in text
+
+
+def test_nginx_timings_are_read_from_where_the_run_began_and_split_at_arrival(tmp_path):
+    from serverproc import read_timings
+
+    log = tmp_path / "access.log"
+    log.write_text("100.000 POST /api/events 200 0.003\n")
+    start = log.stat().st_size
+    with log.open("a") as f:
+        f.write("200.500 POST /api/events 200 0.250\n200.600 GET /study/x/ 200 0.040\n"
+                "301.000 POST /api/events 200 0.010\n301.100 POST /api/suggest 200 0.020\n"
+                "301.200 GET /favicon.ico 404 0.001\n")
+    timings = read_timings(log, start)
+    assert timings[0] == (200.5, "POST", "/api/events", 200, 250.0) and len(timings) == 5
+    figures = realistic.server_side(timings, settled_epoch=300.0)
+    whole, settled = figures["server_latency"], figures["server_latency_once_arrived"]
+    assert whole["events"]["n"] == 2 and whole["events"]["max_ms"] == 250.0
+    assert whole["page"]["n"] == 1 and "favicon" not in str(whole)
+    assert settled["events"] == {"n": 1, "p50_ms": 10.0, "p95_ms": 10.0, "max_ms": 10.0}
+    assert settled["suggest"]["n"] == 1 and "page" not in settled
+
+
+def test_an_empty_schedule_row_counts_against_the_balance():
+    from demostudy import rows_balance
+    from serverproc import DEMO_STUDY
+
+    from study_server.study_file import load_study
+
+    study = load_study(DEMO_STUDY)
+    rows, balanced = rows_balance([0, 1, 2, 3, 4, 5] * 2, study)
+    assert balanced and rows == {r: 2 for r in range(6)}
+    rows, balanced = rows_balance([0, 1, 2, 3, 4] * 2, study)
+    assert not balanced and rows[5] == 0
+    assert not rows_balance([], study)[1]
