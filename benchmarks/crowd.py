@@ -367,8 +367,10 @@ async def _crowd(base: str, study: str, participants: int, pace: float, arrival_
     if during is not None:
         tasks.append(asyncio.create_task(during()))
     watcher = asyncio.create_task(watch())
-    await asyncio.gather(*tasks)
-    watcher.cancel()
+    try:
+        await asyncio.gather(*tasks)
+    finally:
+        watcher.cancel()
 
 
 def run_crowd(base: str, study: str, participants: int, people: list[list[TrialTrace]], pace: float = 1.0,

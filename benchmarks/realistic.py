@@ -83,16 +83,23 @@ SERVER_KINDS = (("/api/events", "events"), ("/api/suggest", "suggest"), ("/api/s
 
 def server_side(timings, settled_epoch: float) -> dict:
     """The latencies nginx measured (from a request's first byte to its answer's last, without the load
-    generator's own delays), by kind, over the run and once every participant had arrived."""
+    generator's own delays), by kind, over the run and of the requests begun once every participant had arrived;
+    answers of 500 and above (nginx's own while an app server is away) counted apart, not timed."""
     whole: dict[str, list[float]] = {}
     settled: dict[str, list[float]] = {}
-    for at, _method, path, _status, ms in timings:
+    failed = Counter()
+    for began, _method, path, status, ms in timings:
         kind = next((k for prefix, k in SERVER_KINDS if path.startswith(prefix)), None)
-        if kind is not None:
-            whole.setdefault(kind, []).append(ms)
-            if at >= settled_epoch:
-                settled.setdefault(kind, []).append(ms)
-    return {"server_latency": summary(whole), "server_latency_once_arrived": summary(settled)}
+        if kind is None:
+            continue
+        if status >= 500:
+            failed[kind] += 1
+            continue
+        whole.setdefault(kind, []).append(ms)
+        if began >= settled_epoch:
+            settled.setdefault(kind, []).append(ms)
+    return {"server_latency": summary(whole), "server_latency_once_arrived": summary(settled),
+            "server_errors": dict(failed)}
 
 
 def run(stack, args, people, study, minutes: float) -> dict:
@@ -114,7 +121,7 @@ def run(stack, args, people, study, minutes: float) -> dict:
     # add CPU but no minutes: the figure errs high)
     person_minutes = tally.person_minutes
     latency, settled = (summary(latencies) for latencies in (tally.latency, tally.settled))
-    lag = [ms for _, ms in tally.lag]
+    lag = [ms for _, ms in tally.lag] or [0.0]
     figures = {"database": stack.label, "participants": args.participants, "pace": args.pace,
                "arrival_s": args.arrival, "seconds": round(seconds, 1), "latency": latency,
                "latency_once_arrived": settled,

@@ -210,19 +210,6 @@ class NginxProxy:
         return read_timings(self.prefix / "access.log", start)
 
 
-def read_timings(log: Path, start: int = 0) -> list[tuple[float, str, str, int, float]]:
-    """The requests of an access log in :data:`NGINX_CONF`'s ``timing`` format, from byte ``start`` on: (when,
-    epoch s; method; path; status; how long nginx took, ms — the server's side of a latency, from the request's
-    first byte to the answer's last, without the client's own delays)."""
-    with open(log, "rb") as f:
-        f.seek(start)
-        lines = f.read().decode(errors="replace").splitlines()
-    out = []
-    for line in lines:
-        at, method, path, status, took = line.split(" ")
-        out.append((float(at), method, path, int(status), float(took) * 1000.0))
-    return out
-
     def stop(self) -> None:
         if self.proc and self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGQUIT)
@@ -237,6 +224,25 @@ def read_timings(log: Path, start: int = 0) -> list[tuple[float, str, str, int, 
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+
+def read_timings(log: Path, start: int = 0) -> list[tuple[float, str, str, int, float]]:
+    """The requests of an access log in :data:`NGINX_CONF`'s ``timing`` format, from byte ``start`` on: (when it
+    began, epoch s; method; path; status; how long nginx took, ms — the server's side of a latency, from the
+    request's first byte to the answer's last, without the client's own delays). nginx logs a request when it ends
+    (``$msec``); its beginning is that less its time. A line of another format is left out."""
+    with open(log, "rb") as f:
+        f.seek(start)
+        lines = f.read().decode(errors="replace").splitlines()
+    out = []
+    for line in lines:
+        try:  # the path is decoded ($uri): it may hold a space, the fields around it do not
+            ended, method, rest = line.split(" ", 2)
+            path, status, took = rest.rsplit(" ", 2)
+            out.append((float(ended) - float(took), method, path, int(status), float(took) * 1000.0))
+        except ValueError:
+            continue
+    return out
 
 
 class ThrowawayPostgres:

@@ -84,18 +84,22 @@ def test_nginx_timings_are_read_from_where_the_run_began_and_split_at_arrival(tm
     log = tmp_path / "access.log"
     log.write_text("100.000 POST /api/events 200 0.003\n")
     start = log.stat().st_size
-    with log.open("a") as f:
+    with log.open("a") as f:  # (nginx writes a line when a request ends: the first began at 200.25)
         f.write("200.500 POST /api/events 200 0.250\n200.600 GET /study/x/ 200 0.040\n"
-                "301.000 POST /api/events 200 0.010\n301.100 POST /api/suggest 200 0.020\n"
-                "301.200 GET /favicon.ico 404 0.001\n")
+                "300.100 POST /api/events 200 0.200\n301.000 POST /api/events 200 0.010\n"
+                "301.100 POST /api/suggest 200 0.020\n301.150 POST /api/suggest 502 0.001\n"
+                "301.200 GET /favicon.ico 404 0.001\n301.300 GET /api/scenes/a b 200 0.004\nnot a timing line\n")
     timings = read_timings(log, start)
-    assert timings[0] == (200.5, "POST", "/api/events", 200, 250.0) and len(timings) == 5
+    assert timings[0] == (200.25, "POST", "/api/events", 200, 250.0) and len(timings) == 8
+    assert timings[-1][2] == "/api/scenes/a b"  # a decoded path with a space
     figures = realistic.server_side(timings, settled_epoch=300.0)
     whole, settled = figures["server_latency"], figures["server_latency_once_arrived"]
-    assert whole["events"]["n"] == 2 and whole["events"]["max_ms"] == 250.0
+    assert whole["events"]["n"] == 3 and whole["events"]["max_ms"] == 250.0
     assert whole["page"]["n"] == 1 and "favicon" not in str(whole)
+    # begun before everyone had arrived (299.9), ended after: not "once arrived"
     assert settled["events"] == {"n": 1, "p50_ms": 10.0, "p95_ms": 10.0, "max_ms": 10.0}
-    assert settled["suggest"]["n"] == 1 and "page" not in settled
+    assert settled["suggest"]["n"] == 1 and "page" not in settled and settled["scene"]["n"] == 1
+    assert figures["server_errors"] == {"suggest": 1}  # nginx's 502: counted, not timed
 
 
 def test_an_empty_schedule_row_counts_against_the_balance():

@@ -198,9 +198,12 @@ def current(study_id: str):
         return render_template("message.html", title=study.title,
                                message=_("Please start this study from the link you were given.")), 200
     flow.check_session_time(p, study)
-    p.last_seen_at = utcnow()
     _log_view(p)
-    page = _page(rt, p)  # made before the commit, which would expire what it reads
+    p.last_seen_at = utcnow()
+    # the page is made before the commit (which would expire what it reads) and its writes wait for the commit
+    # (SQLite's write lock, taken by the first, is held until then)
+    with db.session.no_autoflush:
+        page = _page(rt, p)
     db.session.commit()
     return page
 
