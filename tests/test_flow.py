@@ -238,3 +238,42 @@ def test_failures_show_a_friendly_page_and_are_logged(client, app, monkeypatch):
     with app.app_context():
         row = db.session.query(SessionLog).filter_by(kind="error").one()
         assert row.detail["error"] == "RuntimeError" and row.detail["reference"].encode() in r.data
+
+
+def test_a_page_reads_its_participant_once_and_writes_at_its_commit(client, app):
+    """A page view's statements: the participant read once (the page's language and the view share it), every
+    write flushed at the commit (SQLite's write lock is not held while the page is made), one commit, nothing read
+    again after it; a trial page (reloaded) the same."""
+    import re
+
+    from sqlalchemy import event
+
+    enter(client)
+    with app.app_context():
+        engine = db.engine
+    statements: list[str] = []
+
+    def seen(conn, cursor, statement, *args):
+        verb = statement.split()[0].upper()
+        table = re.search(r"(?:FROM|INTO|UPDATE)\s+(\w+)", statement, re.IGNORECASE)
+        statements.append(f"{verb} {table.group(1) if table else ''}")
+
+    def committed(conn):
+        statements.append("COMMIT")
+
+    event.listen(engine, "before_cursor_execute", seen)
+    event.listen(engine, "commit", committed)
+    try:
+        for expected in ("device", "trial"):
+            if expected == "trial":
+                to_trials(client)  # the same browser, resumed and walked to its first trial
+            statements.clear()
+            assert f'data-step="{expected}"'.encode() in client.get("/study/demo/").data
+            assert statements.count("SELECT participants") == 1, statements
+            assert statements.count("COMMIT") == 1 and statements[-1] == "COMMIT", statements
+            verbs = [s.split()[0] for s in statements]
+            first_write = min(i for i, v in enumerate(verbs) if v in ("INSERT", "UPDATE"))
+            assert "SELECT" not in verbs[first_write:], statements
+    finally:
+        event.remove(engine, "before_cursor_execute", seen)
+        event.remove(engine, "commit", committed)
