@@ -45,8 +45,6 @@ def rows_balance(rows_of_completed, study) -> tuple[dict[int, int], bool]:
     """Completed participants per schedule row of ``study`` (loaded: :func:`study_server.study_file.load_study`;
     every row, an empty one counting as none) and whether they are balanced: no two rows differ by more than one
     participant, and someone completed."""
-    from study_server.schedule import n_rows
-
-    rows = Counter({r: 0 for r in range(n_rows(study.design, len(study.conditions), len(study.periods)))})
+    rows = Counter({r: 0 for r in range(study.n_rows)})
     rows.update(rows_of_completed)
     return dict(sorted(rows.items())), max(rows.values()) - min(rows.values()) <= 1 and rows.total() > 0

@@ -121,13 +121,13 @@ def run(stack, args, people, study, minutes: float) -> dict:
     # add CPU but no minutes: the figure errs high)
     person_minutes = tally.person_minutes
     latency, settled = (summary(latencies) for latencies in (tally.latency, tally.settled))
-    lag = [ms for _, ms in tally.lag] or [0.0]
+    lag, lag_settled = ([ms for at, ms in tally.lag if at >= since] or [0.0]
+                        for since in (float("-inf"), tally.settled_at))
     figures = {"database": stack.label, "participants": args.participants, "pace": args.pace,
                "arrival_s": args.arrival, "seconds": round(seconds, 1), "latency": latency,
                "latency_once_arrived": settled,
                "load_generator_lag_ms": {"p95": round(crowd.percentile(lag, 95), 1), "max": round(max(lag), 1),
-                                         "p95_once_arrived": round(crowd.percentile(
-                                             [ms for at, ms in tally.lag if at >= tally.settled_at] or [0.0], 95), 1)},
+                                         "p95_once_arrived": round(crowd.percentile(lag_settled, 95), 1)},
                "codes_given": sum(1 for c in tally.codes.values() if c), "failures": tally.failures[:10],
                "failed": len(tally.failures), "retries": dict(tally.retries), "faults": log,
                "app_cpu_s": round(cpu, 1), "proxy_cpu_s": round(proxy_cpu, 1),

@@ -209,7 +209,6 @@ class NginxProxy:
         """The requests nginx answered, from byte ``start`` of its access log on (:func:`read_timings`)."""
         return read_timings(self.prefix / "access.log", start)
 
-
     def stop(self) -> None:
         if self.proc and self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGQUIT)

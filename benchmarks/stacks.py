@@ -16,20 +16,27 @@ from serverproc import DEMO_STUDY, NginxProxy, StudyServer
 
 @dataclass
 class Stack:
-    """What the load goes to: the base URL, the app servers' CPU seconds so far, the proxy's (0 without one),
-    ``query(sql)``: the rows of a query on its database, and its app servers (to kill one)."""
+    """What the load goes to: the base URL, the app servers' CPU seconds so far, ``query(sql)``: the rows of a
+    query on its database, its app servers (to kill one) and the proxy in front, if any."""
 
     base: str
     label: str
     cpu_seconds: Callable[[], float]
     query: Callable[[str], list[tuple]]
-    proxy_cpu_seconds: Callable[[], float] = lambda: 0.0
     #: the database server's CPU seconds so far (None: SQLite, whose work is the app servers')
     database_cpu_seconds: Callable[[], float | None] = lambda: None
     servers: list[StudyServer] = field(default_factory=list)
-    cafile: str | None = None
     #: nginx in front, when there is one (its access log times every request on the server's side)
     proxy: NginxProxy | None = None
+
+    def proxy_cpu_seconds(self) -> float:
+        """The proxy's CPU seconds so far (0 without one)."""
+        return self.proxy.cpu_seconds() if self.proxy else 0.0
+
+    @property
+    def cafile(self) -> str | None:
+        """The certificate a client trusts to reach the proxy over TLS (None: plain HTTP)."""
+        return str(self.proxy.cert) if self.proxy else None
 
     def count(self) -> tuple[int, int]:
         """(stored, distinct by participant and seq) event rows."""
@@ -79,9 +86,7 @@ def postgres_stack(tmp: Path, workers: int, via_proxy: bool, study: Path = DEMO_
             label = "postgresql" + (f" behind nginx (TLS), {apps} app servers" if proxy else
                                     (f", {apps} app servers" if apps > 1 else ""))
             yield Stack(proxy.https if proxy else servers[0].base, label,
-                        lambda: sum(a.cpu_seconds() for a in servers), query,
-                        proxy.cpu_seconds if proxy else (lambda: 0.0), pg.cpu_seconds, servers,
-                        str(proxy.cert) if proxy else None, proxy)
+                        lambda: sum(a.cpu_seconds() for a in servers), query, pg.cpu_seconds, servers, proxy)
         finally:
             engine.dispose()
             if proxy:
