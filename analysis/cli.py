@@ -77,6 +77,7 @@ def lmm_cmd(csv_file, response, fixed, random, family, reference, reml, as_json)
     glmer Laplace)."""
     from .design import build_design
     from .mixed import compare, fit
+    from .tables import SINGULAR
 
     data = _read_csv(csv_file)
     design = build_design(data, response, [fixed], list(random), reference)
@@ -84,7 +85,7 @@ def lmm_cmd(csv_file, response, fixed, random, family, reference, reml, as_json)
     f, t = result.full, result.lrt
     out = {"nobs": f.nobs, "loglik": f.loglik, "formula": f.formula, "family": family, "dropped_rows": f.dropped,
            "fixed": {k: {"estimate": v, "se": f.se[k]} for k, v in f.fixed.items()}, "variance": f.variance,
-           "lrt": {"chi2": t.chi2, "df": t.df, "p": t.p, "null_loglik": t.null_loglik}}
+           "lrt": {"chi2": t.chi2, "df": t.df, "p": t.p, "null_loglik": t.null_loglik}, "singular": f.singular}
     if reml and family == "gaussian":
         r = fit(design, reml=True)
         out["reml"] = {"reml_criterion": -2 * r.loglik, "variance": r.variance,
@@ -96,7 +97,7 @@ def lmm_cmd(csv_file, response, fixed, random, family, reference, reml, as_json)
     lines += [f"  {'fixed effects':<{w}} {'estimate':>10} {'SE':>9}"]
     lines += [f"  {k:<{w}} {v:>10.4g} {f.se[k]:>9.4g}" for k, v in f.fixed.items()]
     lines += ["", "  variance components"] + [f"  {k:<{w}} {v:>10.4g}" for k, v in f.variance.items()]
-    lines += ["", f"LR test of {fixed}: {t.text()}"]
+    lines += ["", f"LR test of {fixed}: {t.text()}"] + ([f"note: {SINGULAR}"] if f.singular else [])
     _emit(out, as_json, "\n".join(lines))
 
 

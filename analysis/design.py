@@ -45,7 +45,8 @@ class RandomTerm:
 
 @dataclass(frozen=True)
 class Design:
-    """What a mixed model is fitted to; ``dropped`` rows had a missing value in a column the model uses."""
+    """What a mixed model is fitted to; ``dropped`` rows had a missing value in a column the model uses;
+    ``levels`` holds each categorical fixed term's levels, the reference first."""
 
     response: str
     y: np.ndarray
@@ -54,6 +55,7 @@ class Design:
     fixed_terms: tuple[str, ...]
     random: tuple[RandomTerm, ...]
     dropped: int = 0
+    levels: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @property
     def nobs(self) -> int:
@@ -66,7 +68,17 @@ class Design:
         """The same design without one fixed term (the null model of a likelihood-ratio test)."""
         keep = [i for i, name in enumerate(self.fixed_names) if _term_of(name, self.fixed_terms) != term]
         return Design(self.response, self.y, self.X[:, keep], tuple(self.fixed_names[i] for i in keep),
-                      tuple(t for t in self.fixed_terms if t != term), self.random, self.dropped)
+                      tuple(t for t in self.fixed_terms if t != term), self.random, self.dropped,
+                      tuple((t, lv) for t, lv in self.levels if t != term))
+
+    def level_rows(self, term: str) -> list[tuple[str, np.ndarray]]:
+        """(level, the indices of its rows) for every level of the categorical fixed ``term``, in order."""
+        levels = dict(self.levels).get(term)
+        if levels is None:
+            raise AnalysisError(f"{term!r} is not a categorical fixed term of the model", "--fixed")
+        dummies = self.X[:, [self.fixed_names.index(f"{term}{lv}") for lv in levels[1:]]]
+        which = np.where(dummies.any(axis=1), dummies.argmax(axis=1) + 1, 0)
+        return [(lv, np.flatnonzero(which == i)) for i, lv in enumerate(levels)]
 
 
 def formula_of(design: Design) -> str:
@@ -98,7 +110,9 @@ def _require(data: pd.DataFrame, column: str, role: str) -> None:
         raise AnalysisError(f"no column {column!r} (columns: {', '.join(map(str, data.columns))})", role)
 
 
-def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None) -> tuple[list[str], list[np.ndarray]]:
+def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None
+                   ) -> tuple[list[str], list[np.ndarray], list | None]:
+    """(column names, columns, the levels of a categorical term — None for a numeric one)."""
     m = _FACTOR.match(term)
     column = m.group(1) if m else term
     _require(data, column, "--fixed")
@@ -106,7 +120,7 @@ def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None) -> tupl
     categorical = bool(m) or not pd.api.types.is_numeric_dtype(values) or isinstance(values.dtype,
                                                                                       pd.CategoricalDtype)
     if not categorical:
-        return [term], [values.to_numpy(float)]
+        return [term], [values.to_numpy(float)], None
     levels = levels_of(values)
     if reference is not None:
         matches = [lv for lv in levels if str(lv) == str(reference)]
@@ -118,7 +132,7 @@ def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None) -> tupl
         raise AnalysisError(f"{column!r} has {len(levels)} level(s) with data; a fixed effect needs at least 2",
                             "--fixed")
     return ([f"{term}{lv}" for lv in levels[1:]],
-            [(values == lv).to_numpy(float) for lv in levels[1:]])
+            [(values == lv).to_numpy(float) for lv in levels[1:]], levels)
 
 
 def _random_term(data: pd.DataFrame, spec: str) -> RandomTerm:
@@ -152,15 +166,17 @@ def build_design(data: pd.DataFrame, response: str, fixed: list[str], random: li
     rows = data.loc[complete].reset_index(drop=True)
     if len(rows) < 3:
         raise AnalysisError(f"only {len(rows)} complete row(s)", f"response {response!r}")
-    names, columns = ["(Intercept)"], [np.ones(len(rows))]
+    names, columns, levels = ["(Intercept)"], [np.ones(len(rows))], []
     for term in fixed:
-        n, c = _fixed_columns(rows, term, reference if term == fixed[0] else None)
+        n, c, lv = _fixed_columns(rows, term, reference if term == fixed[0] else None)
         names += n
         columns += c
+        if lv is not None:
+            levels.append((term, tuple(map(str, lv))))
     X = np.column_stack(columns)
     if np.linalg.matrix_rank(X) < X.shape[1]:
         raise AnalysisError("the fixed effects are not estimable (a level is confounded with another term)",
                             "--fixed")
     terms = tuple(_random_term(rows, spec) for spec in random)
     return Design(response, y_all[complete].to_numpy(float), X, tuple(names), tuple(fixed), terms,
-                  int((~complete).sum()))
+                  int((~complete).sum()), tuple(levels))

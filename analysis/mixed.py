@@ -15,6 +15,7 @@ import itertools
 import numpy as np
 from scipy import stats
 
+from .degenerate import check_data, check_fit
 from .design import Design
 from .errors import AnalysisError
 from .glmm import fit_poisson
@@ -44,10 +45,15 @@ def lr_test(null: MixedFit, full: MixedFit) -> LRTest:
 
 
 def compare(design: Design, term: str, family: str = "gaussian") -> Comparison:
-    """Fit with and without the fixed ``term`` and test it."""
+    """Fit with and without the fixed ``term`` and test it; a test the data cannot inform, or a degenerate
+    fit, raises :class:`analysis.degenerate.NotModelled` naming why (never a test or contrast from it)."""
+    if term in dict(design.levels):
+        check_data(design, term, family)
     full = fit(design, family)
     null = fit(design.without(term), family)
-    return Comparison(full, null, lr_test(null, full))
+    comparison = Comparison(full, null, lr_test(null, full))
+    check_fit(design, comparison)
+    return comparison
 
 
 def holm(p: list[float]) -> list[float]:

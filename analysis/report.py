@@ -29,6 +29,7 @@ from .tables import (
     TestResult,
     condition_tests,
     contrasts_table,
+    fit_note,
     survey_table,
     table1,
     table2,
@@ -180,7 +181,8 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
         "trials": {"scheduled": len(trials), "completed": len(done)}, "picks": len(picks), "notes": notes,
         "table1": tables[0].data, "table2": tables[1].data, "closeness": close.data if close is not None else None,
         "tests": {r.measure: (r.comparison.to_dict() | {"contrasts": [c.to_dict() for c in r.contrasts]}
-                              if r.comparison else {"error": r.error}) for r in results},
+                              if r.comparison else {"error": r.error}) | {"modelled": r.comparison is not None,
+                                                                         "note": fit_note(r)} for r in results},
     }
     (out / "results.json").write_text(dumps(summary))
     progress("README")

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from .bootstrap import bootstrap_by
+from .degenerate import NotModelled
 from .design import build_design
 from .errors import AnalysisError
 from .mixed import compare, pairwise
@@ -153,6 +154,8 @@ def condition_tests(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[
             design = build_design(frame, m, ["condition"], random_terms(frame))
             result.comparison = compare(design, "condition", family)
             result.contrasts = pairwise(result.comparison.full, "condition", present)
+        except NotModelled as e:
+            result.error = e.message
         except AnalysisError as e:
             result.error = str(e)
         except (np.linalg.LinAlgError, ValueError, FloatingPointError) as e:
@@ -161,34 +164,60 @@ def condition_tests(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[
     return out
 
 
+#: The note on a fit with a variance at zero or a correlation at ±1, in lme4's sense (``isSingular``), as
+#: reproduce.R words it.
+SINGULAR = "singular fit (a variance at zero)"
+
+
+def _model_name(family: str) -> str:
+    return "LMM" if family == "gaussian" else "Poisson GLMM"
+
+
+def fit_note(r: TestResult) -> str:
+    """What a reader must know beside a measure's numbers: why it is not modelled, or that its fit is singular."""
+    if r.comparison is None:
+        return f"not modelled: {r.error}"
+    return SINGULAR if r.comparison.full.singular else ""
+
+
 def tests_table(results: list[TestResult]) -> Table:
     rows, data = [], []
     for r in results:
         if r.comparison is None:
-            rows.append([r.label, r.family, "–", "–", r.error])
-            data.append({"measure": r.measure, "family": r.family, "error": r.error})
+            rows.append([r.label, _model_name(r.family), "–", "–", fit_note(r)])
+            data.append({"measure": r.measure, "family": r.family, "chi2": "", "df": "", "n": "", "p": "",
+                         "loglik_full": "", "loglik_null": "", "singular": "", "modelled": False, "note": fit_note(r)})
             continue
         t = r.comparison.lrt
-        rows.append([r.label, "LMM" if r.family == "gaussian" else "Poisson GLMM",
-                     f"χ²({t.df}, N = {t.nobs}) = {t.chi2:.2f}", format_p(t.p), ""])
+        rows.append([r.label, _model_name(r.family), f"χ²({t.df}, N = {t.nobs}) = {t.chi2:.2f}", format_p(t.p),
+                     fit_note(r)])
         data.append({"measure": r.measure, "family": r.family, "chi2": t.chi2, "df": t.df, "n": t.nobs, "p": t.p,
-                     "loglik_full": t.full_loglik, "loglik_null": t.null_loglik, "error": ""})
+                     "loglik_full": t.full_loglik, "loglik_null": t.null_loglik,
+                     "singular": r.comparison.full.singular, "modelled": True, "note": fit_note(r)})
     return Table("lr_tests", "Likelihood-ratio tests of condition", "Maximum-likelihood mixed models with crossed "
                  "random intercepts for participant and scene, with and without condition (Poisson with log link "
-                 "for counts; reciprocal ranks per pick).", ["Measure", "Model", "Test", "p", "Note"], rows, data)
+                 "for counts; reciprocal ranks per pick). A measure the data cannot inform a test of (no variance "
+                 "within a condition, a count that is zero throughout one, a degenerate fit) is not modelled, and "
+                 f"says why; “{SINGULAR}” marks a fit whose random-effect variance was estimated at zero "
+                 "(lme4's isSingular).", ["Measure", "Model", "Test", "p", "Note"], rows, data)
 
 
 def contrasts_table(results: list[TestResult]) -> Table:
     rows, data = [], []
     for r in results:
+        if r.comparison is None:
+            rows.append([r.label, "–", "–", "–", "–", "–", "–", fit_note(r)])
+            data.append({"measure": r.measure, "contrast": "", "estimate": "", "se": "", "z": "", "p": "",
+                         "p_holm": "", "note": fit_note(r)})
         for c in r.contrasts:
             scale = " (log rate)" if r.family == "poisson" else ""
             rows.append([r.label, f"{c.a} − {c.b}", f"{c.estimate:.3g}{scale}", f"{c.se:.3g}", f"{c.z:.2f}",
-                         format_p(c.p), format_p(c.p_holm)])
-            data.append({"measure": r.measure, **c.to_dict()})
+                         format_p(c.p), format_p(c.p_holm), fit_note(r)])
+            data.append({"measure": r.measure, **c.to_dict(), "note": fit_note(r)})
     return Table("contrasts", "Pairwise contrasts between conditions", "Wald z tests from the full model; "
-                 "p-values Holm-corrected over the three contrasts of each measure.",
-                 ["Measure", "Contrast", "Estimate", "SE", "z", "p", "p (Holm)"], rows, data)
+                 "p-values Holm-corrected over the three contrasts of each measure. A measure that is not modelled "
+                 "has no contrasts: its row says why.",
+                 ["Measure", "Contrast", "Estimate", "SE", "z", "p", "p (Holm)", "Note"], rows, data)
 
 
 def survey_table(participants: pd.DataFrame) -> Table:

@@ -67,7 +67,7 @@ def test_simulated_study_over_real_http_feeds_the_report(tmp_path, demo_resource
     errors = {k: t["error"] for k, t in report["tests"].items() if t.get("error")}
     # bots leave drags and turns within a person's tolerance, inside the score's full credit: the score has nothing
     # to model; every other measure is tested
-    assert errors == {"score": "response 'score': is constant; there is no variance to model"}
+    assert errors == {"score": "is constant; there is no variance to model"}
 
 
 def test_simulation_is_reproducible_from_its_seed(tmp_path, demo_resources):
