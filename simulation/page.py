@@ -1,7 +1,8 @@
 """What a participant page says about itself: its step (``<body data-step="…">``), its form, its boot data.
 
 Pages mark their step, so a walker never recognises a page by its wording or markup. The steps: ``device``,
-``consent``, ``demographics``, ``instructions``, ``trial``, ``exit``, ``saving`` (the exit survey waits for the
+``consent``, ``demographics``, ``instructions``, ``briefing`` (the instructions of the next trial's condition,
+where the interface changes), ``trial``, ``exit``, ``saving`` (the exit survey waits for the
 last events), ``done`` (the end page, with the completion code in ``#completion-code``), ``message`` (a notice,
 such as a link that cannot be used) and ``mturk-preview`` (an MTurk HIT not yet accepted).
 """

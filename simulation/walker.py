@@ -2,9 +2,9 @@
 participants, tests and benchmarks go through it.
 
 Each page names its step (:mod:`.page`); the walker answers the steps whose answer is always the same (the
-device check, consent, the instruction pages) and asks its caller for the rest: the survey answers
-(``answers``) and what to do in a trial (``trial``). Every request goes through a transport (:mod:`.transport`),
-so the same walk runs in process or over real HTTP.
+device check, consent, the instruction pages, a condition's instructions) and asks its caller for the rest: the
+survey answers (``answers``) and what to do in a trial (``trial``). Every request goes through a transport
+(:mod:`.transport`), so the same walk runs in process or over real HTTP.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from .transport import FlowError
 
 #: What a person answers on the pages that ask nothing of them (a 1440 × 900 window passes the device check).
 FIXED_ANSWERS = {"device": {"width": "1440", "height": "900"}, "consent": {"agree": "yes"},
-                 "instructions": {"go": "next"}}
+                 "instructions": {"go": "next"}, "briefing": {"go": "start"}}
 #: Pages a study shows before and after the trials whose answers the caller gives.
 SURVEYS = ("demographics", "exit")
 #: Where a walk ends: the end page, or the exit survey waiting for events the server has not acknowledged (a

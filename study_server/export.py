@@ -37,12 +37,17 @@ from scenesuggest.contract.picks import PICK_INPUTS, PICK_PAYLOADS, picks
 from scenesuggest.contract.scoring import FORMULA
 from scenesuggest.library.index import INDEX_FILE
 
+from . import flow
 from .export_schema import DICTIONARY, data_package, dictionary_markdown
 from .extensions import db
 from .models import Event, Participant, SessionLog, ShownList, SurveyResponse, Trial, open_flags
 from .studies import StudyRuntime
 from .study_file import Study
 from .trial_check import target_closeness
+
+
+def _seconds(value: float | None) -> str | float:
+    return "" if value is None else round(value, 3)
 
 
 def _iso(t) -> str:
@@ -118,6 +123,7 @@ def _trials(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
         yield {"participant": t.participant_id, "position": t.position, "trial": t.index, "kind": t.kind,
                "condition": t.condition, "scene": t.scene_id, "period": t.period, "block": t.block,
                "started_at": _iso(t.started_at), "done_at": _iso(t.done_at),
+               "briefing_seconds": _seconds(flow.briefing_seconds(t)),
                "final_objects": len(t.final_scene["objects"]) if t.final_scene else "",
                "review": t.review or "", "replay": t.replay or "", **_closeness(rt, t)}
 

@@ -96,6 +96,9 @@ TABLES: tuple[Table, ...] = (
         _c("block", "integer", "block within the session (−1: the practice)", required=True, minimum=-1),
         _c("started_at", "datetime", "trial page first shown" + UTC),
         _c("done_at", "datetime", "done acknowledged" + UTC),
+        _c("briefing_seconds", "number", "seconds the page of the condition's instructions was open before the trial "
+                                         "(shown before the first trial and wherever the condition changes; server "
+                                         "clock; not part of the trial's time; empty: none was shown)", minimum=0),
         _c("final_objects", "integer", "objects in the final scene", minimum=0),
         _c("review", "string", "why the trial should be reviewed: its events do not show the study's minimum work, "
                                "or its scene came less close to the target than [limits] min_target_score (empty: "

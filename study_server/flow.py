@@ -1,10 +1,11 @@
 """The participant's progress, owned by the server: which step they are on and what moves them on.
 
 Steps: ``device`` → ``consent`` → ``demographics`` → ``instructions`` → ``trial`` (the practice trial first,
-when the study has one) → ``exit`` → ``done``. Ending early: declining consent (status ``no_consent``),
-failing the device check (``screened_out``), leaving (``returned``). Each way out gives its own code (the study
-file's ``[platform.codes]``), which the platform's completion URL takes. Every function takes the participant,
-changes it in the current transaction and leaves committing to the caller.
+when the study has one; before the first trial and wherever the condition changes, a page with the condition's
+instructions, which the participant dismisses before the trial starts) → ``exit`` → ``done``. Ending early:
+declining consent (status ``no_consent``), failing the device check (``screened_out``), leaving (``returned``).
+Each way out gives its own code (the study file's ``[platform.codes]``), which the platform's completion URL takes.
+Every function takes the participant, changes it in the current transaction and leaves committing to the caller.
 """
 
 from __future__ import annotations
@@ -174,6 +175,46 @@ def turn_instructions(p: Participant, study: Study, direction: str) -> None:
         p.step = "trial"
         p.position = 0
     log("instructions", p, page=p.instruction_page, step=p.step)
+
+
+def briefing_due(p: Participant, t: Trial | None) -> bool:
+    """Whether the condition's instructions are shown before the current trial ``t``: before the first trial and
+    whenever the condition differs from the trial before it (the interface changes), until the participant has
+    dismissed them. A trial already begun (begun before briefings were shown) has none."""
+    if t is None or t.briefed_at is not None or t.started_at is not None:
+        return False
+    if t.position == 0:
+        return True
+    before = db.session.scalar(select(Trial.condition).where(Trial.participant_id == p.id,
+                                                             Trial.position == t.position - 1))
+    return before != t.condition
+
+
+def show_briefing(p: Participant, t: Trial) -> None:
+    """The page of ``t``'s condition's instructions is shown: its first showing is when its time starts."""
+    if t.briefing_shown_at is None:
+        t.briefing_shown_at = utcnow()
+        log("briefing_shown", p, position=t.position, index=t.index, condition=t.condition)
+
+
+def finish_briefing(p: Participant) -> None:
+    """The participant dismissed the condition's instructions before the current trial (a repeated or stale
+    request changes nothing); the trial starts when its page is next shown."""
+    t = current_trial(p)
+    if not briefing_due(p, t):
+        return
+    now = utcnow()
+    t.briefing_shown_at = t.briefing_shown_at or now
+    t.briefed_at = now
+    log("briefing_read", p, position=t.position, index=t.index, condition=t.condition,
+        seconds=round(briefing_seconds(t), 3))
+
+
+def briefing_seconds(t: Trial) -> float | None:
+    """Seconds the condition's instructions were open before ``t`` (server clock; None when none were shown)."""
+    if t.briefed_at is None or t.briefing_shown_at is None:
+        return None
+    return (t.briefed_at - t.briefing_shown_at).total_seconds()
 
 
 def start_trial(p: Participant) -> Trial | None:

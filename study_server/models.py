@@ -94,6 +94,11 @@ class Trial(db.Model):
     block: Mapped[int] = mapped_column(Integer)
     started_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
     done_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    #: When the page with the condition's instructions was first shown before this trial, and when the participant
+    #: dismissed it (flow.briefing_due: the first trial, and every trial whose condition differs from the one
+    #: before); None when none was due. The time between them is not trial time: the trial starts after.
+    briefing_shown_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    briefed_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
     final_scene: Mapped[dict | None] = mapped_column(JSON, nullable=True)
     #: Why the trial should be reviewed: its events do not show the study's minimum work, or its scene came less
     #: close to the target than the study's min_target_score (None: neither, or not yet checked).

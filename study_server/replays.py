@@ -45,6 +45,8 @@ def label(event: dict) -> str:
         return f"{p.get('source')} list shown ({len(p.get('items', []))})"
     if kind == "camera":
         return f"camera {p.get('action')}"
+    if kind == "briefing":
+        return f"read the instructions of {p.get('condition')} ({p.get('seconds', 0):.0f} s, before the trial)"
     return kind.replace("_", " ")
 
 

@@ -37,6 +37,14 @@ def to_trials(client, study="demo", query="pid=p1") -> dict:
     return page.boot
 
 
+def next_trial(client, study="demo") -> dict:
+    """The boot data of the participant's current trial page (past the page of its condition's instructions, when
+    one is due)."""
+    page = Walker(FlaskTransport(client), study).walk(lambda _: DEMOGRAPHICS)
+    assert page.step == "trial", f"not at a trial (at {page.step!r})"
+    return page.boot
+
+
 def auth(b: dict) -> dict:
     return {"Authorization": f"Bearer {b['token']}"}
 

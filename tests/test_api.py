@@ -4,7 +4,7 @@ import json
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
-from flowhelp import auth, boot, to_trials
+from flowhelp import auth, next_trial, to_trials
 
 from scenesuggest.scenes import scene_json
 from study_server.extensions import db
@@ -20,7 +20,7 @@ def walk_to(client, app, condition: str, pid: str = "p1") -> dict:
     b = to_trials(client, query=f"pid={pid}")
     while b["trial"]["condition"] != condition or b["trial"]["kind"] == "practice":
         client.post("/api/trial/done", headers=auth(b), json={"trial": b["trial"]["index"]})
-        b = boot(client.get("/study/demo/"))
+        b = next_trial(client)
     return b
 
 

@@ -65,6 +65,10 @@ VOCABULARY: dict[str, dict[str, Field]] = {
     "trial_start": {"scene": _f("str", "target scene id"), "condition": _f("enum", choices=("none", "basic", "full"))},
     "trial_done": {"objects": _f("int", "objects in the scene when done", minimum=0)},
     "instructions": {"page": _f("int", "instruction page shown", minimum=0)},
+    "briefing": {"condition": _f("enum", "the condition whose instructions were shown before the trial",
+                                 choices=("none", "basic", "full")),
+                 "seconds": _f("num", "how long the page of the condition's instructions was open before the trial "
+                                      "began (server clock; not trial time)", minimum=0)},
     "list_shown": {"source": _f("enum", "where the list came from", choices=SOURCES),
                    "items": _f("strs", "categories or model ids, best first (rank = position + 1)"),
                    "list_id": _f("str", "server id of the list, when the server made it", required=False,

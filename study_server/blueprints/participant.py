@@ -236,12 +236,21 @@ def _page(rt, p: Participant):
 
 
 def _trial_page(rt, p: Participant):
-    t = flow.start_trial(p)
+    """The current trial's page, or before it the page of its condition's instructions when they are due."""
+    t = flow.current_trial(p)
     plan = [x for x in flow.trials(p) if x.kind == "trial"]
     condition = rt.study.condition(t.condition)
+    if flow.briefing_due(p, t):
+        flow.show_briefing(p, t)
+        return render_template("briefing.html", study=rt.study, p=p, trial=t, condition=condition,
+                               first=t.position == 0, of=len(plan))
+    flow.start_trial(p)
+    seconds = flow.briefing_seconds(t)
     boot = trial_boot(rt.study, p.token, {"index": t.index, "kind": t.kind, "condition": t.condition,
                                           "scene": t.scene_id, "block": t.block, "number": t.index + 1,
-                                          "of": len(plan)}, url_for(".current", study_id=p.study_id))
+                                          "of": len(plan),
+                                          "briefing": None if seconds is None else round(seconds, 3)},
+                      url_for(".current", study_id=p.study_id))
     return render_template("trial.html", study=rt.study, p=p, trial=t, condition=condition,
                            boot=boot, scene_title=rt.study.scenes[t.scene_id].title)
 
@@ -342,6 +351,16 @@ def instructions(study_id: str):
     p = _post_participant(study_id)
     if p is not None and p.step == "instructions":
         flow.turn_instructions(p, study, request.form.get("go", "next"))
+    db.session.commit()
+    return redirect(url_for(".current", study_id=study_id))
+
+
+@bp.post("/briefing")
+def briefing(study_id: str):
+    """The participant dismissed the instructions of the next trial's condition: the trial starts."""
+    p = _post_participant(study_id)
+    if p is not None and p.step == "trial":
+        flow.finish_briefing(p)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
 

@@ -33,7 +33,20 @@ def hook(page, expression: str):
     return page.evaluate(f"() => window.sceneSuggestTest.{expression}")
 
 
+def past_briefing(page) -> bool:
+    """On the page of the next trial's condition's instructions (before the first trial and wherever the
+    condition changes), start the trial; whether there was one."""
+    step = until(page, "document.body && document.body.dataset.step")
+    if step != "briefing":
+        return False
+    with page.expect_navigation():
+        page.click("button[name=go][value=start]")
+    return True
+
+
 def ready(page):
+    """The trial page ready for input (past the condition's instructions, when they come first)."""
+    past_briefing(page)
     until(page, "!!(window.sceneSuggestTest && window.sceneSuggestTest.ready)")
     page.evaluate("() => window.sceneSuggestTest.loaded()")
 
@@ -151,16 +164,24 @@ def place_with_suggestions(page, mode_toggle=False):
 def walked_to_exit(base: str, pid: str, headers: dict | None = None):
     """A participant walked over HTTP (with ``headers`` on arrival: a browser's language) through every trial to
     the exit survey; the transport, whose cookies a browser takes to go on from there."""
+    http, step = walked(base, pid, headers)
+    assert step == "exit"
+    return http
+
+
+def walked(base: str, pid: str, headers: dict | None = None, trials: int | None = None):
+    """A participant walked over HTTP (with ``headers`` on arrival) through its first ``trials`` trials (all when
+    None) and on to the next page; (the transport, that page's step)."""
     from flowhelp import DEMOGRAPHICS
 
     from simulation.transport import HttpTransport
     from simulation.walker import Walker
 
     http = HttpTransport(base)
-    seq = 0
+    seq, played = 0, 0
 
     def trial(b: dict) -> bool:
-        nonlocal seq
+        nonlocal seq, played
         t, auth = b["trial"], {"Authorization": f"Bearer {b['token']}"}
         events = [{"seq": seq, "t": 1.0e12 + seq, "type": "trial_start", "trial": t["index"],
                    "payload": {"scene": t["scene"], "condition": t["condition"]}},
@@ -169,9 +190,11 @@ def walked_to_exit(base: str, pid: str, headers: dict | None = None):
         seq += 2
         assert http.post("/api/events", json_body={"page_id": "walk", "events": events}, headers=auth).status == 200
         assert http.post("/api/trial/done", json_body={"trial": t["index"]}, headers=auth).status == 200
-        return True
+        played += 1
+        return trials is None or played < trials
 
     walker = Walker(http, "demo")
     page = walker.walk(lambda _: DEMOGRAPHICS, trial, until=("exit",), page=walker.enter({"pid": pid}, headers=headers))
-    assert page.step == "exit"
-    return http
+    if trials is not None and played == trials:
+        page = walker.current()
+    return http, page.step

@@ -62,6 +62,8 @@ def test_every_participant_page_passes_axe(server, browser):
             check(page, "instructions, last page", seen, "instructions")
         page.click("button[name=go][value=next]")
         page.wait_for_load_state()
+    until(page, "document.body.dataset.step === 'briefing'")
+    check(page, "the condition's instructions", seen, "briefing")
     ready(page)
     check(page, "trial", seen, "trial")
     page.click("#done-button")
@@ -100,7 +102,7 @@ def test_every_participant_page_passes_axe(server, browser):
     check(page, "screened out", seen)
     context.close()
     assert {k: v for k, v in seen.items() if v} == {}
-    assert len(seen) == 13
+    assert len(seen) == 14
 
 
 def test_the_admin_pages_pass_axe(authoring_server, browser):
@@ -190,6 +192,9 @@ def test_consent_surveys_and_the_exit_with_the_keyboard_alone(server, browser):
     while page.locator("button[name=go][value=next]").count():
         tab_to(page, "button[name=go][value=next]")
         press_enter_and_wait(page)
+    assert page.evaluate("() => document.body.dataset.step") == "briefing"
+    assert page.evaluate("() => document.activeElement.value") == "start"  # focused: Enter starts the trial
+    press_enter_and_wait(page)
     ready(page)
     screenshot(page, "trial-by-keyboard")
     shortcuts = page.inner_text(".help-text")

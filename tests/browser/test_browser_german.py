@@ -14,7 +14,7 @@ from study_server.i18n import TRANSLATIONS, category_names, check_catalogue
 from study_server.study_file import load_study
 
 from .conftest import new_context
-from .pagehelp import place_with_suggestions, ready, screenshot, until, walked_to_exit
+from .pagehelp import place_with_suggestions, ready, screenshot, until, walked, walked_to_exit
 
 pytestmark = pytest.mark.browser
 GERMAN = {"Accept-Language": "de-DE,de;q=0.9"}
@@ -82,6 +82,9 @@ def test_a_german_participant_sees_the_demo_in_german(server, browser):
         in_german(page, study, "instructions")
         page.click("button[name=go][value=next]")
         page.wait_for_load_state()
+    until(page, "document.body.dataset.step === 'briefing'")
+    in_german(page, study, "the practice's condition explained")
+    assert "Bevor Sie beginnen" in page.inner_text("main")
     ready(page)
     response, placed = place_with_suggestions(page)
     in_german(page, study, "trial with suggestions")
@@ -90,7 +93,21 @@ def test_a_german_participant_sees_the_demo_in_german(server, browser):
     screenshot(page, "de-trial-suggestions")
     context.close()
 
-    http = walked_to_exit(base, "de-exit", GERMAN)  # a second German participant, to the exit survey
+    http, step = walked(base, "de-change", GERMAN, trials=1)  # past the practice: the interface changes
+    assert step == "briefing"
+    context = new_context(browser, locale="de-DE")
+    context.add_cookies(http.cookies())
+    page = context.new_page()
+    page.goto(f"{base}/study/demo/")
+    until(page, "document.body.dataset.step === 'briefing'")
+    in_german(page, study, "the next condition explained")
+    assert "Ab dieser Szene fügen Sie Objekte auf eine andere Art hinzu." in page.inner_text("main")
+    screenshot(page, "de-briefing")
+    ready(page)
+    assert page.evaluate("() => document.documentElement.lang") == "de"
+    context.close()
+
+    http = walked_to_exit(base, "de-exit", GERMAN)  # a third German participant, to the exit survey
     context = new_context(browser, locale="de-DE")
     context.add_cookies(http.cookies())
     page = context.new_page()

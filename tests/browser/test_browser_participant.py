@@ -115,6 +115,7 @@ def test_a_whole_participant_run(page, server):
     start(page, base, pid)
     seen = set()
     conditions = []
+    briefed = False
     while True:
         cond = hook(page, "condition")
         trial = hook(page, "trial")
@@ -149,6 +150,10 @@ def test_a_whole_participant_run(page, server):
         done(page)
         if "Almost done" in page.content():
             break
+        if page.evaluate("() => document.body.dataset.step") == "briefing" and not briefed:
+            assert "you add objects in a different way" in page.inner_text("main")
+            screenshot(page, "briefing")
+            briefed = True
         ready(page)
     assert sorted(conditions[1:]) == sorted(["none", "basic", "full"] * 3) and conditions[0] == "full"
     page.fill("textarea[name=comments]", "The suggestions were handy.")
@@ -158,7 +163,10 @@ def test_a_whole_participant_run(page, server):
     assert seqs == list(range(len(seqs)))  # every event stored once, none missing
     replays = db_replays(database, pid)  # each trial's events rebuild the scene it submitted
     assert len(replays) == 10 and set(replays.values()) == {"match"}, replays
-    types = {t for _, t in events}
+    kinds = [t for _, t in events]  # the condition explained before the practice and each block, then the trial
+    assert kinds.count("briefing") == 4 and all(kinds[i + 1] == "trial_start" for i, t in enumerate(kinds)
+                                                if t == "briefing")
+    types = set(kinds)
     assert {"trial_start", "trial_done", "context_query", "list_shown", "insert", "replace", "move_start", "move_end",
             "rotate_start", "rotate_end", "delete", "undo", "search", "select", "pointer"} <= types
     assert not page.console_problems, page.console_problems

@@ -173,10 +173,14 @@ function makeEditor(viewer, models, scene) {
   return { library, editor };
 }
 
-/** The first visit to this trial logs its start; a reload or a return to it logs a resume. */
+/** The first visit to this trial logs its start (after the condition's instructions, when the page before it
+ * showed them: how long they were open, on the server's clock); a reload or a return to it logs a resume. */
 function logStart(saved) {
   const fresh = !sessionStorage.getItem(sceneKey) && !saved;
   sessionStorage.setItem(sceneKey, "1");
+  if (fresh && trial.briefing !== null && trial.briefing !== undefined) {
+    log("briefing", { condition: trial.condition, seconds: trial.briefing });
+  }
   if (fresh) log("trial_start", { scene: trial.scene, condition: trial.condition });
   else log("resume", { reason: performance.getEntriesByType("navigation")[0]?.type || "reload" });
   outbox.flush();

@@ -4,7 +4,7 @@
 import json
 
 import pytest
-from flowhelp import EXIT, auth, boot, csrf, finish_all_trials, to_trials
+from flowhelp import EXIT, auth, csrf, finish_all_trials, next_trial, to_trials
 from statehelp import ROOM, event, insert, obj
 
 from scenesuggest.contract.event_schema import json_schema
@@ -112,8 +112,7 @@ def test_done_replays_the_trial_and_scores_it_against_its_target(client, app):
     with app.app_context():
         t = db.session.query(Trial).filter_by(index=-1).one()
         assert t.replay == "match" and t.score == pytest.approx(1.0)
-    page = client.get("/study/demo/")
-    b2 = json.loads(page.data.split(b'id="boot">')[1].split(b"</script>")[0])
+    b2 = next_trial(client)
     nudged = [{**target[0], "transform": target[0]["transform"][:12] + [9.0, 0.0, 9.0, 1.0]}]
     _finish(client, b2, [{**insert(100, nudged[0]), "trial": b2["trial"]["index"]}],
             rt.scene(b2["trial"]["scene"], "start")["objects"] + [target[0]])  # not what its events built
@@ -132,7 +131,7 @@ def test_a_check_waits_for_late_events_and_a_low_score_stays_flagged_after_compl
     b = to_trials(client)
     rt = app.extensions["studies"]["demo"]
     _finish(client, b, [], rt.scene(b["trial"]["scene"], "start")["objects"])  # the practice, left empty
-    t = boot(client.get("/study/demo/"))["trial"]
+    t = next_trial(client)["trial"]
     target = [o for o in rt.scene(t["scene"], "target")["objects"] if o["parent"] is not None]
     far = {**target[0], "transform": target[0]["transform"][:12] + [9.0, 0.0, 9.0, 1.0]}
     scene = rt.scene(t["scene"], "start")["objects"] + [far]
@@ -152,7 +151,7 @@ def test_a_check_waits_for_late_events_and_a_low_score_stays_flagged_after_compl
     late = {**event(1, "camera", action="orbit"), "trial": t["index"]}
     assert client.post("/api/events", headers=auth(b), json={"page_id": "p", "vocabulary": 2,
                                                             "events": [late]}).status_code == 200
-    finish_all_trials(client, boot(client.get("/study/demo/")), first_seq=2)  # the next 'done' makes the check
+    finish_all_trials(client, next_trial(client), first_seq=2)  # the next 'done' makes the check
     with app.app_context():
         settled = db.session.query(Trial).filter_by(index=t["index"]).one()
         assert settled.replay == "match" and settled.replay_waits_for is None
@@ -203,7 +202,7 @@ def test_a_check_that_fails_never_holds_the_participant_up(client, app, monkeypa
     b = to_trials(client)
     start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")["objects"]
     _finish(client, b, [], start)
-    assert boot(client.get("/study/demo/"))["trial"]["index"] == 0  # on to the first trial
+    assert next_trial(client)["trial"]["index"] == 0  # on to the first trial
     with app.app_context():
         practice = db.session.query(Trial).filter_by(index=-1).one()
         assert practice.replay == "match" and practice.score is None  # the replay check stands; no score
@@ -222,7 +221,7 @@ def test_a_check_waiting_for_events_that_never_come_is_made_at_completion(client
     r = client.post("/api/trial/done", headers=auth(b), json={"trial": -1, "scene": {"objects": start},
                                                                "last_seq": 2**31 - 1})
     assert r.status_code == 200
-    finish_all_trials(client, boot(client.get("/study/demo/")), first_seq=0)
+    finish_all_trials(client, next_trial(client), first_seq=0)
     with app.app_context():
         assert db.session.query(Trial).filter_by(index=-1).one().replay.startswith("pending: ")
     calls = []
