@@ -73,8 +73,8 @@ test-fast: demo
 DEMO_REPORT := var/demo-report
 demo-report: demo
 	rm -rf $(DEMO_REPORT) && mkdir -p $(DEMO_REPORT)
-	DATABASE_URL=sqlite:///$(CURDIR)/$(DEMO_REPORT)/study.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(DEMO_REPORT)/instance \
-		$(BIN)/scenesuggest study simulate --participants 20 --seed 0
+	SCENESUGGEST_INSTANCE=$(CURDIR)/$(DEMO_REPORT)/instance $(BIN)/scenesuggest study simulate --participants 20 --seed 0 \
+		--db sqlite:///$(CURDIR)/$(DEMO_REPORT)/study.sqlite3
 	SCENESUGGEST_INSTANCE=$(CURDIR)/$(DEMO_REPORT)/instance $(BIN)/scenesuggest study export --study demo \
 		--db sqlite:///$(CURDIR)/$(DEMO_REPORT)/study.sqlite3 --out $(DEMO_REPORT)/export
 	$(BIN)/scenesuggest analyze report --export $(DEMO_REPORT)/export --out $(DEMO_REPORT)/report
@@ -98,17 +98,17 @@ replication: setup
 	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/calibrate.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
 		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study calibrate --if-stale \
 		-o $(REPLICATION)/calibration.json
-	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
-		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study simulate --participants 20 --seed 0 \
-		--calibration $(REPLICATION)/calibration.json
+	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml \
+		$(BIN)/scenesuggest study simulate --participants 20 --seed 0 --calibration $(REPLICATION)/calibration.json \
+		--db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3
 	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml \
 		$(BIN)/scenesuggest study export --study scenesuggest-2015 --db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3 \
 		--out $(REPLICATION_RUN)/export
 	rm -rf $(REPLICATION)/results/report
 	$(BIN)/scenesuggest analyze report --export $(REPLICATION_RUN)/export --out $(REPLICATION)/results/report
-	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-learned.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
-		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION_RUN)/study-learned.toml $(BIN)/scenesuggest study simulate --participants 20 \
-		--seed 0 --calibration $(REPLICATION)/calibration.json
+	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION_RUN)/study-learned.toml \
+		$(BIN)/scenesuggest study simulate --participants 20 --seed 0 --calibration $(REPLICATION)/calibration.json \
+		--db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-learned.sqlite3
 	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION_RUN)/study-learned.toml \
 		$(BIN)/scenesuggest study export --study scenesuggest-2015 --db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-learned.sqlite3 \
 		--out $(REPLICATION_RUN)/export-learned

@@ -42,8 +42,11 @@ def analyze() -> None:
 @click.option("--unit", type=click.Choice(["trial", "participant"]), default="trial", show_default=True,
               help="What the bootstrap resamples.")
 @click.option("--completed-only", is_flag=True, help="Analyse only participants who finished the study.")
+@click.option("--include-pilots", is_flag=True, help="Analyse pilots (test runs, simulated participants) with the "
+              "others (by default they are left out, unless the data hold nobody else).")
 @click.option("--json", "as_json", is_flag=True)
-def report_cmd(export_dir, db_url, study, out, resamples, seed, unit, completed_only, as_json) -> None:
+def report_cmd(export_dir, db_url, study, out, resamples, seed, unit, completed_only, include_pilots,
+               as_json) -> None:
     """Every table and figure of a study, with a README stating design, N, exclusions, origin and seed."""
     from .load import read_study
     from .report import build_report
@@ -55,7 +58,7 @@ def report_cmd(export_dir, db_url, study, out, resamples, seed, unit, completed_
 
     data = read_study(export_dir, db_url, study)
     summary = build_report(data, out, resamples=resamples, seed=seed, unit=unit, completed_only=completed_only,
-                           progress=progress)
+                           include_pilots=include_pilots, progress=progress)
     readme = Path(out) / "README.md"
     _emit({"out": str(out), "readme": str(readme), "notes": summary["notes"],
            "participants": summary["participants"], "trials": summary["trials"]}, as_json,

@@ -77,7 +77,7 @@ def _answer_text(answer) -> str | None:
 
 def _normalise(data: StudyData) -> StudyData:
     """One shape whichever source the data came from: payloads as dicts, times and trial numbers as numbers,
-    participants as text, survey answers as text."""
+    participants as text, survey answers as text, ``pilot`` as a boolean."""
     data.survey["answer"] = pd.Series([_answer_text(a) for a in data.survey["answer"]], index=data.survey.index,
                                       dtype=object)
     ev = data.events
@@ -87,6 +87,9 @@ def _normalise(data: StudyData) -> StudyData:
     data.trials["trial"] = pd.to_numeric(data.trials["trial"], errors="coerce")
     for frame in (data.participants, data.trials, data.events, data.survey):
         frame["participant"] = frame["participant"].astype(str)
+    # pilots (test runs, simulated participants): none in data from before they were marked
+    pilot = data.participants["pilot"] if "pilot" in data.participants else pd.Series(False, data.participants.index)
+    data.participants["pilot"] = pilot.map(lambda v: v is True or str(v).lower() in ("true", "1")).astype(bool)
     return data
 
 
@@ -188,10 +191,11 @@ def read_database(url: str, study: str | None = None) -> StudyData:
             elif study not in set(studies["id"]):
                 raise AnalysisError(f"no study {study!r} in the database ({', '.join(studies['id'])})", "--study")
             q = {"s": study}
-            spoken = "language" in {c["name"] for c in inspect(con).get_columns("participants")}
+            columns = {c["name"] for c in inspect(con).get_columns("participants")}
+            extra = "".join(f", {c}" for c in ("language", "pilot") if c in columns)  # (added by later versions)
             people = pd.read_sql(text("SELECT id AS participant, status, row, excluded_reason, created_at, "
-                                      "finished_at" + (", language" if spoken else "")
-                                      + " FROM participants WHERE study_id = :s ORDER BY id"), con, params=q)
+                                      "finished_at" + extra + " FROM participants WHERE study_id = :s ORDER BY id"),
+                                 con, params=q)
             trials = pd.read_sql(text(
                 "SELECT t.participant_id AS participant, t.position, t.\"index\" AS trial, t.kind, t.condition, "
                 "t.scene_id AS scene, t.period, t.block, t.started_at, t.done_at"

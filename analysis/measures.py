@@ -242,9 +242,9 @@ def picks_table(data: StudyData, trials: pd.DataFrame) -> pd.DataFrame:
 
 
 def participants_table(data: StudyData) -> pd.DataFrame:
-    """One row per participant: status, and every survey answer as a column (``exit.enjoy_list``, …);
-    numeric answers (Likert, age) become numbers."""
-    people = data.participants[["participant", "status"]].copy()
+    """One row per participant: status, whether a pilot, and every survey answer as a column
+    (``exit.enjoy_list``, …); numeric answers (Likert, age) become numbers."""
+    people = data.participants[["participant", "status", "pilot"]].copy()
     if not data.survey.empty:
         s = data.survey.assign(key=data.survey["survey"] + "." + data.survey["question"])
         wide = s.pivot_table(index="participant", columns="key", values="answer", aggfunc="last")

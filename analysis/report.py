@@ -37,14 +37,26 @@ from .tables import (
 )
 
 
-def select(data: StudyData, completed_only: bool = False
+def select(data: StudyData, completed_only: bool = False, include_pilots: bool = False
            ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, list[str], list[str]]:
     """Trials, picks and participants to analyse, the conditions in order, and notes on what was left out.
-    By default every completed trial of every participant the experimenter did not exclude is analysed;
+    By default every completed trial of every participant the experimenter did not exclude is analysed, pilots
+    (test runs and simulated participants) only when the data hold nobody else (or ``include_pilots``);
     ``completed_only`` keeps only participants who finished the study."""
     notes = []
     trials = trials_table(data)
     people = participants_table(data)
+    pilots = people.loc[people["pilot"], "participant"]
+    if len(pilots) == len(people) and len(people):
+        notes.insert(0, PILOTS_ONLY)
+    elif len(pilots) and not include_pilots:
+        notes.append(f"{len(pilots)} pilot participant(s) (test runs and simulated participants) are left out "
+                     "(--include-pilots analyses them too)")
+        trials = trials[~trials["participant"].isin(pilots)]
+        people = people[~people["pilot"]]
+    elif len(pilots):
+        notes.append(f"{len(pilots)} pilot participant(s) (test runs and simulated participants) are analysed with "
+                     "the others (--include-pilots)")
     if completed_only:
         unfinished = people.loc[~people["status"].isin(["completed", "excluded"]), "participant"]
         dropped = trials["participant"].isin(unfinished)
@@ -83,6 +95,11 @@ def select(data: StudyData, completed_only: bool = False
     if unranked:
         notes.append(f"{unranked} pick(s) without a rank are left out of MRR and Table 2")
     return trials.reset_index(drop=True), picks.reset_index(drop=True), people, conditions, notes
+
+
+#: The note (first in the README) on data that hold pilots only.
+PILOTS_ONLY = ("every participant is a pilot (a test run or a simulated participant): this report is of pilot data, "
+               "for checking the study and its analysis, not of the study's participants")
 
 
 def _design_text(data: StudyData, conditions: list[str]) -> list[str]:
@@ -147,13 +164,13 @@ def _figures(out: Path, trials: pd.DataFrame, done: pd.DataFrame, picks: pd.Data
 
 
 def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, seed: int = 0, unit: str = "trial",
-                 completed_only: bool = False,
+                 completed_only: bool = False, include_pilots: bool = False,
                  progress: Callable[[str], None] = lambda label: None) -> dict:
     """Write the report into ``out``; returns its machine-readable summary (also ``results.json``)."""
     out = Path(out)
     (out / "tables").mkdir(parents=True, exist_ok=True)
     progress("measures")
-    trials, picks, people, conditions, notes = select(data, completed_only)
+    trials, picks, people, conditions, notes = select(data, completed_only, include_pilots)
     done = trials[trials["complete"]]
     measures_dir = _write_measures(out, trials, picks, people)
 
@@ -177,6 +194,7 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
         "seed": seed, "resamples": resamples, "unit": unit, "conditions": conditions,
         "participants": {"total": len(data.participants),
                          "completed": int((data.participants["status"] == "completed").sum()),
+                         "pilot": int(data.participants["pilot"].sum()),
                          "analysed": int(people_analysed)},
         "trials": {"scheduled": len(trials), "completed": len(done)}, "picks": len(picks), "notes": notes,
         "table1": tables[0].data, "table2": tables[1].data, "closeness": close.data if close is not None else None,
@@ -194,14 +212,16 @@ def _readme(data, summary, tables, figure_files, out, conditions) -> str:
     p, t = summary["participants"], summary["trials"]
     m = data.manifest
     lines = [f"# Analysis report: {m.get('title') or m.get('study') or 'study'}", "",
+             *([f"**Pilot data only:** {PILOTS_ONLY}.", ""] if PILOTS_ONLY in summary["notes"] else []),
              f"Generated {summary['generated_at']} by `scenesuggest analyze report`.", "", "## Data", "",
              f"- Source: `{m.get('source')}`" + (f", exported {m['exported_at']}" if m.get("exported_at") else "")
              + (f" by SceneSuggest {m['code_version']}" if m.get("code_version") else "") + ".",
              f"- Study: `{m.get('study')}`, study file sha256 `{m.get('study_hash')}`.",
              *_design_text(data, conditions),
-             f"- N: {p['total']} participants arrived, {p['completed']} completed, {p['analysed']} contributed "
-             f"completed trials; {t['completed']} of {t['scheduled']} scheduled trials completed; "
-             f"{summary['picks']} picks.",
+             f"- N: {p['total']} participants arrived" + (f" ({p['pilot']} of them pilots)" if p['pilot'] else "")
+             + f", {p['completed']} completed, "
+             f"{p['analysed']} contributed completed trials; {t['completed']} of {t['scheduled']} scheduled trials "
+             f"completed; {summary['picks']} picks.",
              f"- Bootstrap: {summary['resamples']} percentile resamples of {summary['unit']}s, seed "
              f"{summary['seed']}.", "", "## Exclusions and notes", ""]
     lines += [f"- {n}" for n in summary["notes"]] or ["- none"]

@@ -12,12 +12,14 @@ from scenesuggest.cli import emit
 from scenesuggest.errors import SceneSuggestError
 
 
-def _app(study_id: str | None):
-    """The server in process (on DATABASE_URL) and the study id (default: the first configured study)."""
+def _app(study_id: str | None, database_url: str | None = None, migrate: bool = True):
+    """The server in process (on ``database_url``, default DATABASE_URL) and the study id (default: the first
+    configured study)."""
     from study_server import create_app, upgrade_database
 
-    app = create_app()
-    upgrade_database(app)
+    app = create_app({"SQLALCHEMY_DATABASE_URI": database_url} if database_url else None)
+    if migrate:
+        upgrade_database(app)
     studies = list(app.extensions["studies"])
     if study_id is None:
         study_id = studies[0]
@@ -35,40 +37,79 @@ def _study(app, study_id: str):
 @click.command("simulate")
 @click.option("--participants", default=20, show_default=True, type=click.IntRange(min=1))
 @click.option("--seed", default=0, show_default=True)
-@click.option("--url", default=None, help="A running server (default: in process, on DATABASE_URL).")
+@click.option("--url", default=None, help="A running server (its study file and secret key must be this "
+                                          "environment's: the bots' entry links are signed as pilots' with it).")
+@click.option("--db", "database_url", default=None,
+              help="In process: the database the bots go into (default: the pilot database, "
+                   "INSTANCE/pilot.sqlite3, apart from the study's own).")
+@click.option("--live", is_flag=True, help="In process, into the study's own database (DATABASE_URL), as pilots: "
+                                           "marked, left out of the rows' balance and the analysis.")
 @click.option("--study", "study_id", default=None, help="Study id (default: the first configured study).")
 @click.option("--calibration", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Behave as a calibration file says (from `study calibrate`; default: the parameters' defaults).")
 @click.option("--mix", is_flag=True, help="Mix in reloads, second tabs, repeated arrivals, resent batches and "
                                           "drop-outs.")
 @click.option("--json", "as_json", is_flag=True)
-def simulate_cmd(participants: int, seed: int, url: str | None, study_id: str | None, calibration: Path | None,
-                 mix: bool, as_json: bool) -> None:
+def simulate_cmd(participants: int, seed: int, url: str | None, database_url: str | None, live: bool,
+                 study_id: str | None, calibration: Path | None, mix: bool, as_json: bool) -> None:
     """Simulated participants take the whole study through its HTTP interface; their operation times follow
     the keystroke-level model applied to what the engine returns, with the behaviour of simulation.human
-    (hesitation, looking round, scanning, searching, misjudged drags and turns, practice)."""
+    (hesitation, looking round, scanning, searching, misjudged drags and turns, practice).
+
+    Every one is a pilot (arrived through an entry link signed with the server's key and shaped for the study's
+    platform), and in process they go into a database of their own unless told otherwise: a pilot never mixes
+    with a study's data."""
+    from study_server import pilots
+
     from .calibrate import read
     from .participant import Behaviours
     from .run import simulate
 
-    app = None
-    if url is None:
-        app, study_id = _app(study_id)
-    elif study_id is None:
-        raise SceneSuggestError("name the study (--study) when simulating against --url", field="study")
-    human = None
-    if calibration is not None:
-        human = read(calibration, _study(app, study_id) if app is not None else None)
-    summary = simulate(participants, seed, url=url, study=study_id, app=app,
+    if url is not None and (database_url or live):
+        raise SceneSuggestError("--db and --live are for simulating in process; --url simulates against that "
+                                "server's own database", field="--url")
+    if database_url and live:
+        raise SceneSuggestError("choose --db or --live, not both", field="--db")
+    where = None
+    if url is None and not live:
+        where = database_url or pilots.database_url()
+    app, study_id = _app(study_id, where if url is None else "sqlite://", migrate=url is None)
+    study = _study(app, study_id)
+    key = app.config["SECRET_KEY"]
+    human = read(calibration, study) if calibration is not None else None
+    summary = simulate(participants, seed, url=url, study=study_id, app=None if url else app,
                        behaviours=Behaviours.mixed() if mix else None, human=human,
+                       entry=lambda i: pilots.entry_query(key, study),
                        progress=lambda label: click.echo(label, err=True))
+    used = url or where or app.config["SQLALCHEMY_DATABASE_URI"]
+    summary["database"] = None if url else _masked(used)
     means = ", ".join(f"{c} {s:.0f} s" for c, s in summary["mean_seconds"].items())
     emit(summary, as_json, f"{summary['completed']}/{participants} participants completed {summary['trials']} "
                            f"trials, {summary['events']} events ({summary['dropped_out']} dropped out); "
                            f"mean trial time {means}"
-                           + "".join(f"\nfailed: {f['participant']}: {f['error']}" for f in summary["failures"]))
+                           + "".join(f"\nfailed: {f['participant']}: {f['error']}" for f in summary["failures"])
+                           + _where_note(study_id, url, where, summary["database"]))
     if summary["failures"]:
         raise SceneSuggestError(f"{len(summary['failures'])} simulated participant(s) could not finish")
+
+
+def _masked(url: str) -> str:
+    from sqlalchemy.engine import make_url
+
+    return make_url(url).render_as_string(hide_password=True)
+
+
+def _where_note(study_id: str, url: str | None, apart: str | None, database: str | None) -> str:
+    """Where the pilots went, and the commands that export them and clear them away."""
+    import shlex
+
+    if url is not None:
+        return (f"\nthey are pilots in the server's database (left out of its balance and analysis); remove them "
+                f"there with: scenesuggest study reset --study {study_id} --pilots-only")
+    db = f" --db {shlex.quote(database)}" if apart else ""
+    kept = "the pilot database, apart from the study's own" if apart else "the study's own database, as pilots"
+    return (f"\nin {kept}: {database}\nexport: scenesuggest study export --study {study_id}{db} --out "
+            f"pilot-export/\nremove: scenesuggest study reset --study {study_id}{db} --pilots-only")
 
 
 @click.command("calibrate")

@@ -31,6 +31,8 @@ class Page:
     numbers: dict[str, tuple[float, float]] = field(default_factory=dict)
     texts: list[str] = field(default_factory=list)
     hidden: dict[str, str] = field(default_factory=dict)
+    #: what a notice page says (``<p id="message">``), e.g. why an entry link was refused
+    message: str | None = None
 
 
 class _Reader(HTMLParser):
@@ -61,6 +63,8 @@ class _Reader(HTMLParser):
             self._capture, self._text = "boot", []
         elif a.get("id") == "completion-code":
             self._capture, self._text = "code", []
+        elif a.get("id") == "message":
+            self._capture, self._text = "message", []
 
     def handle_data(self, data):
         if self._capture:
@@ -70,8 +74,8 @@ class _Reader(HTMLParser):
         if self._capture == "boot" and tag == "script":
             self.page.boot = json.loads("".join(self._text))
             self._capture = None
-        elif self._capture == "code":
-            self.page.code = "".join(self._text).strip()
+        elif self._capture in ("code", "message"):
+            setattr(self.page, self._capture, " ".join("".join(self._text).split()))
             self._capture = None
 
 

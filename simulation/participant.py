@@ -64,8 +64,11 @@ class Bot:
 
     def __init__(self, transport, study: str, pid: str, rng: np.random.Generator, speed: float | None = None,
                  behaviours: Behaviours | None = None, symmetry: dict[str, float] | None = None,
-                 human: Human | None = None, scene_seed: int = 0):
+                 human: Human | None = None, scene_seed: int = 0, entry: dict | None = None):
+        """``entry``: the entry link's parameters as the study's platform sends them (a pilot's, signed, from
+        ``study_server.pilots.entry_query``); default ``pid=`` ``pid``, a link study's."""
         self.http, self.study, self.pid, self.rng = transport, study, pid, rng
+        self.entry = entry if entry is not None else {"pid": pid}
         self.human = human or Human()
         self.scene_seed = scene_seed
         #: model id → symmetry period (deg), shared between bots: a person sees that a vase needs no turning
@@ -98,7 +101,7 @@ class Bot:
         return bool(rate) and self.rng.random() < rate
 
     def run(self) -> BotResult:
-        page = self.walker.enter(f"pid={self.pid}")
+        page = self.walker.enter(self.entry)
         leave_after = int(self.rng.integers(1, 9)) if self.chance(self.does.drop_out) else None
         arrive_again = self.chance(self.does.duplicate_arrival)
 
@@ -107,7 +110,7 @@ class Bot:
             self.do_trial(boot)
             if arrive_again and self.result.trials == 1:
                 arrive_again = False
-                self.walker.enter(f"pid={self.pid}")
+                self.walker.enter(self.entry)
             if leave_after is not None and self.result.trials >= leave_after:
                 self.result.dropped_out = True
                 return False

@@ -11,18 +11,29 @@ from .human import Human
 from .participant import Behaviours, Bot
 from .transport import FlaskTransport, FlowError, HttpTransport
 
+#: The entry-link parameter that names the participant, per platform.
+PLATFORM_IDS = ("pid", "PROLIFIC_PID", "workerId")
+
+
+def _platform_id(query: dict | None) -> str | None:
+    return next((query[k] for k in PLATFORM_IDS if k in query), None) if query else None
+
+
 #: How long a bot keeps sending a request that finds no server (refused, reset, 502/503), as a browser's page does.
 RETRY_S = 60.0
 
 
 def simulate(participants: int, seed: int = 0, *, study: str, url: str | None = None, app=None,
              behaviours: Behaviours | None = None, human: Human | None = None,
+             entry: Callable[[int], dict] | None = None,
              progress: Callable[[str], None] = lambda label: None) -> dict:
     """Run ``participants`` bots one after another through ``study`` (bot i draws from the generator seeded
     ``[seed, i]``), behaving as ``human`` (default :class:`~.human.Human`; a calibration's fit:
     :func:`.calibrate.read`); the scenes' difficulty is drawn from ``seed``.
 
     With ``url`` they talk HTTP to that server; otherwise to ``app`` (a Flask app) through its test client.
+    ``entry(i)`` gives bot i's entry-link parameters (``scenesuggest study simulate``: a pilot's, signed and shaped
+    for the study's platform); default ``pid=sim-SEED-i``.
     Returns the counts of completed participants, trials, events sent and objects the bots could not find, and
     the mean simulated seconds per condition.
     """
@@ -31,8 +42,9 @@ def simulate(participants: int, seed: int = 0, *, study: str, url: str | None = 
     results, failures, retries, symmetry = [], [], 0, {}
     for i in range(participants):
         transport = HttpTransport(url, retry_for=RETRY_S) if url else FlaskTransport(app.test_client())
-        bot = Bot(transport, study, f"sim-{seed}-{i}", np.random.default_rng([seed, i]), behaviours=behaviours,
-                  symmetry=symmetry, human=human, scene_seed=seed)
+        query = entry(i) if entry is not None else None
+        bot = Bot(transport, study, _platform_id(query) or f"sim-{seed}-{i}", np.random.default_rng([seed, i]),
+                  behaviours=behaviours, symmetry=symmetry, human=human, scene_seed=seed, entry=query)
         try:
             results.append(bot.run())
         except FlowError as e:

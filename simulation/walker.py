@@ -37,7 +37,8 @@ class Walker:
         query = urlencode(query) if isinstance(query, dict) else query
         r = self.http.get(f"/study/{self.study}/start?{query}", headers=headers)
         if r.status >= 400:
-            raise FlowError(f"entry link → {r.status}", r.status)
+            said = read_page(r.body).message
+            raise FlowError(f"entry link → {r.status}" + (f": {said}" if said else ""), r.status)
         return read_page(r.body)
 
     def current(self) -> Page:

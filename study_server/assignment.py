@@ -47,11 +47,12 @@ def fresh_after(study: Study, now: datetime) -> datetime:
 
 
 def row_counts(study: Study, now: datetime) -> list[int]:
-    """Participants holding each row: completed, plus in progress with a heartbeat newer than stale-after."""
+    """Participants holding each row: completed, plus in progress with a heartbeat newer than stale-after (pilots,
+    who are not study data, never count)."""
     fresh = fresh_after(study, now)
     rows = db.session.execute(
         select(Participant.row, func.count()).where(
-            Participant.study_id == study.id,
+            Participant.study_id == study.id, Participant.pilot.is_(False),
             or_(Participant.status == "completed",
                 (Participant.status == "in_progress") & (Participant.last_seen_at >= fresh)),
         ).group_by(Participant.row)
@@ -84,22 +85,24 @@ def arrivals_from(study: Study, address: str, now: datetime) -> int:
 
 
 def arrive(study: Study, platform: str, platform_id: str, meta: dict | None = None, user_agent: str = "",
-           address: str | None = None, now: datetime | None = None, language: str | None = None
-           ) -> tuple[Participant, bool]:
-    """The participant of ``platform_id`` (created=False), or a new one without a row (created=True).
-    Raises :class:`QuotaExceeded` when ``address`` already brought the study's hourly quota of new arrivals."""
+           address: str | None = None, now: datetime | None = None, language: str | None = None,
+           pilot: bool = False) -> tuple[Participant, bool]:
+    """The participant of ``platform_id`` (created=False), or a new one without a row (created=True; a ``pilot``
+    when the entry link was signed as one: study_server.pilots). Raises :class:`QuotaExceeded` when ``address``
+    already brought the study's hourly quota of new arrivals (pilots, whom only the operator can send, are not
+    counted against it)."""
     now = now or utcnow()
     existing = find(study, platform, platform_id)
     if existing is not None:
         return existing, False
-    if address is not None and arrivals_from(study, address, now) >= study.arrivals_per_address_per_hour:
+    if not pilot and address is not None and arrivals_from(study, address, now) >= study.arrivals_per_address_per_hour:
         raise QuotaExceeded()
     _record_study(study)
     p = Participant(study_id=study.id, study_hash=study.hash, platform=platform, platform_id=platform_id,
                     platform_meta=meta or {}, token=secrets.token_urlsafe(32), row=-1,
                     seed=secrets.randbelow(2**31), status="in_progress", step="device", user_agent=user_agent[:512],
                     created_at=now, last_seen_at=now, flags=[], address=address,
-                    language=language or study.languages[0])
+                    language=language or study.languages[0], pilot=pilot)
     db.session.add(p)
     try:
         db.session.flush()

@@ -46,9 +46,11 @@ class TargetsFrozen(StudyError):
 
 
 def started(study_id: str) -> int:
-    """How many participants have consented (hold a schedule row): the study's targets are then frozen."""
+    """How many participants have consented (hold a schedule row): the study's targets are then frozen. Pilots
+    (test runs and simulated participants) do not freeze them."""
     return db.session.scalar(select(func.count()).select_from(Participant)
-                             .where(Participant.study_id == study_id, Participant.row >= 0)) or 0
+                             .where(Participant.study_id == study_id, Participant.row >= 0,
+                                    Participant.pilot.is_(False))) or 0
 
 
 def may_author(rt: StudyRuntime) -> None:

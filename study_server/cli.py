@@ -142,8 +142,8 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
     upgrade_database(app)
     password_file = config.ensure_admin_password(config.instance_path())
     base = f"http://{host}:{port}"
-    for study_id in app.extensions["studies"]:
-        click.echo(f"participant link: {base}/study/{study_id}/start?pid=YOUR-TEST-ID")
+    for rt in app.extensions["studies"].values():
+        click.echo("\n".join(entry_links(app, rt.study, base)))
     click.echo(f"admin:            {base}/admin/  (password in {password_file})" if password_file else
                f"admin:            {base}/admin/  (password: the one whose hash is in "
                "SCENESUGGEST_ADMIN_PASSWORD_HASH)")
@@ -153,6 +153,16 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
     # study for longer than gunicorn's default 30 s (330 MB of events: about a minute)
     os.execv(sys.executable, [sys.executable, "-m", "gunicorn", "--workers", str(workers), "--timeout", "300", "--bind",
                               f"{host}:{port}", "--access-logfile", "-", "study_server:create_app()"])
+
+
+def entry_links(app, study, base: str) -> list[str]:
+    """What ``study serve`` prints of a study: the participants' link for its platform, and a fresh test link."""
+    from . import pilots
+
+    start = f"{base}/study/{study.id}/start"
+    return [f"participants' link ({study.platform}): {pilots.participant_link(study, start)}",
+            f"test link (a pilot, new at each start: kept out of the data; open it yourself): "
+            f"{pilots.test_link(app.config['SECRET_KEY'], study, start)}"]
 
 
 def _loopback(host: str) -> bool:
@@ -166,24 +176,74 @@ def _loopback(host: str) -> bool:
         return False
 
 
+def _study_app(study: str, database_url: str | None, **config_overrides):
+    """The app (no resources checked) on ``database_url`` (default: the server's) with the study ``study`` names:
+    a configured study's id, or a study file (then served alone); and that study's id."""
+    overrides = {"CHECK_RESOURCES": False, "WARM_STUDIES": False, **config_overrides}
+    if database_url:
+        overrides["SQLALCHEMY_DATABASE_URI"] = database_url
+    as_file = Path(study)
+    if study.endswith(".toml") or as_file.is_file():
+        if not as_file.is_file():
+            raise SceneSuggestError("no such study file", file=study, field="--study")
+        overrides["STUDY_FILES"] = [as_file]
+    app = create_app(overrides)
+    studies = app.extensions["studies"]
+    study_id = next(iter(studies)) if "STUDY_FILES" in overrides else study
+    if study_id not in studies:
+        raise SceneSuggestError(
+            f"no study {study!r} among the configured studies ({', '.join(studies) or 'none'}): name its study file "
+            f"(--study path/to/study.toml), or set SCENESUGGEST_STUDIES to it as the server has it", field="--study")
+    return app, study_id
+
+
 @study.command("export")
-@click.option("--study", "study_id", required=True, help="Study id.")
+@click.option("--study", "study", required=True, help="The study: its study file, or the id of a configured study "
+                                                      "(SCENESUGGEST_STUDIES).")
 @click.option("--out", "out", required=True, type=click.Path(file_okay=False))
 @click.option("--db", "database_url", default=None, help="Database URL (default: DATABASE_URL or the instance DB).")
 @click.option("--json", "as_json", is_flag=True)
-def study_export_cmd(study_id: str, out: str, database_url: str | None, as_json: bool) -> None:
+def study_export_cmd(study: str, out: str, database_url: str | None, as_json: bool) -> None:
     """Write the study's tidy CSV tables, manifest.json and data dictionary to OUT."""
-    overrides = {"CHECK_RESOURCES": False}
-    if database_url:
-        overrides["SQLALCHEMY_DATABASE_URI"] = database_url
-    app = create_app(overrides)
-    if study_id not in app.extensions["studies"]:
-        raise SceneSuggestError(f"no study {study_id!r} among {', '.join(app.extensions['studies'])}",
-                                field="study")
+    app, study_id = _study_app(study, database_url)
     with app.app_context():
         manifest = export_to(app.extensions["studies"][study_id], Path(out))
     emit(manifest, as_json, f"exported {study_id} to {out}: " + ", ".join(f"{n} {k}" for k, n in
                                                                         manifest["row_counts"].items()))
+
+
+@study.command("reset")
+@click.option("--study", "study", required=True, help="The study: its study file, or the id of a configured study.")
+@click.option("--db", "database_url", default=None, help="Database URL (default: DATABASE_URL or the instance DB).")
+@click.option("--pilots-only", is_flag=True, help="Remove only the pilots (test runs and simulated participants).")
+@click.option("--force", is_flag=True, help="Also remove real participants (back the database up first).")
+@click.option("--yes", is_flag=True, help="Do not ask before removing.")
+@click.option("--json", "as_json", is_flag=True)
+def study_reset_cmd(study: str, database_url: str | None, pilots_only: bool, force: bool, yes: bool,
+                    as_json: bool) -> None:
+    """Remove a study's participants and everything they left (trials, events, lists, surveys, session log):
+    before launch, to start clean after pilots. Refused once real participants have arrived, unless --force;
+    --pilots-only removes the pilots alone, at any time."""
+    from . import pilots
+    from .extensions import db
+
+    app, study_id = _study_app(study, database_url)
+    with app.app_context():
+        found = pilots.counts(study_id)
+        going = found["pilot"] + (0 if pilots_only else found["real"])
+        try:
+            pilots.check_reset(study_id, found, pilots_only, force)
+        except pilots.RealParticipants as e:
+            raise SceneSuggestError(e.message, field="--force") from None
+        if going and not yes and not as_json:
+            click.confirm(f"remove {going} participant(s) of {study_id} ({found['pilot']} pilot(s)"
+                          + ("" if pilots_only else f", {found['real']} real") + ") and everything they left "
+                          f"from {db.engine.url.render_as_string(hide_password=True)}?", abort=True, err=True)
+        removed = pilots.reset(study_id, pilots_only=pilots_only, force=force)
+        db.session.commit()
+    emit({"study": study_id, "removed": removed}, as_json,
+         f"removed {removed['participants']} participant(s) of {study_id} "
+         f"({', '.join(f'{n} {k}' for k, n in removed.items() if k != 'participants')})")
 
 
 def _database_url(database_url: str | None) -> str:

@@ -25,28 +25,42 @@ class ReasonMissing(StudyError):
         super().__init__("A reason is required to exclude a participant.", "reason")
 
 
+def state(status: str, row: int, seen, fresh) -> str:
+    """Where a participant stands for the experimenter: ``visiting`` (arrived, not consented: no row, no data),
+    ``in_progress`` (consented, seen since ``fresh``), ``stale`` (consented, not seen since), else the status."""
+    if status != "in_progress":
+        return status
+    if row < 0:
+        return "visiting"
+    return "in_progress" if seen >= fresh else "stale"
+
+
 def progress(study: Study) -> dict:
-    """Counts per schedule row and per condition of completed / in progress / stale / excluded / other, and the
-    engines' use (:func:`engine_use`)."""
+    """Counts per schedule row and per condition of completed / in progress / stale / excluded / other (visitors
+    who have not consented, and pilots, apart: ``totals["visiting"]``, ``totals["pilot"]``), and the engines' use
+    (:func:`engine_use`)."""
     fresh = fresh_after(study, utcnow())
-    people = db.session.execute(select(Participant.row, Participant.status, Participant.last_seen_at)
-                                .where(Participant.study_id == study.id)).all()
+    people = db.session.execute(select(Participant.row, Participant.status, Participant.last_seen_at,
+                                       Participant.pilot).where(Participant.study_id == study.id)).all()
     rows = [Counter() for _ in range(study.n_rows)]
     totals = Counter()
-    for row, status, seen in people:
-        state = "in_progress" if status == "in_progress" and seen >= fresh else (
-            "stale" if status == "in_progress" else status)
+    for row, status, seen, pilot in people:
+        if pilot:  # a test run or a simulated participant: not study data
+            totals["pilot"] += 1
+            continue
+        where = state(status, row, seen, fresh)
         if 0 <= row < len(rows):
-            rows[row][state] += 1
-        totals[state] += 1
+            rows[row][where] += 1
+        totals[where] += 1
     trials = db.session.execute(
         select(Trial.condition, Trial.done_at.is_not(None), Participant.status, func.count())
-        .join(Participant).where(Participant.study_id == study.id, Trial.kind == "trial")
+        .join(Participant).where(Participant.study_id == study.id, Participant.pilot.is_(False),
+                                 Trial.kind == "trial")
         .group_by(Trial.condition, Trial.done_at.is_not(None), Participant.status)).all()
     conditions = {c.id: Counter() for c in study.conditions}
     for condition, done, status, n in trials:  # not done: open while the session goes on, else never finished
-        state = "done" if done else "open" if status == "in_progress" else "unfinished"
-        conditions.setdefault(condition, Counter())[state] += n
+        kind = "done" if done else "open" if status == "in_progress" else "unfinished"
+        conditions.setdefault(condition, Counter())[kind] += n
     return {"rows": rows, "totals": totals, "conditions": conditions, "engines": engine_use(study)}
 
 

@@ -83,6 +83,9 @@ TABLES: tuple[Table, ...] = (
         _c("user_agent", "string", "browser user agent"),
         _c("language", "string", "the language the participant's pages spoke (chosen at arrival among the study's "
                                  "languages)", enum="languages"),
+        _c("pilot", "boolean", "a pilot: the experimenter's test run or a simulated participant (arrived through an "
+                               "entry link signed with the server's key), not study data; the report leaves pilots "
+                               "out when the data hold anyone else", required=True),
     ), ("participant",), participant_key=False),
     Table("trials", "one row per trial of a participant's plan (the practice trial first, when the study has one)", (
         PARTICIPANT,

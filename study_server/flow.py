@@ -325,7 +325,7 @@ def leave(p: Participant, study: Study) -> None:
 
 def completion_url(study: Study, p: Participant) -> str | None:
     """Where the end page sends the participant with their code, whichever way they ended (MTurk's HIT is
-    submitted by a form to turkSubmitTo instead, when complete)."""
-    if study.completion_url and p.code:
+    submitted by a form to turkSubmitTo instead, when complete); a pilot is sent nowhere."""
+    if study.completion_url and p.code and not p.pilot:
         return study.completion_url.replace("{code}", quote(p.code, safe=""))
     return None

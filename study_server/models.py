@@ -78,6 +78,9 @@ class Participant(db.Model):
     address: Mapped[str | None] = mapped_column(String(32), nullable=True, index=True)
     events_stored: Mapped[int] = mapped_column(Integer, default=0)
     bytes_stored: Mapped[int] = mapped_column(BigInteger, default=0)
+    #: A pilot: the experimenter's test run or a simulated participant, arrived through a signed entry link
+    #: (study_server.pilots); kept out of the rows' balance, the targets' freeze, the approvals and the analysis.
+    pilot: Mapped[bool] = mapped_column(db.Boolean, default=False, server_default="0")
 
 
 class Trial(db.Model):

@@ -3,7 +3,8 @@ and the approval list an experimenter takes to Prolific or MTurk (``approvals.cs
 
 A decision per participant: ``approve`` (completed, nothing flagged), ``review`` (completed but flagged, or
 excluded: look before approving or rejecting), ``return`` (declined consent, screened out or left: the
-platform should see the submission returned), ``pending`` (still in progress).
+platform should see the submission returned), ``pending`` (still in progress), ``pilot`` (a test run or a
+simulated participant: nothing to decide on the platform).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ RETURNED = ("no_consent", "screened_out", "returned")
 
 
 def decision(p: Participant) -> str:
+    if p.pilot:  # a test run or a simulated participant: not on the platform
+        return "pilot"
     if p.status == "completed":
         return "review" if open_flags(p) else "approve"
     if p.status == "excluded":

@@ -1,9 +1,10 @@
 """What an experimenter watches while a study collects, drawn: participants over time by outcome, progress per
 schedule row and per condition, trial time per condition and scene, flags over time.
 
-Each plot is an SVG drawn on the server with matplotlib (no script, no plotting library sent to the browser), and
-each has a table of the same numbers (:func:`glance`) that the dashboard shows beside it, for readers of the page
-without images. Times are the server's, UTC; trial time is from the trial page first shown to "done" (seconds).
+Pilots (test runs and simulated participants: study_server.pilots) are not drawn. Each plot is an SVG drawn on the
+server with matplotlib (no script, no plotting library sent to the browser), and each has a table of the same
+numbers (:func:`glance`) that the dashboard shows beside it, for readers of the page without images. Times are the
+server's, UTC; trial time is from the trial page first shown to "done" (seconds).
 """
 
 from __future__ import annotations
@@ -22,29 +23,34 @@ from .models import Participant, Trial
 from .study_file import Study
 
 #: How a participant's status is drawn: outcome → the statuses it gathers.
-OUTCOMES = {"completed": ("completed",), "in progress": ("in_progress",), "excluded": ("excluded",),
-            "ended early": ("no_consent", "screened_out", "returned", "technical")}
-COLOURS = {"completed": "#2e7d32", "in progress": "#1a4fb0", "excluded": "#b3261e", "ended early": "#8a6d00",
+OUTCOMES = {"completed": ("completed",), "in progress": ("in_progress",), "visiting": ("visiting",),
+            "excluded": ("excluded",), "ended early": ("no_consent", "screened_out", "returned", "technical")}
+COLOURS = {"completed": "#2e7d32", "in progress": "#1a4fb0", "visiting": "#9fb3d1", "excluded": "#b3261e",
+           "ended early": "#8a6d00",
            "stale": "#7a7f87", "done": "#2e7d32", "open": "#1a4fb0", "unfinished": "#8a6d00", "raised": "#b3261e",
            "cleared": "#7a7f87"}
 #: One shade per condition in the trial-time box plots, in the study's order.
 SHADES = ("#c9d8f5", "#8fb0ec", "#4f82dc", "#1a4fb0")
 
 
-def outcome(status: str) -> str:
+def outcome(status: str, row: int = 0) -> str:
+    """The outcome a participant is drawn as (one in progress without a row is a visitor: not consented)."""
+    status = "visiting" if status == "in_progress" and row < 0 else status
     return next(name for name, statuses in OUTCOMES.items() if status in statuses)
 
 
 def _arrivals(study: Study) -> list[tuple[datetime, str]]:
-    rows = db.session.execute(select(Participant.created_at, Participant.status)
-                              .where(Participant.study_id == study.id).order_by(Participant.created_at))
-    return [(at, outcome(status)) for at, status in rows]
+    rows = db.session.execute(select(Participant.created_at, Participant.status, Participant.row)
+                              .where(Participant.study_id == study.id, Participant.pilot.is_(False))
+                              .order_by(Participant.created_at))
+    return [(at, outcome(status, row)) for at, status, row in rows]
 
 
 def _trial_times(study: Study) -> list[tuple[str, str, float]]:
     """(condition, scene, seconds) of every counted trial done."""
     rows = db.session.execute(select(Trial.condition, Trial.scene_id, Trial.started_at, Trial.done_at)
-                              .join(Participant).where(Participant.study_id == study.id, Trial.kind == "trial",
+                              .join(Participant).where(Participant.study_id == study.id,
+                                                       Participant.pilot.is_(False), Trial.kind == "trial",
                                                        Trial.done_at.is_not(None), Trial.started_at.is_not(None)))
     return [(c, s, (done - started).total_seconds()) for c, s, started, done in rows]
 
@@ -59,7 +65,8 @@ def _when(value) -> datetime | None:
 def _flags(study: Study) -> list[tuple[datetime, datetime | None]]:
     """(raised at, cleared at or None) of every flag of the study's participants, by the time raised."""
     out = []
-    for flags, in db.session.execute(select(Participant.flags).where(Participant.study_id == study.id)):
+    for flags, in db.session.execute(select(Participant.flags).where(Participant.study_id == study.id,
+                                                                     Participant.pilot.is_(False))):
         for f in flags or []:
             raised = _when(f.get("at"))
             if raised is not None:

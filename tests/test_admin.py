@@ -68,7 +68,7 @@ def test_progress_timeline_exclusion_and_xss(admin_app):
     c = admin_app.test_client()
     login(c)
     dash = c.get("/admin/").data.decode()
-    assert "completed 1" in dash and "in progress 1" in dash
+    assert "Completed 1 of 12 planned" in dash and "in progress 1" in dash
     assert re.search(r"<td>0</td>\s*<td>none → basic → full</td>", dash)
     with admin_app.app_context():
         pid = db.session.query(Participant).filter_by(platform_id="p1").one().id

@@ -81,8 +81,8 @@ def test_cli_simulate_then_export_then_report(tmp_path, demo_resources):
     env = {**os.environ, "DATABASE_URL": f"sqlite:///{tmp_path / 's.sqlite3'}",
            "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"), "SCENESUGGEST_STUDIES": str(DEMO_STUDY)}
     cli = [sys.executable, "-m", "scenesuggest.cli"]
-    proc = subprocess.run([*cli, "study", "simulate", "--participants", "2", "--json"], capture_output=True,
-                          text=True, env=env, cwd=ROOT)
+    proc = subprocess.run([*cli, "study", "simulate", "--participants", "2", "--live", "--json"],
+                          capture_output=True, text=True, env=env, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["completed"] == 2 and "participant 2/2" in proc.stderr
     subprocess.run([*cli, "study", "export", "--study", "demo", "--out", str(tmp_path / "export")], check=True,

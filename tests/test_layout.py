@@ -63,12 +63,14 @@ def test_the_engine_stages_point_down():
 
 def test_the_simulation_drives_the_server_from_outside():
     """Bots reach the server over HTTP or a test client and never read the analysis. Only the composition roots
-    build an app (with the public factory) or read a study's answers in process (the offline answers), and only
+    build an app (with the public factory), read a study's answers in process (the offline answers) or sign their
+    bots' entry links as pilots', and only
     the ones that score simulated studies, as an analyst would, use the analysis: the calibration and the power
     analysis."""
     factory = {"study_server", "study_server.create_app", "study_server.upgrade_database"}
     offline = {"study_server.offline", "study_server.offline.OfflineAnswers"}
-    roots = {"cli.py": factory | offline, "calibrate.py": offline, "power.py": factory}
+    pilots = {"study_server.pilots"}  # entry links signed as pilots', and the pilot database
+    roots = {"cli.py": factory | offline | pilots, "calibrate.py": offline, "power.py": factory}
     readers = {"calibrate.py", "power.py"}
     for path in (ROOT / "simulation").rglob("*.py"):
         found = imports(path)

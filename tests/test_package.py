@@ -107,7 +107,9 @@ def test_the_wheel_installed_elsewhere_starts_a_study_prepares_migrates_and_serv
     finally:
         os.killpg(server.pid, signal.SIGTERM)
         output = server.communicate(timeout=30)[0].decode(errors="replace")
-    assert f"participant link: {base}/study/demo/start" in output
+    assert f"participants' link (link): {base}/study/demo/start\n" in output
+    test_link = output.split("test link (a pilot, new at each start: kept out of the data; open it yourself): ")[1]
+    assert test_link.startswith(f"{base}/study/demo/start?pid=pilot-") and "&pilot=" in test_link.split()[0]
 
 
 def _open_in_chromium(base: str, http: HttpTransport) -> tuple[set[str], list[str]]:

@@ -20,7 +20,7 @@ from flask import (
 )
 from sqlalchemy import select
 
-from .. import authoring, decisions, plots
+from .. import authoring, decisions, pilots, plots
 from ..assignment import fresh_after
 from ..authoring import image_path
 from ..boot import trial_boot
@@ -110,7 +110,13 @@ def dashboard():
     glances = [(rt.study, plots.glance(rt.study)) for rt in current_app.extensions["studies"].values()]
     studies = [(study, g["progress"], g) for study, g in glances]
     codes = {rt.study.id: issued_codes(rt.study.id) for rt in current_app.extensions["studies"].values()}
-    return render_template("admin/dashboard.html", studies=studies, codes=codes, outcomes=list(plots.OUTCOMES))
+    links = {study.id: {"participant": pilots.participant_link(study, url_for("participant.start", study_id=study.id,
+                                                                              _external=True)),
+                        "pilot": pilots.test_link(current_app.config["SECRET_KEY"], study,
+                                                  url_for("participant.start", study_id=study.id, _external=True))}
+             for study, _ in glances}
+    return render_template("admin/dashboard.html", studies=studies, codes=codes, outcomes=list(plots.OUTCOMES),
+                           links=links)
 
 
 @bp.get("/<study_id>/plots/<name>.svg")

@@ -24,7 +24,7 @@ from flask_babel import gettext as _
 from sqlalchemy import select
 from werkzeug.exceptions import NotFound
 
-from .. import assignment, flow, i18n, trial_check
+from .. import assignment, flow, i18n, pilots, trial_check
 from ..boot import trial_boot
 from ..extensions import db
 from ..models import Participant, SessionLog, flag, log, log_again, utcnow
@@ -110,6 +110,17 @@ def _platform_identity(study, args) -> tuple[str, dict]:
     return pid, ({"pid": pid} if pid else {})
 
 
+def _pilot(study, platform_id: str, args) -> bool:
+    """Whether the entry link is a pilot's (signed with the server's key: study_server.pilots); a ``pilot``
+    parameter that is not this id's signature is refused (:class:`EntryError`), never taken for a participant's."""
+    given = args.get(pilots.PARAM)
+    if given is None:
+        return False
+    if not platform_id or not pilots.is_pilot(current_app.config["SECRET_KEY"], study.id, platform_id, given):
+        raise EntryError(_("%(name)s is not a test link of this study", name=pilots.PARAM))
+    return True
+
+
 def _proves(p: Participant, meta: dict) -> bool:
     """Whether an entry link carries what only this participant's platform session has: Prolific's
     SESSION_ID or MTurk's assignmentId, as first seen. A bare id (or a plain link's pid) proves nothing."""
@@ -130,6 +141,7 @@ def start(study_id: str):
         return render_template("mturk_preview.html", study=study)
     try:
         platform_id, meta = _platform_identity(study, request.args)
+        pilot = _pilot(study, platform_id, request.args)
     except EntryError as e:  # the application log, not the database: anyone can send these
         current_app.logger.info("entry refused for study %s: %s", study_id, e)
         return _entry_page(study, _("This link cannot start the study: %(problem)s. Please open the study from the "
@@ -146,12 +158,12 @@ def start(study_id: str):
     try:
         p, created = assignment.arrive(study, study.platform, platform_id, meta,
                                        request.headers.get("User-Agent", ""), address_key(),
-                                       language=i18n.choose(study, request.accept_languages))
+                                       language=i18n.choose(study, request.accept_languages), pilot=pilot)
     except assignment.QuotaExceeded:
         current_app.logger.warning("arrival quota reached for an address in study %s", study_id)
         return _entry_page(study, _("Too many people have started this study from your network in the last hour. "
                                     "Please try again later."), 429)
-    if created and mine is not None:  # one browser, a second id: flag both for the experimenter
+    if created and mine is not None and not (pilot or mine.pilot):  # one browser, a second id: flag both
         reason = (f"this browser already took part as participant {mine.id} ({mine.status}, id "
                   f"{mine.platform_id[:40]!r})")
         flag(p, reason)
