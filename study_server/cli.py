@@ -83,14 +83,25 @@ def study_validate_cmd(file: str, resources: bool, as_json: bool) -> None:
     to_build = sorted(problems(s)) if resources and s.server_resources else []
     if resources and not s.server_resources:
         rt.check_resources()  # what a study file names must be there
+    warnings = _warnings(s)
     info = {"id": s.id, "hash": s.hash, "conditions": [c.id for c in s.conditions], "rows": s.n_rows,
             "trials_per_participant": len([t for t in s.plan(0) if t.kind == "trial"]), "scenes": list(s.scenes),
-            "to_prepare": to_build}
+            "to_prepare": to_build, "warnings": warnings}
     emit(info, as_json, f"{file}: study {s.id!r} is valid — {len(s.conditions)} conditions, {s.n_rows} schedule "
                         f"rows, {info['trials_per_participant']} trials per participant" + (
                             f"; the server's {' and '.join(to_build)} for {s.corpus} are not built yet: "
                             f"'scenesuggest study prepare {file}' builds them (and 'study serve' does first)"
-                            if to_build else ""))
+                            if to_build else "") + "".join(f"\nwarning: {w}" for w in warnings))
+
+
+def _warnings(s) -> list[str]:
+    """What a valid study file may still get wrong: a number of participants the schedule cannot balance."""
+    if s.participants % s.n_rows:
+        fewer, more = s.participants // s.n_rows * s.n_rows, -(-s.participants // s.n_rows) * s.n_rows
+        return [f"[design] participants = {s.participants} is not a multiple of the design's {s.n_rows} schedule "
+                f"rows: the rows cannot all be filled alike ({' or '.join(str(n) for n in (fewer, more) if n)} "
+                "would). It is the number the dashboard plans for; the platform's places are what stop arrivals"]
+    return []
 
 
 @study.command("migrate")

@@ -147,7 +147,17 @@ def _languages(r: Reader, doc: dict) -> tuple[str, ...]:
 
 def _text(r: Reader, doc: dict, key: str, path: str, languages: tuple[str, ...], default: str | None = None) -> Text:
     """A study text: a string in the study's one language, or a table with one string per language of the study
-    (``label = { en = "…", de = "…" }``); the first language's is the text itself."""
+    (``label = { en = "…", de = "…" }``); the first language's is the text itself. A text that is wrong is recorded
+    (:meth:`Reader.attempt`) and reading goes on."""
+    return r.attempt(lambda: _read_text(r, doc, key, path, languages, default), Text("?"))
+
+
+def _read_text(r: Reader, doc: dict, key: str, path: str, languages: tuple[str, ...] | None,
+               default: str | None) -> Text:
+    if languages is None:  # the study's languages are wrong (recorded): a wrong language is not reported again here
+        value = doc.get(key, default)
+        value = next((v for v in value.values() if isinstance(v, str)), "?") if isinstance(value, dict) else value
+        return Text(value if isinstance(value, str) else "?")
     if key not in doc and default is not None:  # an optional text left out: its default in every language
         return Text(default, dict.fromkeys(languages, default))
     value = doc.get(key, default)
@@ -173,28 +183,33 @@ def _text(r: Reader, doc: dict, key: str, path: str, languages: tuple[str, ...],
 def _questions(r: Reader, items: list[dict], path: str, languages: tuple[str, ...]) -> tuple[Question, ...]:
     out, seen = [], set()
     for i, q in enumerate(items):
-        p = f"{path}[{i}]"
-        r.unknown(q, ("id", "kind", "label", "required", "options", "scale", "low", "high", "min", "max"), p)
-        qid = r.string(q, "id", f"{p}.id")
-        if qid in seen:
-            raise r.fail(f"{p}.id", f"duplicate question id {qid!r}")
-        seen.add(qid)
-        kind = r.choice(q, "kind", f"{p}.kind", QUESTION_KINDS)
-        options = q.get("options", [])
-        if kind == "choice" and (not isinstance(options, list) or len(options) < 2
-                                 or not all(isinstance(o, str | dict) and o for o in options)):
-            raise r.fail(f"{p}.options", "a choice question needs at least two options")
-        # an answer is stored as the option in the study's default language, whatever the page showed
-        options = tuple(_text(r, {"o": o}, "o", f"{p}.options[{j}]", languages) for j, o in enumerate(options)) \
-            if kind == "choice" else ()
-        scale = int(r.number(q, "scale", f"{p}.scale", 5, minimum=2)) if kind == "likert" else 5
-        ends = {end: _text(r, q, end, f"{p}.{end}", languages) if end in q else "" for end in ("low", "high")}
-        out.append(Question(qid, kind, _text(r, q, "label", f"{p}.label", languages),
-                            r.boolean(q, "required", f"{p}.required", True), options, scale, ends["low"],
-                            ends["high"],
-                            r.number(q, "min", f"{p}.min", minimum=-1e12) if "min" in q else None,
-                            r.number(q, "max", f"{p}.max", minimum=-1e12) if "max" in q else None))
+        question = r.attempt(lambda i=i, q=q: _question(r, q, f"{path}[{i}]", languages, seen))
+        if question is not None:
+            out.append(question)
     return tuple(out)
+
+
+def _question(r: Reader, q: dict, p: str, languages: tuple[str, ...], seen: set) -> Question:
+    """One survey question (its id added to ``seen``)."""
+    r.unknown(q, ("id", "kind", "label", "required", "options", "scale", "low", "high", "min", "max"), p)
+    qid = r.string(q, "id", f"{p}.id")
+    if qid in seen:
+        raise r.fail(f"{p}.id", f"duplicate question id {qid!r}")
+    seen.add(qid)
+    kind = r.choice(q, "kind", f"{p}.kind", QUESTION_KINDS)
+    options = q.get("options", [])
+    if kind == "choice" and (not isinstance(options, list) or len(options) < 2
+                             or not all(isinstance(o, str | dict) and o for o in options)):
+        raise r.fail(f"{p}.options", "a choice question needs at least two options")
+    # an answer is stored as the option in the study's default language, whatever the page showed
+    options = tuple(_text(r, {"o": o}, "o", f"{p}.options[{j}]", languages) for j, o in enumerate(options)) \
+        if kind == "choice" else ()
+    scale = int(r.number(q, "scale", f"{p}.scale", 5, minimum=2)) if kind == "likert" else 5
+    ends = {end: _text(r, q, end, f"{p}.{end}", languages) if end in q else "" for end in ("low", "high")}
+    return Question(qid, kind, _text(r, q, "label", f"{p}.label", languages),
+                    r.boolean(q, "required", f"{p}.required", True), options, scale, ends["low"], ends["high"],
+                    r.number(q, "min", f"{p}.min", minimum=-1e12) if "min" in q else None,
+                    r.number(q, "max", f"{p}.max", minimum=-1e12) if "max" in q else None)
 
 
 def _engine(r: Reader, doc: dict, path: str, base: Path) -> engines.EngineSpec:
@@ -206,51 +221,75 @@ def _engine(r: Reader, doc: dict, path: str, base: Path) -> engines.EngineSpec:
 
 
 def _conditions(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> list[Condition]:
+    """The conditions; one with a problem is recorded and stands in by its id (what later keys refer to)."""
     conditions: list[Condition] = []
-    for i, c in enumerate(r.tables(doc, "conditions", "conditions")):
+    for i, c in enumerate(r.attempt(lambda: r.tables(doc, "conditions", "conditions"), [])):
         p = f"conditions[{i}]"
-        r.unknown(c, ("id", "label", "instructions", "engine"), p)
-        cid = r.choice(c, "id", f"{p}.id", CONDITIONS)
+        cid = r.attempt(lambda c=c, p=p: r.choice(c, "id", f"{p}.id", CONDITIONS))
+        if cid is None:
+            continue
         if any(x.id == cid for x in conditions):
-            raise r.fail(f"{p}.id", f"condition {cid!r} given twice")
-        instructions = _text(r, c, "instructions", f"{p}.instructions", languages) if "instructions" in c else ""
-        conditions.append(Condition(cid, _text(r, c, "label", f"{p}.label", languages, cid), instructions,
-                                    _engine(r, r.table(c, "engine", f"{p}.engine", required=False), f"{p}.engine",
-                                            base)))
+            r.attempt(lambda p=p, cid=cid: _raise(r.fail(f"{p}.id", f"condition {cid!r} given twice")))
+            continue
+        conditions.append(r.attempt(lambda c=c, p=p, cid=cid: _condition(r, c, p, cid, base, languages),
+                                    Condition(cid, cid, "", None)))
     return conditions
 
 
+def _condition(r: Reader, c: dict, p: str, cid: str, base: Path, languages: tuple[str, ...]) -> Condition:
+    r.attempt(lambda: r.unknown(c, ("id", "label", "instructions", "engine"), p))
+    instructions = _text(r, c, "instructions", f"{p}.instructions", languages) if "instructions" in c else ""
+    return Condition(cid, _text(r, c, "label", f"{p}.label", languages, cid), instructions,
+                     _engine(r, r.table(c, "engine", f"{p}.engine", required=False), f"{p}.engine", base))
+
+
+def _raise(error: Exception):
+    raise error
+
+
 def _scenes(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> dict[str, TargetScene]:
+    """The target scenes; one with a problem is recorded and stands in by its id (what the periods refer to)."""
     scenes = {}
-    for i, s in enumerate(r.tables(doc, "scenes", "scenes")):
+    for i, s in enumerate(r.attempt(lambda: r.tables(doc, "scenes", "scenes"), [])):
         p = f"scenes[{i}]"
-        r.unknown(s, ("id", "title", "target", "start"), p)
-        sid = r.string(s, "id", f"{p}.id")
-        target = base / r.string(s, "target", f"{p}.target")
-        if not target.is_file():
-            raise r.fail(f"{p}.target", f"no such file: {target}")
-        start = base / s["start"] if "start" in s else None
-        if start is not None and not start.is_file():
-            raise r.fail(f"{p}.start", f"no such file: {start}")
-        scenes[sid] = TargetScene(sid, _text(r, s, "title", f"{p}.title", languages, sid), target, start)
+        sid = r.attempt(lambda s=s, p=p: r.string(s, "id", f"{p}.id"))
+        if sid is not None:
+            scenes[sid] = r.attempt(lambda s=s, p=p, sid=sid: _scene(r, s, p, sid, base, languages),
+                                    TargetScene(sid, sid, Path(), None))
     return scenes
+
+
+def _scene(r: Reader, s: dict, p: str, sid: str, base: Path, languages: tuple[str, ...]) -> TargetScene:
+    r.attempt(lambda: r.unknown(s, ("id", "title", "target", "start"), p))
+    target = base / r.string(s, "target", f"{p}.target")
+    if not target.is_file():
+        raise r.fail(f"{p}.target", f"no such file: {target}")
+    start = base / s["start"] if "start" in s else None
+    if start is not None and not start.is_file():
+        raise r.fail(f"{p}.start", f"no such file: {start}")
+    return TargetScene(sid, _text(r, s, "title", f"{p}.title", languages, sid), target, start)
 
 
 def _periods(r: Reader, doc: dict, scenes: dict) -> list[tuple[str, ...]]:
     periods = []
-    for i, per in enumerate(r.tables(doc, "periods", "periods")):
-        p = f"periods[{i}]"
-        r.unknown(per, ("scenes",), p)
-        ids = per.get("scenes")
-        if not isinstance(ids, list) or not ids:
-            raise r.fail(f"{p}.scenes", "expected a list of scene ids")
-        for j, sid in enumerate(ids):
-            if sid not in scenes:
-                raise r.fail(f"{p}.scenes[{j}]", f"no scene {sid!r} in [[scenes]]")
-        if len(set(ids)) != len(ids):
-            raise r.fail(f"{p}.scenes", "a scene appears twice")
-        periods.append(tuple(ids))
+    for i, per in enumerate(r.attempt(lambda: r.tables(doc, "periods", "periods"), [])):
+        period = r.attempt(lambda i=i, per=per: _period(r, per, f"periods[{i}]", scenes))
+        if period is not None:
+            periods.append(period)
     return periods
+
+
+def _period(r: Reader, per: dict, p: str, scenes: dict) -> tuple[str, ...]:
+    r.unknown(per, ("scenes",), p)
+    ids = per.get("scenes")
+    if not isinstance(ids, list) or not ids:
+        raise r.fail(f"{p}.scenes", "expected a list of scene ids")
+    for j, sid in enumerate(ids):
+        if sid not in scenes:
+            raise r.fail(f"{p}.scenes[{j}]", f"no scene {sid!r} in [[scenes]]")
+    if len(set(ids)) != len(ids):
+        raise r.fail(f"{p}.scenes", "a scene appears twice")
+    return tuple(ids)
 
 
 def _practice(r: Reader, doc: dict, scenes: dict, conditions: list[Condition]) -> tuple[str, str] | None:
@@ -277,7 +316,7 @@ def _platform(r: Reader, doc: dict) -> dict:
     if completion_url is None and kind == "prolific":
         completion_url = PROLIFIC_COMPLETION
     return {"platform": kind,
-            "codes": {k: r.string(codes_doc, k, f"platform.codes.{k}") for k in CODES
+            "codes": {k: r.attempt(lambda k=k: r.string(codes_doc, k, f"platform.codes.{k}"), "?") for k in CODES
                       if k in codes_doc or k not in OPTIONAL_CODES},
             "completion_url": completion_url,
             "platform_study_id": r.string(platform, "study_id", "platform.study_id") if "study_id" in platform
@@ -286,17 +325,18 @@ def _platform(r: Reader, doc: dict) -> dict:
 
 def _texts(r: Reader, doc: dict, languages: tuple[str, ...]) -> dict:
     """Consent, instructions and surveys, in each of the study's languages."""
-    consent = r.table(doc, "consent", "consent")
-    r.unknown(consent, ("version", "text"), "consent")
+    consent = r.attempt(lambda: r.table(doc, "consent", "consent"), {})
+    r.attempt(lambda: r.unknown(consent, ("version", "text"), "consent"))
     instructions = []
-    for i, page in enumerate(r.tables(doc, "instructions", "instructions")):
-        r.unknown(page, ("title", "body"), f"instructions[{i}]")
+    for i, page in enumerate(r.attempt(lambda: r.tables(doc, "instructions", "instructions"), [])):
+        r.attempt(lambda i=i, page=page: r.unknown(page, ("title", "body"), f"instructions[{i}]"))
         instructions.append((_text(r, page, "title", f"instructions[{i}].title", languages),
                              _text(r, page, "body", f"instructions[{i}].body", languages)))
-    return {"consent_version": r.string(consent, "version", "consent.version"),
+    return {"consent_version": r.attempt(lambda: r.string(consent, "version", "consent.version"), "?"),
             "consent_text": _text(r, consent, "text", "consent.text", languages), "instructions": tuple(instructions),
             "demographics": _questions(r, doc.get("demographics", []) or [], "demographics", languages),
-            "exit_survey": _questions(r, r.tables(doc, "exit_survey", "exit_survey"), "exit_survey", languages)}
+            "exit_survey": _questions(r, r.attempt(lambda: r.tables(doc, "exit_survey", "exit_survey"), []),
+                                      "exit_survey", languages)}
 
 
 LIMITS = ("trial_minutes", "session_minutes", "stale_after_minutes", "min_objects_placed", "min_trial_seconds",
@@ -315,26 +355,26 @@ def _score(r: Reader, limits: dict) -> float | None:
 
 def _limits(r: Reader, doc: dict) -> dict:
     """Time limits, the minimum work of a trial, quotas, and the device check."""
-    limits = r.table(doc, "limits", "limits", required=False)
-    r.unknown(limits, LIMITS, "limits")
-    device = r.table(doc, "device", "device", required=False)
-    r.unknown(device, ("desktop_only", "min_width", "min_height"), "device")
+    limits = r.attempt(lambda: r.table(doc, "limits", "limits", required=False), {})
+    r.attempt(lambda: r.unknown(limits, LIMITS, "limits"))
+    device = r.attempt(lambda: r.table(doc, "device", "device", required=False), {})
+    r.attempt(lambda: r.unknown(device, ("desktop_only", "min_width", "min_height"), "device"))
 
     def number(key: str, default: float, minimum: float = 0.0) -> float:
-        return r.number(limits, key, f"limits.{key}", default, minimum=minimum)
+        return r.attempt(lambda: r.number(limits, key, f"limits.{key}", default, minimum=minimum), default)
 
     return {
         "trial_minutes": number("trial_minutes", 15, 0.1), "session_minutes": number("session_minutes", 90, 0.1),
         "stale_after_minutes": number("stale_after_minutes", 5, 0.1),
         "min_objects_placed": int(number("min_objects_placed", 0)),
         "min_trial_seconds": number("min_trial_seconds", 0),
-        "min_target_score": _score(r, limits),
+        "min_target_score": r.attempt(lambda: _score(r, limits)),
         "arrivals_per_address_per_hour": int(number("arrivals_per_address_per_hour", 100, 1)),
         "max_events_per_participant": int(number("max_events_per_participant", 100_000, 100)),
         "max_mb_per_participant": number("max_mb_per_participant", 32, 0.1),
-        "desktop_only": r.boolean(device, "desktop_only", "device.desktop_only", True),
-        "min_width": int(r.number(device, "min_width", "device.min_width", 1024)),
-        "min_height": int(r.number(device, "min_height", "device.min_height", 600)),
+        "desktop_only": r.attempt(lambda: r.boolean(device, "desktop_only", "device.desktop_only", True), True),
+        "min_width": int(r.attempt(lambda: r.number(device, "min_width", "device.min_width", 1024), 1024)),
+        "min_height": int(r.attempt(lambda: r.number(device, "min_height", "device.min_height", 600), 600)),
     }
 
 
@@ -367,35 +407,41 @@ def _resources(r: Reader, doc: dict, base: Path) -> dict:
 
 
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study file; every problem names its key."""
+    """Read and validate a study file; every problem names its key, and one reading names every problem it can
+    (:class:`study_server.toml_reader.StudyFileErrors`: a part with a problem stands in by what later parts
+    refer to, so that one mistake is not reported again as another)."""
     path = Path(path).resolve()
     data, doc = parse(path)
     r = Reader(path, data.decode("utf-8"))
     base = path.parent
-    r.unknown(doc, ("id", "title", "description", "resources", "design", "conditions", "scenes", "periods",
-                    "practice", "platform", "consent", "instructions", "demographics", "exit_survey", "limits",
-                    "device", "language", "languages"), "")
-    study_id = r.string(doc, "id", "id")
-    if not study_id.replace("-", "").replace("_", "").isalnum():
-        raise r.fail("id", "use letters, digits, '-' and '_' only")
-    design = r.table(doc, "design", "design")
-    r.unknown(design, ("kind", "blocking", "participants"), "design")
-    languages = _languages(r, doc)
+    r.attempt(lambda: r.unknown(doc, ("id", "title", "description", "resources", "design", "conditions", "scenes",
+                                      "periods", "practice", "platform", "consent", "instructions", "demographics",
+                                      "exit_survey", "limits", "device", "language", "languages"), ""))
+    study_id = r.attempt(lambda: _study_id(r, doc), "?")
+    design = r.attempt(lambda: r.table(doc, "design", "design"), {})
+    r.attempt(lambda: r.unknown(design, ("kind", "blocking", "participants"), "design"))
+    languages = r.attempt(lambda: _languages(r, doc))  # None when wrong: the texts are then read unchecked
     conditions = _conditions(r, doc, base, languages)
     scenes = _scenes(r, doc, base, languages)
     periods = _periods(r, doc, scenes)
-    study = Study(
-        path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, title=_text(r, doc, "title", "title", languages),
-        languages=languages,
-        description=_text(r, doc, "description", "description", languages) if "description" in doc else "",
-        **_resources(r, doc, base),
-        design=r.choice(design, "kind", "design.kind", DESIGNS),
-        blocking=r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition"),
-        participants=int(r.number(design, "participants", "design.participants", minimum=1)),
-        conditions=tuple(conditions), scenes=scenes, periods=tuple(periods),
-        practice=_practice(r, doc, scenes, conditions), **_platform(r, doc), **_texts(r, doc, languages),
-        **_limits(r, doc),
-    )
-    if study.design == "williams" and len(conditions) < 2:
-        raise r.fail("design.kind", "a Williams design needs at least two conditions")
-    return study
+    fields = {
+        "title": _text(r, doc, "title", "title", languages),
+        "description": _text(r, doc, "description", "description", languages) if "description" in doc else "",
+        "design": r.attempt(lambda: r.choice(design, "kind", "design.kind", DESIGNS)),
+        "blocking": r.attempt(lambda: r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition")),
+        "participants": r.attempt(lambda: int(r.number(design, "participants", "design.participants", minimum=1))),
+        "practice": r.attempt(lambda: _practice(r, doc, scenes, conditions)),
+        **(r.attempt(lambda: _resources(r, doc, base), {})), **(r.attempt(lambda: _platform(r, doc), {})),
+        **_texts(r, doc, languages), **_limits(r, doc)}
+    if fields["design"] == "williams" and len(conditions) < 2:
+        r.attempt(lambda: _raise(r.fail("design.kind", "a Williams design needs at least two conditions")))
+    r.finish()
+    return Study(path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, languages=languages,
+                 conditions=tuple(conditions), scenes=scenes, periods=tuple(periods), **fields)
+
+
+def _study_id(r: Reader, doc: dict) -> str:
+    study_id = r.string(doc, "id", "id")
+    if not study_id.replace("-", "").replace("_", "").isalnum():
+        raise r.fail("id", "use letters, digits, '-' and '_' only")
+    return study_id

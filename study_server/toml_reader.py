@@ -15,13 +15,45 @@ class StudyFileError(SceneSuggestError):
     """A study file that cannot be used: the message, the file, and the key or line."""
 
 
+class StudyFileErrors(StudyFileError):
+    """Every problem one reading of a study file found (``problems``, in the order of their lines); it stands for
+    the first (its message, file, line and field), and its text lists them all, one a line."""
+
+    def __init__(self, problems: list[StudyFileError]):
+        self.problems = sorted(problems, key=lambda e: (e.line is None, e.line or 0))
+        first = self.problems[0]
+        super().__init__(first.message, file=first.file, line=first.line, field=first.field)
+
+    def __str__(self) -> str:
+        return "\n".join(SceneSuggestError.__str__(e) for e in self.problems) + \
+            (f"\n({len(self.problems)} problems)" if len(self.problems) > 1 else "")
+
+
 class Reader:
     """Typed look-ups in a parsed TOML document; each failure is a :class:`StudyFileError` naming the key and,
-    given the file's ``text``, the line it is on (or the line of the table it is missing from)."""
+    given the file's ``text``, the line it is on (or the line of the table it is missing from).
+
+    A reading that should name every problem at once reads each part through :meth:`attempt`, which records a
+    failure and goes on with a stand-in, and ends with :meth:`finish`."""
 
     def __init__(self, file: Path, text: str | None = None):
         self.file = str(file)
         self.text = text
+        self.problems: list[StudyFileError] = []
+
+    def attempt(self, read, default=None):
+        """``read()``, or — when it fails — ``default``, the failure recorded (once) for :meth:`finish`."""
+        try:
+            return read()
+        except StudyFileError as e:
+            if not any(e is seen for seen in self.problems):
+                self.problems.append(e)
+            return default
+
+    def finish(self) -> None:
+        """Raise :class:`StudyFileErrors` naming every problem recorded, if any."""
+        if self.problems:
+            raise StudyFileErrors(self.problems)
 
     def fail(self, key: str, message: str) -> StudyFileError:
         line = locate(self.text, key) if self.text is not None else None

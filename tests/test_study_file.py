@@ -116,3 +116,52 @@ def test_validate_command(study_dir, demo_resources):
     bad_scene.write_text(bad_scene.read_text().replace('"scene_type"', '"scene_kind"', 1))
     broken = subprocess.run([*cli, str(study_dir / "study.toml"), "--no-resources"], capture_output=True, text=True)
     assert broken.returncode == 2 and "bedside.json" in broken.stderr and "scene_kind" in broken.stderr
+
+
+def test_one_reading_names_every_problem_with_its_line(study_dir):
+    """Adding a language touches every text: validate lists each text missing in it (and every other problem) in
+    one run, each with its line, in the order of the lines — not the first alone."""
+    path = study_dir / "study.toml"
+    text = path.read_text()
+    text = text.replace(TITLE, 'title = { en = "Furnish a room" }')  # no German title
+    text = text.replace(LABEL, 'label = { en = "Suggestions" }')  # nor this condition's label
+    text = text.replace(OPTIONS, 'options = [{ en = "Never" }, { en = "A few times", de = "Ein paar Mal" }]')
+    text = text.replace("trial_minutes = 8", "trial_minutes = -1\ncolour = \"blue\"")
+    text = text.replace('target = "scenes/bedside.json"', 'target = "scenes/nowhere.json"')
+    path.write_text(text)
+    with pytest.raises(StudyFileError) as info:
+        load_study(path)
+    found = [(e.field, e.line) for e in info.value.problems]
+    lines = text.splitlines()
+
+    def line_of(start: str, after: int = 0) -> int:
+        return next(i for i, t in enumerate(lines, 1) if i > after and t.startswith(start))
+
+    assert found == [
+        ("title.de", line_of("title = ")),
+        ("conditions[1].label.de", line_of('label = { en = "Suggestions" }')),
+        ("scenes[2].target", line_of('target = "scenes/nowhere.json"')),
+        ("demographics[1].options[0].de", line_of('options = [{ en = "Never" }')),
+        ("limits.trial_minutes", line_of("trial_minutes = -1")),
+        ("limits.colour", line_of("colour = ")),
+    ]
+    said = str(info.value).splitlines()
+    assert len(said) == 7 and said[-1] == "(6 problems)"
+    assert said[0] == f"{path}:{line_of('title = ')}: field 'title.de': missing: the text in 'de', a language of " \
+                      "the study"
+    cli = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "validate", str(path)],
+                         capture_output=True, text=True)
+    assert cli.returncode == 2 and cli.stderr.count(f"{path}:") == 6 and "Traceback" not in cli.stderr
+
+
+def test_validate_warns_of_participants_the_rows_cannot_balance(study_dir, demo_resources):
+    path = edit(study_dir, "participants = 12", "participants = 10")
+    run = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "validate", str(path), "--json"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    (warning,) = json.loads(run.stdout)["warnings"]
+    assert warning.startswith("[design] participants = 10 is not a multiple of the design's 6 schedule rows") \
+        and "(6 or 12 would)" in warning
+    human = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "validate", str(DEMO_STUDY)],
+                           capture_output=True, text=True)
+    assert "warning" not in human.stdout
