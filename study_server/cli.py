@@ -56,16 +56,17 @@ def study_init_cmd(folder: str, corpus: str, meshes: str | None, title: str | No
                    as_json: bool) -> None:
     """Start a new study in FOLDER (absent or empty): a study file with every key, commented, a practice and a
     target scene, and a README of the next steps. Never overwrites anything."""
-    from .new_study import init_study
+    from .new_study import command, init_study
 
     written = init_study(folder, corpus, title, study_id, meshes, say=lambda m: click.echo(m, err=True))
     study_file = Path(folder) / "study.toml"
     load_studies([study_file], check=False)  # what was written validates
     quoted = shlex.quote(str(study_file))  # the commands are pasted into a shell: a folder named $(…) stays a name
+    cmd = command()
     emit({"folder": str(Path(folder).resolve()), "files": [str(p) for p in written]}, as_json,
          "\n".join([f"wrote {p}" for p in written] + [
-             "", f"next: scenesuggest study validate {quoted}",
-             f"      SCENESUGGEST_STUDIES={quoted} scenesuggest study serve",
+             "", f"next: {cmd} study validate {quoted}",
+             f"      SCENESUGGEST_STUDIES={quoted} {cmd} study serve",
              f"      (the steps after that are in {Path(folder) / 'README.md'})"]))
 
 

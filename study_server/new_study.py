@@ -22,6 +22,7 @@ import re
 import secrets
 import shlex
 import shutil
+import sys
 import unicodedata
 from pathlib import Path
 from string import Template
@@ -93,10 +94,20 @@ def study_file_text(study_id: str, title: str, resources: str, practice_title: s
         code_technical=completion_code(rng, "TECHNICAL"))
 
 
-def readme_text(folder: Path, study_id: str, title: str) -> str:
-    """The next steps; the study file's path in their commands is shell-quoted (it may hold anything)."""
+def readme_text(study_id: str, title: str) -> str:
+    """The next steps, as commands run in the study's folder (which may move: no path of it is written)."""
     return Template((STARTER / "README.md").read_text(encoding="utf-8")).substitute(
-        id=study_id, title=title, file=shlex.quote(str(folder.resolve() / "study.toml")))
+        id=study_id, title=title, cmd=command())
+
+
+def command() -> str:
+    """How to run ``scenesuggest`` here: by its name when that is what PATH finds, else by its path (a checkout's
+    ``.venv/bin/scenesuggest``, shell-quoted)."""
+    beside = Path(sys.executable).parent / "scenesuggest"
+    found = shutil.which("scenesuggest")
+    if not beside.exists() or (found and Path(found).resolve() == beside.resolve()):
+        return "scenesuggest"
+    return shlex.quote(str(beside))
 
 
 def stanford_folder(corpus: str) -> Path | None:
@@ -160,7 +171,7 @@ def init_study(folder: str | Path, corpus: str = "ai2thor", title: str | None = 
         private = os.open(tmp / "study.toml", os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)  # it holds the codes
         with os.fdopen(private, "w", encoding="utf-8") as f:
             f.write(study_file_text(study_id, title, resources, practice_title))
-        (tmp / "README.md").write_text(readme_text(folder, study_id, title), encoding="utf-8")
+        (tmp / "README.md").write_text(readme_text(study_id, title), encoding="utf-8")
         _move_in(tmp, folder)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

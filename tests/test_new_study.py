@@ -128,9 +128,10 @@ def test_what_init_writes_is_safe_whatever_the_folder_and_title(tmp_path):
     assert made.returncode == 0, made.stderr
     pasted = next(line for line in made.stdout.splitlines() if "study validate" in line).split("next:", 1)[1]
     assert shlex.split(pasted)[-1] == str(hostile / "study.toml")  # one word, as written
-    subprocess.run(["sh", "-c", pasted.replace("scenesuggest study validate", "true")], cwd=tmp_path, check=True)
+    ran = subprocess.run(["sh", "-c", pasted], cwd=tmp_path, capture_output=True, text=True)  # works as printed
+    assert ran.returncode == 0 and "is valid" in ran.stdout, ran.stderr
     readme = (hostile / "README.md").read_text()
-    assert f"validate {shlex.quote(str(hostile / 'study.toml'))}" in readme
+    assert "study validate study.toml`" in readme and str(tmp_path) not in readme  # the folder may move
     assert not (tmp_path / "pwned").exists()
     assert stat.S_IMODE((hostile / "study.toml").stat().st_mode) == 0o600
 
