@@ -21,21 +21,25 @@ demo: setup
 serve: demo
 	$(BIN)/scenesuggest study serve --host 127.0.0.1 --port 5000 --no-prepare
 
+# pip speaks only of errors (-qq): its warnings about this machine's package indexes and setuptools' notes on
+# editable installs are not what a first run needs to read.
 $(PIP_STAMP): pyproject.toml
-	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
-	touch $@
+	@echo "installing the Python packages into $(VENV) (a few minutes the first time) …"
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	@$(BIN)/python -m pip install -qq --upgrade pip
+	@$(BIN)/python -m pip install -qq -e '.[test]'
+	@touch $@
 
 $(NPM_STAMP): package.json package-lock.json
-	npm ci --no-audit --no-fund --loglevel=error
-	touch $@
+	@echo "installing three.js and axe-core from npm (package-lock.json) …"
+	@npm ci --no-audit --no-fund --loglevel=error
+	@touch $@
 
 # The wheel, with the three.js files the client imports (setup.py); built afresh, so that nothing an earlier
 # build left in build/ comes along.
 wheel: setup
 	rm -rf build dist *.egg-info
-	$(BIN)/python -m pip wheel --no-deps --quiet -w dist .
+	$(BIN)/python -m pip wheel --no-deps -qq -w dist .
 	rm -rf build *.egg-info
 	@ls dist/*.whl
 

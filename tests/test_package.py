@@ -39,6 +39,8 @@ def installed(tmp_path_factory) -> Path:
     built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp / "dist"),
                             str(source)], capture_output=True, text=True)
     assert built.returncode == 0, built.stdout + built.stderr
+    # the packaging says what it ships: setuptools finds no importable folder it was not told about
+    assert "would be ignored" not in built.stdout + built.stderr, built.stderr[:2000]
     venv = tmp / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
     site = next((venv / "lib").glob("python*/site-packages"))
