@@ -29,8 +29,9 @@ COLOURS = {"completed": "#2e7d32", "in progress": "#1a4fb0", "visiting": "#9fb3d
            "ended early": "#8a6d00",
            "stale": "#7a7f87", "done": "#2e7d32", "open": "#1a4fb0", "unfinished": "#8a6d00", "raised": "#b3261e",
            "cleared": "#7a7f87"}
-#: One shade per condition in the trial-time box plots, in the study's order.
-SHADES = ("#c9d8f5", "#8fb0ec", "#4f82dc", "#1a4fb0")
+#: One hue per condition in the trial-time box plots, in the study's order: Okabe and Ito's colours, told apart
+#: by readers with any common colour-vision deficiency (shades of one hue were read as one colour).
+CONDITION_COLOURS = ("#E69F00", "#56B4E9", "#009E73", "#CC79A7")
 
 
 def outcome(status: str, row: int = 0) -> str:
@@ -194,14 +195,15 @@ def plot_trial_times(study: Study) -> str:
     for c, scene, sec in times:
         grouped.setdefault((c, scene), []).append(sec)
     for j, c in enumerate(conditions):
-        shade = SHADES[j % len(SHADES)]
+        shade = CONDITION_COLOURS[j % len(CONDITION_COLOURS)]
         ax.plot([], [], "s", color=shade, label=c)
         where = [(i + (j - (len(conditions) - 1) / 2) * width, grouped[c, scene]) for i, scene in enumerate(scenes)
                  if (c, scene) in grouped]
         if not where:  # no trial of this condition done yet
             continue
         parts = ax.boxplot([d for _, d in where], positions=[x for x, _ in where], widths=width * 0.9,
-                           patch_artist=True, manage_ticks=False, flierprops={"markersize": 3})
+                           patch_artist=True, manage_ticks=False, flierprops={"markersize": 3},
+                           medianprops={"color": "#1d2430"})
         for box in parts["boxes"]:
             box.set(facecolor=shade, edgecolor="#1d2430")
     ax.set_xticks(range(len(scenes)), scenes, rotation=20, ha="right", fontsize="small", parse_math=False)

@@ -98,3 +98,19 @@ def test_the_plots_draw_early_in_collection_and_flags_count_when_they_change(stu
         flags = plots._flags(study)
         assert [(at.hour, n_open, n_cleared) for at, n_open, n_cleared in plots._flag_changes(flags)] == [
             (10, 1, 0), (11, 2, 0), (12, 1, 1)]
+
+
+def test_each_condition_has_a_hue_of_its_own_in_the_trial_times(studied):
+    """The boxes of the three conditions are drawn in three hues (not shades of one), each box of a condition in
+    its hue, and the legend says which."""
+    import colorsys
+    import re
+
+    with studied.app_context():
+        svg = plots.plot_trial_times(studied.extensions["studies"]["demo"].study)
+    fills = re.findall(r"fill: (#[0-9a-f]{6})", svg)
+    drawn = [c.upper() for c in plots.CONDITION_COLOURS[:3]]
+    for colour in drawn:
+        assert fills.count(colour.lower()) >= 1 + 3  # the legend's marker and a box per scene
+    hues = sorted(colorsys.rgb_to_hls(*(int(c[i:i + 2], 16) / 255 for i in (1, 3, 5)))[0] for c in drawn)
+    assert min(b - a for a, b in zip(hues, hues[1:], strict=False)) > 0.08  # apart on the colour wheel

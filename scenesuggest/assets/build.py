@@ -56,8 +56,10 @@ def build_model(model: ModelInfo, out: Path, thumbnail_px: int = 256) -> ModelIn
 
 
 #: The modules that build a library's assets (not the symmetry measure, which reads them).
+#: What decides a library's files: the asset builders, and the corpus loaders that size each model (an AI2-THOR
+#: model's box is its type's median box as the loader reads it).
 BUILDERS = ("assets/__init__.py", "assets/build.py", "assets/convert.py", "assets/primitives.py",
-            "assets/procedural.py", "assets/render.py")
+            "assets/procedural.py", "assets/render.py", "corpora/*.py")
 
 
 def code_digest() -> str:

@@ -46,6 +46,10 @@ REST_GAP_M = 0.05
 CONTAIN_TOLERANCE_M = 0.02
 MIN_ROOM_HEIGHT_M = 2.5
 MIN_SIZE_M = 0.005
+#: Types whose metadata box is only their work surface (a counter top is a 2 cm slab about 0.9 m up, with
+#: nothing under it in the file): each stands for the solid counter beneath it, so its box is taken down to the
+#: floor — it then stands on the floor, what is on it rests on its top, and it holds nothing inside.
+FLOOR_STANDING = frozenset({"CounterTop"})
 
 
 @dataclass
@@ -66,6 +70,12 @@ class _Box:
     @property
     def bottom_centre(self) -> np.ndarray:
         return np.array([(self.lo[0] + self.hi[0]) / 2, self.lo[1], (self.lo[2] + self.hi[2]) / 2])
+
+    def down_to(self, floor: float) -> None:
+        """Take the box's bottom down to ``floor`` (metres, world Y)."""
+        self.lo[1] = floor
+        self.size[1] = max(float(self.hi[1] - floor), MIN_SIZE_M)
+        self.__post_init__()
 
     def contains(self, other: _Box, tol: float = CONTAIN_TOLERANCE_M) -> bool:
         return bool(np.all(other.lo >= self.lo - tol) and np.all(other.hi <= self.hi + tol))
@@ -159,8 +169,9 @@ def _room_box(room: list[dict], boxes: dict[str, _Box]) -> tuple[np.ndarray, np.
 
 
 def _support(o: dict, boxes: dict[str, _Box], others: list[str], room_lo: np.ndarray, room_hi: np.ndarray,
-             floor_ids: set[str]) -> tuple[str | None, np.ndarray, np.ndarray]:
-    """(parent object id or None for the room, contact point, contact normal) of one object."""
+             floor_ids: set[str], solid: frozenset[str] = frozenset()) -> tuple[str | None, np.ndarray, np.ndarray]:
+    """(parent object id or None for the room, contact point, contact normal) of one object; ``solid`` objects
+    hold nothing inside."""
     box = boxes[o["objectId"]]
     bottom = box.bottom_centre
     up = np.array([0.0, 1.0, 0.0])
@@ -175,7 +186,7 @@ def _support(o: dict, boxes: dict[str, _Box], others: list[str], room_lo: np.nda
     listed_on_floor = any(p in floor_ids for p in listed)
     if listed_on_floor and near_floor:
         return None, on_floor, up
-    containers = [p for p in below if boxes[p].contains(box)]
+    containers = [p for p in below if p not in solid and boxes[p].contains(box)]
     if containers:
         return min(containers, key=lambda p: boxes[p].volume), bottom, up
     resting_on = [p for p in below if boxes[p].covers(bottom)
@@ -213,6 +224,9 @@ class _Room:
         self.objects = [o for o in objects if o["objectType"] != "Floor"]
         self.boxes = {o["objectId"]: _box(o) for o in objects}
         self.lo, self.hi = _room_box(objects, self.boxes)
+        self.solid = frozenset(o["objectId"] for o in self.objects if o["objectType"] in FLOOR_STANDING)
+        for object_id in self.solid:
+            self.boxes[object_id].down_to(float(self.lo[1]))
         self.supports: dict[str, tuple[str | None, np.ndarray, np.ndarray]] = {}
 
     def find_supports(self) -> None:
@@ -220,7 +234,7 @@ class _Room:
         yaw of wall art and fixtures often points into the wall or comes from a lying-down asset)."""
         others = [o["objectId"] for o in self.objects]
         for o in self.objects:
-            support = _support(o, self.boxes, others, self.lo, self.hi, self.floor_ids)
+            support = _support(o, self.boxes, others, self.lo, self.hi, self.floor_ids, self.solid)
             self.supports[o["objectId"]] = support
             normal = support[2]
             if abs(normal[1]) < 0.5:

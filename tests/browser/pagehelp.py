@@ -156,6 +156,7 @@ def place_with_suggestions(page, mode_toggle=False):
     top = response["suggestions"][0]
     newest = placed[-1]
     assert newest["category"] == top["category"] and newest["model_id"] == top["models"][0]["id"]
+    assert page.inner_text("#hint") == ""  # the shift-click hint goes once suggestions were asked for
     assert newest["parent"] == "room" and newest["surface_type"] == "up_interior"
     assert math.dist(newest["contact_point"], response["hit"]["point"]) < 1e-6  # on the clicked point
     return response, newest

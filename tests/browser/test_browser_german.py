@@ -86,8 +86,12 @@ def test_a_german_participant_sees_the_demo_in_german(server, browser):
     in_german(page, study, "the practice's condition explained")
     assert "Bevor Sie beginnen" in page.inner_text("main")
     ready(page)
+    assert page.inner_text("#hint").startswith("Klicken Sie")  # how to ask, until asked
     response, placed = place_with_suggestions(page)
     in_german(page, study, "trial with suggestions")
+    label = page.locator(".suggestions .tile span").first  # long German names break with a hyphen
+    assert label.evaluate("e => getComputedStyle(e).hyphens") == "auto"
+    assert label.evaluate("e => e.closest('[lang]').lang") == "de"
     assert page.inner_text("#done-button") == "Fertig" and "Übung" in page.inner_text(".trial-title")
     assert page.get_attribute("#target", "aria-label").startswith("Zielszene: ")
     screenshot(page, "de-trial-suggestions")

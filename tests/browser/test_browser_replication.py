@@ -107,6 +107,9 @@ def test_an_experimenter_authors_a_target_scene(page, authoring_server):
     assert len(np.unique(pixels // 16, axis=0)) > 20  # a rendered scene, not a blank canvas
     screenshot(page, "authoring")
     assert not page.console_problems, page.console_problems
+    with page.expect_navigation():  # and back to the preview of every scene and condition
+        page.click("#back-to-admin")
+    assert page.url == f"{base}/admin/demo/preview"
 
 
 def _facing_error_deg(transform, target_xz) -> float:

@@ -71,7 +71,11 @@ function suggestionCondition(page) {
   editor.onClick = async (e, hit, shift) => {
     if ((shift || suggestMode) && hit) {
       const placed = await suggestAt(page, hit);
-      if (placed) { current = placed; panel.show(placed.response, e.clientX, e.clientY); }
+      if (placed) {
+        current = placed;
+        panel.show(placed.response, e.clientX, e.clientY);
+        $("hint").textContent = "";  // learnt: the hint goes (it stays under "How to")
+      }
       return;
     }
     if (panel.open) { panel.close(); current = null; }

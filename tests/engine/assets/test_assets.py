@@ -170,3 +170,15 @@ def test_what_is_written_whole_gets_the_usual_permissions(ai2thor, tmp_path):
     link.symlink_to(kept)
     write_atomically(link, b"through the link")
     assert link.is_symlink() and kept.read_bytes() == b"through the link"
+
+
+def test_a_library_is_rebuilt_when_the_code_that_sizes_its_models_changes():
+    """A model's box in a library is what its corpus loader measured (an AI2-THOR type's median box): the library's
+    code digest covers the loaders as well as the asset builders, so `study prepare` rebuilds a library whose
+    models a changed loader would size otherwise."""
+    from scenesuggest.assets.build import BUILDERS
+    from scenesuggest.digest import PACKAGE
+
+    covered = {p for pattern in BUILDERS for p in PACKAGE.glob(pattern)}
+    assert {PACKAGE / "corpora" / "ai2thor.py", PACKAGE / "corpora" / "stanford.py",
+            PACKAGE / "assets" / "procedural.py"} <= covered

@@ -88,3 +88,24 @@ def test_model_sizes_are_typical_boxes(ai2thor):
     instance = next(o for s in ai2thor.scenes for o in s if o.category == "Bed")
     lo, hi = frames.world_bbox(instance.transform, instance.size)
     assert 0.3 < hi[1] - lo[1] < 1.6
+
+
+def test_a_counter_top_is_a_counter_standing_on_the_floor(ai2thor):
+    """AI2-THOR gives a counter top as a 2 cm slab about 0.9 m up with nothing under it: it stands for the counter,
+    so its model is counter-high and on the floor, and what AI2-THOR puts on it (toasters, coffee machines) rests on
+    its top, outside it."""
+    size = ai2thor.models["ai2thor:CounterTop"].size
+    assert 0.8 < size[1] < 1.0  # a counter's height, not a slab's
+    counters = [(s, o) for s in ai2thor.scenes for o in s if o.category == "CounterTop"]
+    assert len(counters) == 101
+    for scene, counter in counters:
+        lo, hi = counter.world_bbox()
+        floor = scene.objects["room"].world_bbox()[0][1]
+        assert counter.parent == "room" and counter.surface_type == "up_interior" and abs(lo[1] - floor) < 1e-6
+    on_top = [(s, o) for s in ai2thor.scenes for o in s if o.parent and s.objects[o.parent].category == "CounterTop"]
+    kinds = Counter(o.category for _, o in on_top)
+    assert kinds["Toaster"] >= 25 and kinds["CoffeeMachine"] >= 25
+    assert all(o.surface_type == "up_exterior" for _, o in on_top if o.category in ("Toaster", "CoffeeMachine"))
+    for scene, o in on_top:
+        if o.category == "Toaster":
+            assert abs(o.world_bbox()[0][1] - scene.objects[o.parent].world_bbox()[1][1]) < 0.05  # on its top
