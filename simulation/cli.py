@@ -88,7 +88,7 @@ def simulate_cmd(participants: int, seed: int, url: str | None, database_url: st
                            f"trials, {summary['events']} events ({summary['dropped_out']} dropped out); "
                            f"mean trial time {means}"
                            + "".join(f"\nfailed: {f['participant']}: {f['error']}" for f in summary["failures"])
-                           + _where_note(study_id, url, where, summary["database"]))
+                           + _where_note(str(study.path), url, where, summary["database"]))
     if summary["failures"]:
         raise SceneSuggestError(f"{len(summary['failures'])} simulated participant(s) could not finish")
 
@@ -99,17 +99,19 @@ def _masked(url: str) -> str:
     return make_url(url).render_as_string(hide_password=True)
 
 
-def _where_note(study_id: str, url: str | None, apart: str | None, database: str | None) -> str:
-    """Where the pilots went, and the commands that export them and clear them away."""
+def _where_note(study_file: str, url: str | None, apart: str | None, database: str | None) -> str:
+    """Where the pilots went, and the commands that export them and clear them away (naming the study by its
+    file, so that they work without the environment this command ran in)."""
     import shlex
 
+    study = shlex.quote(study_file)
     if url is not None:
         return (f"\nthey are pilots in the server's database (left out of its balance and analysis); remove them "
-                f"there with: scenesuggest study reset --study {study_id} --pilots-only")
+                f"there with: scenesuggest study reset --study {study} --pilots-only")
     db = f" --db {shlex.quote(database)}" if apart else ""
     kept = "the pilot database, apart from the study's own" if apart else "the study's own database, as pilots"
-    return (f"\nin {kept}: {database}\nexport: scenesuggest study export --study {study_id}{db} --out "
-            f"pilot-export/\nremove: scenesuggest study reset --study {study_id}{db} --pilots-only")
+    return (f"\nin {kept}: {database}\nexport: scenesuggest study export --study {study}{db} --out "
+            f"pilot-export/\nremove: scenesuggest study reset --study {study}{db} --pilots-only")
 
 
 @click.command("calibrate")

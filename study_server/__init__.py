@@ -48,6 +48,20 @@ def _private_sqlite_file(url: str) -> None:
         path.chmod(0o600)
 
 
+def _relative_to_here(url: str) -> str:
+    """A SQLite URL with a relative path (``sqlite:///var/study.sqlite3``) names a file relative to the working
+    directory, as a path on a command line does (Flask-SQLAlchemy would take it relative to the instance folder)."""
+    from sqlalchemy.engine import make_url
+
+    if not url.startswith("sqlite"):
+        return url
+    parsed = make_url(url)
+    name = parsed.database
+    if not name or name == ":memory:" or name.startswith("file:") or Path(name).is_absolute():
+        return url
+    return parsed.set(database=str(Path(name).resolve())).render_as_string(hide_password=False)
+
+
 def _check_driver(url: str) -> None:
     """PostgreSQL needs its driver, an optional dependency: say how to install it instead of a traceback."""
     import importlib.util
@@ -84,6 +98,7 @@ def create_app(config: dict | None = None) -> Flask:
     app.json = Answers(app)
     app.config.update(settings.from_environment(instance))
     app.config.update(config or {})
+    app.config["SQLALCHEMY_DATABASE_URI"] = _relative_to_here(app.config["SQLALCHEMY_DATABASE_URI"])
     options = app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})
     options.setdefault("json_serializer", json_text)
     options.setdefault("json_deserializer", json_value)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import shlex
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -193,6 +194,7 @@ def _study_app(study: str, database_url: str | None, **config_overrides):
     a configured study's id, or a study file (then served alone); and that study's id."""
     overrides = {"CHECK_RESOURCES": False, "WARM_STUDIES": False, **config_overrides}
     if database_url:
+        _existing_sqlite(database_url)
         overrides["SQLALCHEMY_DATABASE_URI"] = database_url
     as_file = Path(study)
     if study.endswith(".toml") or as_file.is_file():
@@ -209,6 +211,42 @@ def _study_app(study: str, database_url: str | None, **config_overrides):
     return app, study_id
 
 
+def _existing_sqlite(url: str) -> None:
+    """A SQLite database named on the command line must be there (a mistyped path would make a new, empty one)."""
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import ArgumentError, NoSuchModuleError
+
+    try:
+        parsed = make_url(url)
+        parsed.get_dialect()
+    except (ArgumentError, NoSuchModuleError):
+        raise SceneSuggestError(f"{url!r} is not a database URL (sqlite:///FILE or postgresql+psycopg://…)",
+                                field="--db") from None
+    name = parsed.database or ""
+    if parsed.get_backend_name() == "sqlite" and name and name != ":memory:" and not Path(name).is_file():
+        raise SceneSuggestError(f"no database file {Path(name).resolve()}", field="--db")
+
+
+@contextmanager
+def _reading(app):
+    """The app's database, read within; a database without the study tables, or one that cannot be read, is an
+    error that says so (not a traceback)."""
+    from sqlalchemy import inspect
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from .extensions import db
+
+    with app.app_context():
+        where = db.engine.url.render_as_string(hide_password=True)
+        try:
+            if not inspect(db.engine).has_table("participants"):
+                raise SceneSuggestError(f"{where} holds no study data (no participants table): name the server's "
+                                        "database (DATABASE_URL, or --db)", field="--db")
+            yield
+        except SQLAlchemyError as e:
+            raise SceneSuggestError(f"cannot read {where}: {str(e).splitlines()[0]}", field="--db") from None
+
+
 @study.command("export")
 @click.option("--study", "study", required=True, help="The study: its study file, or the id of a configured study "
                                                       "(SCENESUGGEST_STUDIES).")
@@ -218,7 +256,7 @@ def _study_app(study: str, database_url: str | None, **config_overrides):
 def study_export_cmd(study: str, out: str, database_url: str | None, as_json: bool) -> None:
     """Write the study's tidy CSV tables, manifest.json and data dictionary to OUT."""
     app, study_id = _study_app(study, database_url)
-    with app.app_context():
+    with _reading(app):
         manifest = export_to(app.extensions["studies"][study_id], Path(out))
     emit(manifest, as_json, f"exported {study_id} to {out}: " + ", ".join(f"{n} {k}" for k, n in
                                                                         manifest["row_counts"].items()))
@@ -240,7 +278,7 @@ def study_reset_cmd(study: str, database_url: str | None, pilots_only: bool, for
     from .extensions import db
 
     app, study_id = _study_app(study, database_url)
-    with app.app_context():
+    with _reading(app):
         found = pilots.counts(study_id)
         going = found["pilot"] + (0 if pilots_only else found["real"])
         try:

@@ -230,3 +230,29 @@ def test_a_pilot_by_command_leaves_the_live_database_untouched(tmp_path, demo_re
     assert forced.returncode == 0 and "removed 1 participant(s) of demo" in forced.stdout
     with sqlite3.connect(live) as con:
         assert con.execute("SELECT COUNT(*) FROM participants").fetchone() == (0,)
+
+
+def test_a_database_named_on_the_command_line_is_read_as_named_or_refused_saying_why(tmp_path, demo_resources,
+                                                                                    monkeypatch):
+    """A relative SQLite path is relative to where the command runs; a missing file is not made, an empty one or a
+    URL that names no database is refused naming --db, never with a traceback."""
+    from click.testing import CliRunner
+
+    from scenesuggest.cli import main
+
+    make_app(tmp_path / "made", f"sqlite:///{tmp_path / 'here.sqlite3'}")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("SCENESUGGEST_INSTANCE", str(tmp_path / "instance"))
+    (tmp_path / "empty.sqlite3").touch()
+    runner = CliRunner()
+    for url, said in (("sqlite:///here.sqlite3", "exported demo to out"),
+                      ("sqlite:///nowhere/x.sqlite3", f"no database file {tmp_path}/nowhere/x.sqlite3"),
+                      ("sqlite:///empty.sqlite3", "holds no study data (no participants table)"),
+                      ("nonsense://", "is not a database URL")):
+        run = runner.invoke(main, ["study", "export", "--study", str(DEMO_STUDY), "--db", url, "--out", "out"])
+        assert said in run.output and "Traceback" not in run.output, run.output
+        assert run.exit_code == (0 if said.startswith("exported") else 2)
+    assert not (tmp_path / "nowhere").exists()
+    wrong = runner.invoke(main, ["study", "export", "--study", "my-study", "--out", "out2"])
+    assert wrong.exit_code == 2 and "name its study file (--study path/to/study.toml), or set SCENESUGGEST_STUDIES" \
+        in wrong.output
