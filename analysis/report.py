@@ -47,7 +47,9 @@ def select(data: StudyData, completed_only: bool = False, include_pilots: bool =
     trials = trials_table(data)
     people = participants_table(data)
     pilots = people.loc[people["pilot"], "participant"]
-    if len(pilots) == len(people) and len(people):
+    # the others who count are those who took part (a schedule row, trials), not visitors who only arrived
+    others = people.loc[~people["pilot"] & people["participant"].isin(trials["participant"]), "participant"]
+    if len(pilots) and not len(others):
         notes.insert(0, PILOTS_ONLY)
     elif len(pilots) and not include_pilots:
         notes.append(f"{len(pilots)} pilot participant(s) (test runs and simulated participants) are left out "
@@ -193,7 +195,7 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
         "exported_at": data.manifest.get("exported_at"), "generated_at": datetime.now(UTC).isoformat(),
         "seed": seed, "resamples": resamples, "unit": unit, "conditions": conditions,
         "participants": {"total": len(data.participants),
-                         "completed": int((data.participants["status"] == "completed").sum()),
+                         "completed": int((people["status"] == "completed").sum()),
                          "pilot": int(data.participants["pilot"].sum()),
                          "analysed": int(people_analysed)},
         "trials": {"scheduled": len(trials), "completed": len(done)}, "picks": len(picks), "notes": notes,

@@ -99,9 +99,14 @@ fit_measure <- function(m) {
   d <- d[d$condition %in% conditions & !is.na(d[[m$measure]]), ]
   d$y <- d[[m$measure]]
   d$condition <- droplevels(factor(d$condition, levels = conditions))
-  check_data(d, m$family)
   groups <- Filter(function(g) length(unique(d[[g]])) > 1, c("participant", "scene"))
-  if (length(groups) == 0) stop("no grouping factor with more than one level")
+  # the report's model matrices refuse these first (analysis/design.py), in these words
+  if (length(groups) == 0) stop("a mixed model needs at least one random term")
+  if (nrow(d) < 3) stop(sprintf("only %d complete row(s)", nrow(d)))
+  if (nlevels(d$condition) < 2) {
+    stop(sprintf("'condition' has %d level(s) with data; a fixed effect needs at least 2", nlevels(d$condition)))
+  }
+  check_data(d, m$family)
   random <- paste(sprintf("(1 | %s)", groups), collapse = " + ")
   full <- as.formula(paste("y ~ condition +", random))
   null <- as.formula(paste("y ~ 1 +", random))

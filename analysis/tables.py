@@ -17,7 +17,6 @@ import numpy as np
 import pandas as pd
 
 from .bootstrap import bootstrap_by
-from .degenerate import NotModelled
 from .design import build_design
 from .errors import AnalysisError
 from .mixed import compare, pairwise
@@ -154,10 +153,8 @@ def condition_tests(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[
             design = build_design(frame, m, ["condition"], random_terms(frame))
             result.comparison = compare(design, "condition", family)
             result.contrasts = pairwise(result.comparison.full, "condition", present)
-        except NotModelled as e:
+        except AnalysisError as e:  # (the row names the measure: the message is the reason)
             result.error = e.message
-        except AnalysisError as e:
-            result.error = str(e)
         except (np.linalg.LinAlgError, ValueError, FloatingPointError) as e:
             result.error = f"the model could not be fitted ({e})"
         out.append(result)

@@ -324,10 +324,11 @@ async def _sleep_until(at: float) -> None:
 def _answers(page, seq: int) -> dict:
     """A form's answers: the fixed ones of the walk, the demographics of the benchmarks, the exit survey's first
     choices (with the last event's seq, as the page sends it)."""
-    from simulation.walker import FIXED_ANSWERS
+    from simulation.walker import fixed_answer
 
-    if page.step in FIXED_ANSWERS:
-        return FIXED_ANSWERS[page.step]
+    fixed = fixed_answer(page)
+    if fixed is not None:
+        return fixed
     if page.step == "demographics":
         return DEMOGRAPHICS
     if page.step == "exit":

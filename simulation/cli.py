@@ -17,7 +17,8 @@ def _app(study_id: str | None, database_url: str | None = None, migrate: bool = 
     configured study)."""
     from study_server import create_app, upgrade_database
 
-    app = create_app({"SQLALCHEMY_DATABASE_URI": database_url} if database_url else None)
+    app = create_app({"SQLALCHEMY_DATABASE_URI": database_url, "DATABASE_FROM_COMMAND_LINE": True}
+                     if database_url else None)
     if migrate:
         upgrade_database(app)
     studies = list(app.extensions["studies"])
@@ -65,6 +66,8 @@ def simulate_cmd(participants: int, seed: int, url: str | None, database_url: st
     from .participant import Behaviours
     from .run import simulate
 
+    if url is not None and study_id is None:
+        raise SceneSuggestError("name the study (--study) when simulating against --url", field="study")
     if url is not None and (database_url or live):
         raise SceneSuggestError("--db and --live are for simulating in process; --url simulates against that "
                                 "server's own database", field="--url")

@@ -18,6 +18,16 @@ from .transport import FlowError
 #: What a person answers on the pages that ask nothing of them (a 1440 × 900 window passes the device check).
 FIXED_ANSWERS = {"device": {"width": "1440", "height": "900"}, "consent": {"agree": "yes"},
                  "instructions": {"go": "next"}, "briefing": {"go": "start"}}
+
+
+def fixed_answer(page: Page) -> dict | None:
+    """The form a person sends from a page that asks nothing of them (with the page's own hidden fields, such as
+    the trial a condition's instructions are shown for), or None for a page that asks something."""
+    if page.step not in FIXED_ANSWERS:
+        return None
+    return {**page.hidden, **FIXED_ANSWERS[page.step]}
+
+
 #: Pages a study shows before and after the trials whose answers the caller gives.
 SURVEYS = ("demographics", "exit")
 #: Where a walk ends: the end page, or the exit survey waiting for events the server has not acknowledged (a
@@ -72,7 +82,7 @@ class Walker:
                     return page
                 page = self.current()
             elif page.step in FIXED_ANSWERS:
-                page = self.submit(page.step, FIXED_ANSWERS[page.step], page)
+                page = self.submit(page.step, fixed_answer(page), page)
             elif page.step in SURVEYS:
                 page = self.submit(page.step, answers(page), page)
             else:

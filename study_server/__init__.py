@@ -49,8 +49,9 @@ def _private_sqlite_file(url: str) -> None:
 
 
 def _relative_to_here(url: str) -> str:
-    """A SQLite URL with a relative path (``sqlite:///var/study.sqlite3``) names a file relative to the working
-    directory, as a path on a command line does (Flask-SQLAlchemy would take it relative to the instance folder)."""
+    """A SQLite URL given on a command line (``--db sqlite:///var/study.sqlite3``) names a file relative to the
+    working directory, as every path there does (Flask-SQLAlchemy takes a relative one relative to the instance
+    folder, which is what ``DATABASE_URL`` keeps meaning)."""
     from sqlalchemy.engine import make_url
 
     if not url.startswith("sqlite"):
@@ -98,7 +99,8 @@ def create_app(config: dict | None = None) -> Flask:
     app.json = Answers(app)
     app.config.update(settings.from_environment(instance))
     app.config.update(config or {})
-    app.config["SQLALCHEMY_DATABASE_URI"] = _relative_to_here(app.config["SQLALCHEMY_DATABASE_URI"])
+    if app.config.get("DATABASE_FROM_COMMAND_LINE"):  # (DATABASE_URL keeps Flask-SQLAlchemy's meaning)
+        app.config["SQLALCHEMY_DATABASE_URI"] = _relative_to_here(app.config["SQLALCHEMY_DATABASE_URI"])
     options = app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})
     options.setdefault("json_serializer", json_text)
     options.setdefault("json_deserializer", json_value)

@@ -46,13 +46,14 @@ def fresh_after(study: Study, now: datetime) -> datetime:
     return now - timedelta(minutes=study.stale_after_minutes)
 
 
-def row_counts(study: Study, now: datetime) -> list[int]:
-    """Participants holding each row: completed, plus in progress with a heartbeat newer than stale-after (pilots,
-    who are not study data, never count)."""
+def row_counts(study: Study, now: datetime, pilot: bool = False) -> list[int]:
+    """Participants holding each row: completed, plus in progress with a heartbeat newer than stale-after. Real
+    participants and pilots are balanced apart (``pilot``): pilots never weigh on the study's balance, and a pilot
+    run still goes through every row."""
     fresh = fresh_after(study, now)
     rows = db.session.execute(
         select(Participant.row, func.count()).where(
-            Participant.study_id == study.id, Participant.pilot.is_(False),
+            Participant.study_id == study.id, Participant.pilot.is_(pilot),
             or_(Participant.status == "completed",
                 (Participant.status == "in_progress") & (Participant.last_seen_at >= fresh)),
         ).group_by(Participant.row)
@@ -80,7 +81,7 @@ class QuotaExceeded(StudyError):
 
 def arrivals_from(study: Study, address: str, now: datetime) -> int:
     return db.session.scalar(select(func.count()).select_from(Participant).where(
-        Participant.study_id == study.id, Participant.address == address,
+        Participant.study_id == study.id, Participant.address == address, Participant.pilot.is_(False),
         Participant.created_at >= now - timedelta(hours=1))) or 0
 
 
@@ -124,12 +125,13 @@ def assign(study: Study, p: Participant, now: datetime | None = None) -> int:
     participant_id = p.id
     db.session.commit()
     _lock_study(study)  # the lock: first statement
-    row = db.session.scalar(select(Participant.row).where(Participant.id == participant_id))
+    row, pilot = db.session.execute(select(Participant.row, Participant.pilot)
+                                    .where(Participant.id == participant_id)).one()
     if row is not None and row >= 0:  # assigned already (a second tab consented first)
         db.session.rollback()
         db.session.refresh(p)
         return row
-    counts = row_counts(study, now)
+    counts = row_counts(study, now, pilot)
     row = min(range(len(counts)), key=lambda r: (counts[r], r))
     db.session.execute(update(Participant).where(Participant.id == participant_id).values(row=row))
     for position, t in enumerate(study.plan(row, p.seed)):

@@ -195,7 +195,7 @@ def _study_app(study: str, database_url: str | None, **config_overrides):
     overrides = {"CHECK_RESOURCES": False, "WARM_STUDIES": False, **config_overrides}
     if database_url:
         _existing_sqlite(database_url)
-        overrides["SQLALCHEMY_DATABASE_URI"] = database_url
+        overrides |= {"SQLALCHEMY_DATABASE_URI": database_url, "DATABASE_FROM_COMMAND_LINE": True}
     as_file = Path(study)
     if study.endswith(".toml") or as_file.is_file():
         if not as_file.is_file():
@@ -285,7 +285,7 @@ def study_reset_cmd(study: str, database_url: str | None, pilots_only: bool, for
             pilots.check_reset(study_id, found, pilots_only, force)
         except pilots.RealParticipants as e:
             raise SceneSuggestError(e.message, field="--force") from None
-        if going and not yes and not as_json:
+        if going and not yes:
             click.confirm(f"remove {going} participant(s) of {study_id} ({found['pilot']} pilot(s)"
                           + ("" if pilots_only else f", {found['real']} real") + ") and everything they left "
                           f"from {db.engine.url.render_as_string(hide_password=True)}?", abort=True, err=True)

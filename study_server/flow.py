@@ -50,6 +50,13 @@ class SessionEnded(StudyError):
         super().__init__("this session has ended", "status")
 
 
+class BriefingDue(StudyError):
+    """A trial finished whose condition's instructions the participant has not dismissed (its page never showed)."""
+
+    def __init__(self, index: int):
+        super().__init__(f"trial {index} has not begun: its condition's instructions come first", "trial")
+
+
 class NotCurrentTrial(StudyError):
     """A trial finished that is neither the current one nor one finished before."""
 
@@ -197,15 +204,14 @@ def show_briefing(p: Participant, t: Trial) -> None:
         log("briefing_shown", p, position=t.position, index=t.index, condition=t.condition)
 
 
-def finish_briefing(p: Participant) -> None:
-    """The participant dismissed the condition's instructions before the current trial (a repeated or stale
-    request changes nothing); the trial starts when its page is next shown."""
+def finish_briefing(p: Participant, position: int | None) -> None:
+    """The participant dismissed the condition's instructions shown before the trial at ``position`` (the page's
+    own): only instructions that were shown and are still due are dismissed, so a repeated, stale or blind request
+    changes nothing; the trial starts when its page is next shown."""
     t = current_trial(p)
-    if not briefing_due(p, t):
+    if t is None or t.position != position or t.briefing_shown_at is None or not briefing_due(p, t):
         return
-    now = utcnow()
-    t.briefing_shown_at = t.briefing_shown_at or now
-    t.briefed_at = now
+    t.briefed_at = utcnow()
     log("briefing_read", p, position=t.position, index=t.index, condition=t.condition,
         seconds=round(briefing_seconds(t), 3))
 
@@ -233,6 +239,8 @@ def finish_trial(p: Participant, study: Study, index: int, scene: dict | None) -
         if done is not None and done.done_at is not None:
             return done  # a retried request: nothing to do
         raise NotCurrentTrial(index)
+    if briefing_due(p, t):
+        raise BriefingDue(index)
     now = utcnow()
     t.started_at = t.started_at or now
     t.done_at = now

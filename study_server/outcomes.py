@@ -35,9 +35,10 @@ def decision(p: Participant) -> str:
 
 
 def issued_codes(study_id: str) -> list[dict]:
-    """Per way out (status) and code: how many participants got it."""
+    """Per way out (status) and code: how many participants got it (pilots' codes are not the platform's)."""
     rows = db.session.execute(select(Participant.status, Participant.code, func.count()).where(
-        Participant.study_id == study_id, Participant.code.is_not(None)).group_by(Participant.status,
+        Participant.study_id == study_id, Participant.code.is_not(None), Participant.pilot.is_(False))
+        .group_by(Participant.status,
                                                                                    Participant.code)
         .order_by(Participant.status))
     return [{"status": s, "code": c, "participants": n} for s, c, n in rows]

@@ -116,10 +116,12 @@ def check_reset(study_id: str, found: dict[str, int], pilots_only: bool, force: 
 def reset(study_id: str, *, pilots_only: bool = False, force: bool = False) -> dict[str, int]:
     """Remove the study's participants with everything they left (trials, events, lists, surveys, session log);
     with ``pilots_only``, only the pilots. Removing real participants needs ``force`` (else
-    :class:`RealParticipants`, naming how many). Changes the current transaction; returns the rows removed per
-    table."""
+    :class:`RealParticipants`, naming how many; and without it only pilots are deleted, so a real participant who
+    arrives between the count and the deletion stays). Changes the current transaction; returns the rows removed
+    per table."""
     check_reset(study_id, counts(study_id), pilots_only, force)
-    chosen = [Participant.study_id == study_id] + ([Participant.pilot.is_(True)] if pilots_only else [])
+    # without force only pilots go, whatever the count said: a participant arriving meanwhile stays
+    chosen = [Participant.study_id == study_id] + ([] if force and not pilots_only else [Participant.pilot.is_(True)])
     ids = select(Participant.id).where(*chosen).scalar_subquery()
     removed = {name: db.session.execute(delete(table).where(table.participant_id.in_(ids))).rowcount
                for table, name in ((Event, "events"), (ShownList, "lists"), (SurveyResponse, "surveys"),

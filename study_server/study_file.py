@@ -155,6 +155,8 @@ def _text(r: Reader, doc: dict, key: str, path: str, languages: tuple[str, ...],
 def _read_text(r: Reader, doc: dict, key: str, path: str, languages: tuple[str, ...] | None,
                default: str | None) -> Text:
     if languages is None:  # the study's languages are wrong (recorded): a wrong language is not reported again here
+        if key not in doc and default is None:
+            raise r.fail(path, "missing")
         value = doc.get(key, default)
         value = next((v for v in value.values() if isinstance(v, str)), "?") if isinstance(value, dict) else value
         return Text(value if isinstance(value, str) else "?")
@@ -220,20 +222,23 @@ def _engine(r: Reader, doc: dict, path: str, base: Path) -> engines.EngineSpec:
         raise r.fail(f"{path}.{e.field}" if e.field else path, e.message) from None
 
 
-def _conditions(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> list[Condition]:
-    """The conditions; one with a problem is recorded and stands in by its id (what later keys refer to)."""
+def _conditions(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> tuple[list[Condition], bool]:
+    """The conditions, and whether every one has a valid id; one with a problem is recorded and stands in by its id
+    (what later keys refer to), so that only a wrong id makes what refers to conditions uncheckable."""
     conditions: list[Condition] = []
-    for i, c in enumerate(r.attempt(lambda: r.tables(doc, "conditions", "conditions"), [])):
+    whole = True
+    for i, c in enumerate(r.attempt(lambda: r.tables(doc, "conditions", "conditions"), None) or []):
         p = f"conditions[{i}]"
         cid = r.attempt(lambda c=c, p=p: r.choice(c, "id", f"{p}.id", CONDITIONS))
         if cid is None:
+            whole = False
             continue
         if any(x.id == cid for x in conditions):
             r.attempt(lambda p=p, cid=cid: _raise(r.fail(f"{p}.id", f"condition {cid!r} given twice")))
             continue
         conditions.append(r.attempt(lambda c=c, p=p, cid=cid: _condition(r, c, p, cid, base, languages),
                                     Condition(cid, cid, "", None)))
-    return conditions
+    return conditions, whole and "conditions" in doc
 
 
 def _condition(r: Reader, c: dict, p: str, cid: str, base: Path, languages: tuple[str, ...]) -> Condition:
@@ -247,16 +252,19 @@ def _raise(error: Exception):
     raise error
 
 
-def _scenes(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> dict[str, TargetScene]:
-    """The target scenes; one with a problem is recorded and stands in by its id (what the periods refer to)."""
-    scenes = {}
-    for i, s in enumerate(r.attempt(lambda: r.tables(doc, "scenes", "scenes"), [])):
+def _scenes(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> tuple[dict[str, TargetScene], bool]:
+    """The target scenes, and whether every one has an id; one with a problem is recorded and stands in by its id
+    (what the periods and the practice refer to)."""
+    scenes, whole = {}, True
+    for i, s in enumerate(r.attempt(lambda: r.tables(doc, "scenes", "scenes"), None) or []):
         p = f"scenes[{i}]"
         sid = r.attempt(lambda s=s, p=p: r.string(s, "id", f"{p}.id"))
-        if sid is not None:
-            scenes[sid] = r.attempt(lambda s=s, p=p, sid=sid: _scene(r, s, p, sid, base, languages),
-                                    TargetScene(sid, sid, Path(), None))
-    return scenes
+        if sid is None:
+            whole = False
+            continue
+        scenes[sid] = r.attempt(lambda s=s, p=p, sid=sid: _scene(r, s, p, sid, base, languages),
+                                TargetScene(sid, sid, Path(), None))
+    return scenes, whole and "scenes" in doc
 
 
 def _scene(r: Reader, s: dict, p: str, sid: str, base: Path, languages: tuple[str, ...]) -> TargetScene:
@@ -270,7 +278,8 @@ def _scene(r: Reader, s: dict, p: str, sid: str, base: Path, languages: tuple[st
     return TargetScene(sid, _text(r, s, "title", f"{p}.title", languages, sid), target, start)
 
 
-def _periods(r: Reader, doc: dict, scenes: dict) -> list[tuple[str, ...]]:
+def _periods(r: Reader, doc: dict, scenes: dict | None) -> list[tuple[str, ...]]:
+    """The periods' scene ids (each checked against ``scenes``; None: the scenes could not all be read)."""
     periods = []
     for i, per in enumerate(r.attempt(lambda: r.tables(doc, "periods", "periods"), [])):
         period = r.attempt(lambda i=i, per=per: _period(r, per, f"periods[{i}]", scenes))
@@ -279,28 +288,32 @@ def _periods(r: Reader, doc: dict, scenes: dict) -> list[tuple[str, ...]]:
     return periods
 
 
-def _period(r: Reader, per: dict, p: str, scenes: dict) -> tuple[str, ...]:
+def _period(r: Reader, per: dict, p: str, scenes: dict | None) -> tuple[str, ...]:
     r.unknown(per, ("scenes",), p)
     ids = per.get("scenes")
     if not isinstance(ids, list) or not ids:
         raise r.fail(f"{p}.scenes", "expected a list of scene ids")
     for j, sid in enumerate(ids):
-        if sid not in scenes:
+        if scenes is not None and sid not in scenes:
             raise r.fail(f"{p}.scenes[{j}]", f"no scene {sid!r} in [[scenes]]")
     if len(set(ids)) != len(ids):
         raise r.fail(f"{p}.scenes", "a scene appears twice")
     return tuple(ids)
 
 
-def _practice(r: Reader, doc: dict, scenes: dict, conditions: list[Condition]) -> tuple[str, str] | None:
+def _practice(r: Reader, doc: dict, scenes: dict | None, conditions: list[Condition] | None
+              ) -> tuple[str, str] | None:
+    """The practice trial's scene and condition (each checked against ``scenes`` and ``conditions``; None: those
+    could not all be read)."""
     practice_doc = r.table(doc, "practice", "practice", required=False)
     if not practice_doc:
         return None
     r.unknown(practice_doc, ("scene", "condition"), "practice")
     sid = r.string(practice_doc, "scene", "practice.scene")
-    if sid not in scenes:
+    if scenes is not None and sid not in scenes:
         raise r.fail("practice.scene", f"no scene {sid!r} in [[scenes]]")
-    return sid, r.choice(practice_doc, "condition", "practice.condition", [c.id for c in conditions])
+    return sid, r.choice(practice_doc, "condition", "practice.condition",
+                         [c.id for c in conditions] if conditions is not None else CONDITIONS)
 
 
 def _platform(r: Reader, doc: dict) -> dict:
@@ -325,15 +338,19 @@ def _platform(r: Reader, doc: dict) -> dict:
 
 def _texts(r: Reader, doc: dict, languages: tuple[str, ...]) -> dict:
     """Consent, instructions and surveys, in each of the study's languages."""
-    consent = r.attempt(lambda: r.table(doc, "consent", "consent"), {})
-    r.attempt(lambda: r.unknown(consent, ("version", "text"), "consent"))
+    consent = r.attempt(lambda: r.table(doc, "consent", "consent"))
+    if consent is None:  # recorded; its keys are not read (each would be "missing" again)
+        version, text = "?", Text("?")
+    else:
+        r.attempt(lambda: r.unknown(consent, ("version", "text"), "consent"))
+        version = r.attempt(lambda: r.string(consent, "version", "consent.version"), "?")
+        text = _text(r, consent, "text", "consent.text", languages)
     instructions = []
     for i, page in enumerate(r.attempt(lambda: r.tables(doc, "instructions", "instructions"), [])):
         r.attempt(lambda i=i, page=page: r.unknown(page, ("title", "body"), f"instructions[{i}]"))
         instructions.append((_text(r, page, "title", f"instructions[{i}].title", languages),
                              _text(r, page, "body", f"instructions[{i}].body", languages)))
-    return {"consent_version": r.attempt(lambda: r.string(consent, "version", "consent.version"), "?"),
-            "consent_text": _text(r, consent, "text", "consent.text", languages), "instructions": tuple(instructions),
+    return {"consent_version": version, "consent_text": text, "instructions": tuple(instructions),
             "demographics": _questions(r, doc.get("demographics", []) or [], "demographics", languages),
             "exit_survey": _questions(r, r.attempt(lambda: r.tables(doc, "exit_survey", "exit_survey"), []),
                                       "exit_survey", languages)}
@@ -418,26 +435,35 @@ def load_study(path: str | Path) -> Study:
                                       "periods", "practice", "platform", "consent", "instructions", "demographics",
                                       "exit_survey", "limits", "device", "language", "languages"), ""))
     study_id = r.attempt(lambda: _study_id(r, doc), "?")
-    design = r.attempt(lambda: r.table(doc, "design", "design"), {})
-    r.attempt(lambda: r.unknown(design, ("kind", "blocking", "participants"), "design"))
     languages = r.attempt(lambda: _languages(r, doc))  # None when wrong: the texts are then read unchecked
-    conditions = _conditions(r, doc, base, languages)
-    scenes = _scenes(r, doc, base, languages)
-    periods = _periods(r, doc, scenes)
+    conditions, conditions_whole = _conditions(r, doc, base, languages)
+    scenes, scenes_whole = _scenes(r, doc, base, languages)
+    periods = _periods(r, doc, scenes if scenes_whole else None)
     fields = {
         "title": _text(r, doc, "title", "title", languages),
         "description": _text(r, doc, "description", "description", languages) if "description" in doc else "",
-        "design": r.attempt(lambda: r.choice(design, "kind", "design.kind", DESIGNS)),
-        "blocking": r.attempt(lambda: r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition")),
-        "participants": r.attempt(lambda: int(r.number(design, "participants", "design.participants", minimum=1))),
-        "practice": r.attempt(lambda: _practice(r, doc, scenes, conditions)),
+        **_design(r, doc),
+        "practice": r.attempt(lambda: _practice(r, doc, scenes if scenes_whole else None,
+                                                conditions if conditions_whole else None)),
         **(r.attempt(lambda: _resources(r, doc, base), {})), **(r.attempt(lambda: _platform(r, doc), {})),
         **_texts(r, doc, languages), **_limits(r, doc)}
-    if fields["design"] == "williams" and len(conditions) < 2:
+    if fields["design"] == "williams" and conditions_whole and len(conditions) < 2:
         r.attempt(lambda: _raise(r.fail("design.kind", "a Williams design needs at least two conditions")))
     r.finish()
     return Study(path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, languages=languages,
                  conditions=tuple(conditions), scenes=scenes, periods=tuple(periods), **fields)
+
+
+def _design(r: Reader, doc: dict) -> dict:
+    """The design's kind, blocking and planned number of participants (none read when the table is wrong)."""
+    design = r.attempt(lambda: r.table(doc, "design", "design"))
+    if design is None:
+        return {"design": None, "blocking": None, "participants": None}
+    r.attempt(lambda: r.unknown(design, ("kind", "blocking", "participants"), "design"))
+    return {"design": r.attempt(lambda: r.choice(design, "kind", "design.kind", DESIGNS)),
+            "blocking": r.attempt(lambda: r.choice(design, "blocking", "design.blocking", BLOCKINGS, "condition")),
+            "participants": r.attempt(lambda: int(r.number(design, "participants", "design.participants",
+                                                           minimum=1)))}
 
 
 def _study_id(r: Reader, doc: dict) -> str:

@@ -12,7 +12,7 @@ from sqlalchemy import select
 from scenesuggest.contract.events import validate_batch
 from simulation.page import read_page
 from simulation.transport import FlaskTransport
-from simulation.walker import Walker
+from simulation.walker import Walker, fixed_answer
 from study_server.extensions import db
 from study_server.models import Participant, SessionLog, Trial
 from study_server.replays import label
@@ -56,7 +56,7 @@ def test_the_condition_is_explained_before_the_first_trial_and_wherever_it_chang
             assert ("Before you start" in html) == (t.position == 0)
             assert ("you add objects in a different way" in html) == (t.position > 0)
             briefed.append(t.position)
-            page = walker.submit("briefing", {"go": "start"}, page)
+            page = walker.submit("briefing", fixed_answer(page), page)
         assert page.step == "trial" and page.boot["trial"]["index"] == t.index
         seconds = page.boot["trial"]["briefing"]
         assert (seconds is not None) == (t.position in briefed) and (seconds is None or seconds >= 0)
@@ -75,20 +75,42 @@ def test_the_condition_is_explained_before_the_first_trial_and_wherever_it_chang
             assert t.briefing_shown_at is None and t.briefed_at is None
 
 
-def test_a_repeated_or_early_dismissal_changes_nothing(client, app):
+def test_a_repeated_stale_or_blind_dismissal_changes_nothing(client, app):
     walker, page = _walk_to_briefing(client)
     token = page.csrf
-    first = walker.submit("briefing", {"go": "start"}, page)
+    assert page.hidden == {"position": "0"}  # the page says whose instructions it shows
+    for blind in ({}, {"position": "1"}, {"position": "-1"}, {"position": "x" * 20}, {"position": "9" * 40}):
+        assert client.post("/study/demo/briefing", data={"csrf_token": token, **blind}).status_code == 302
+        assert _plan(app)[0].briefed_at is None  # not the instructions shown: nothing dismissed
+    first = walker.submit("briefing", fixed_answer(page), page)
     assert first.step == "trial"
-    again = client.post("/study/demo/briefing", data={"csrf_token": token, "go": "start"})
-    assert again.status_code == 302
     (t0, *_) = _plan(app)
     assert t0.briefed_at is not None and t0.started_at is not None
     before = t0.briefed_at
-    client.post("/study/demo/briefing", data={"csrf_token": token, "go": "start"})
-    assert _plan(app)[0].briefed_at == before
+    again = client.post("/study/demo/briefing", data={"csrf_token": token, "position": "0"})  # a resubmitted form
+    assert again.status_code == 302 and _plan(app)[0].briefed_at == before
     # without the form token nothing moves
-    assert client.post("/study/demo/briefing", data={"go": "start"}).status_code == 400
+    assert client.post("/study/demo/briefing", data={"position": "0"}).status_code == 400
+
+
+def test_instructions_never_shown_are_never_dismissed_and_hold_the_trial(client, app):
+    """The next condition's instructions must have been shown before they can be dismissed, and a trial whose
+    instructions are due cannot be finished over the API (a page never skips them; a script may not either)."""
+    walker, page = _walk_to_briefing(client)
+    token = page.csrf
+    page = walker.submit("briefing", fixed_answer(page), page)
+    b = page.boot
+    seq = _finish(client, b, 0)  # the practice
+    plan = _plan(app)
+    assert plan[1].condition != plan[0].condition  # the next trial's instructions are due, not yet shown
+    assert client.post("/study/demo/briefing", data={"csrf_token": token, "position": "1"}).status_code == 302
+    assert _plan(app)[1].briefed_at is None  # never shown: not dismissed
+    done = client.post("/api/trial/done", headers=auth(b), json={"trial": plan[1].index})
+    assert done.status_code == 409 and "instructions come first" in done.json["error"]
+    page = walker.current()
+    assert page.step == "briefing"
+    page = walker.submit("briefing", fixed_answer(page), page)
+    assert page.step == "trial" and _finish(client, page.boot, seq) == seq + 1
 
 
 def test_the_briefing_speaks_the_participants_language(client, app):

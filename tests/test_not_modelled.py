@@ -170,3 +170,23 @@ def test_analyze_lmm_refuses_a_degenerate_model_naming_why(tmp_path):
         in run.output and "Traceback" not in run.output
     with pytest.raises(AnalysisError):
         compare(build_design(trials, "n_queries", ["condition"], ["participant"]), "condition", "poisson")
+
+
+def test_r_and_the_report_refuse_too_little_data_in_the_same_words(tmp_path):
+    """Before the rule, the model matrices refuse a measure with data in one condition only, or in fewer than three
+    rows: reproduce.R says the same, in the same order."""
+    rscript = require_lme4()
+    trials, picks = _frames()
+    trials.loc[trials["condition"] != "none", "total_time"] = np.nan  # one condition with data
+    trials.loc[~trials.index.isin([0, 13]), "translation_time"] = np.nan  # two rows (two people, two scenes)
+    results = {r.measure: r.error for r in condition_tests(trials, picks, CONDITIONS)}
+    assert results["total_time"] == "'condition' has 1 level(s) with data; a fixed effect needs at least 2"
+    assert results["translation_time"] == "only 2 complete row(s)"
+    (tmp_path / "measures").mkdir()
+    trials.to_csv(tmp_path / "measures" / "trials.csv", index=False)
+    picks.to_csv(tmp_path / "measures" / "picks.csv", index=False)
+    ran = subprocess.run([rscript, str(write_reproduce_r(tmp_path, MEASURES, CONDITIONS))], capture_output=True,
+                         text=True, timeout=300)
+    assert ran.returncode == 0, ran.stderr
+    _, not_modelled, _ = printed(ran.stdout)
+    assert not_modelled == {m: e for m, e in results.items() if e}

@@ -70,7 +70,9 @@ def test_pilots_take_no_part_in_the_balance_the_freeze_or_the_approvals(app):
     for _ in range(3):
         _consent(app, pilots.entry_query(key, rt.study))
     with app.app_context():
-        assert row_counts(rt.study, pd.Timestamp.now("UTC").tz_localize(None)) == [0] * rt.study.n_rows
+        now = pd.Timestamp.now("UTC").tz_localize(None)
+        assert row_counts(rt.study, now) == [0] * rt.study.n_rows
+        assert row_counts(rt.study, now, pilot=True) == [1, 1, 1] + [0] * (rt.study.n_rows - 3)  # balanced apart
         authoring.may_author(rt)  # three pilots consented: the targets can still change
         rows = [r["decision"] for r in outcomes.approval_rows("demo")]
         assert rows == ["pilot"] * 3
@@ -99,6 +101,12 @@ def test_the_dashboard_counts_pilots_and_visitors_apart_and_gives_a_test_link(tm
     assert opened.status_code == 302
     assert sum(p.pilot for p in _people(app).values()) == 2
     assert ('id="participant-link-demo">http://localhost/study/demo/start</code>') in html
+    pilot = pilots.entry_query(app.config["SECRET_KEY"], app.extensions["studies"]["demo"].study)
+    client = _consent(app, pilot)
+    page = client.get("/study/demo/")
+    client.post("/study/demo/leave", data={"csrf_token": csrf(page)})  # a pilot gets a code for leaving …
+    with app.app_context():
+        assert outcomes.issued_codes("demo") == []  # … which is not the platform's to count
 
 
 def test_a_pilot_is_sent_nowhere_at_the_end(tmp_path, demo_resources):
@@ -161,10 +169,25 @@ def test_the_export_marks_pilots_and_the_report_leaves_them_out(app, tmp_path):
     only = data.participants["pilot"]
     data.participants = data.participants[only]
     data.trials = data.trials[data.trials["participant"].isin(data.participants["participant"])]
+    visitor = pd.DataFrame([{**data.participants.iloc[0].to_dict(), "participant": "visitor", "pilot": False,
+                             "status": "in_progress"}])  # arrived, never consented: no row, no trials
+    data.participants = pd.concat([data.participants, visitor], ignore_index=True)
     alone = build_report(data, tmp_path / "alone", resamples=20)
     assert alone["notes"][0] == PILOTS_ONLY and alone["participants"]["analysed"] == 2
     assert "**Pilot data only:**" in (tmp_path / "alone" / "README.md").read_text()
     assert read_database(app.config["SQLALCHEMY_DATABASE_URI"]).participants["pilot"].sum() == 2
+
+
+def test_a_reset_without_force_removes_pilots_alone_whoever_arrives_meanwhile(app, monkeypatch):
+    """The count that allows a reset and the deletion are two statements: a real participant arriving between them
+    stays (without --force only pilots are ever deleted)."""
+    _walk_pilot_and_real(app)
+    with app.app_context():
+        monkeypatch.setattr(pilots, "counts", lambda study_id: {"pilot": 2, "real": 0})  # counted before they came
+        pilots.reset("demo")
+        db.session.commit()
+        assert {p.pilot for p in db.session.query(Participant)} == {False}
+        assert db.session.query(Participant).count() == 2
 
 
 def test_reset_removes_pilots_and_refuses_real_participants_unless_forced(app):
@@ -205,12 +228,14 @@ def test_a_pilot_by_command_leaves_the_live_database_untouched(tmp_path, demo_re
     with sqlite3.connect(pilot_db) as con:
         assert con.execute("SELECT COUNT(*), SUM(pilot) FROM participants").fetchone() == (2, 2)
     text = _cli("simulate", "--participants", "1", env=env)
-    assert f"export: scenesuggest study export --study demo --db sqlite:///{pilot_db} --out pilot-export/" \
-        in text.stdout
-    exported = _cli("export", "--study", "demo", "--db", f"sqlite:///{pilot_db}", "--out", str(tmp_path / "x"),
-                    env=env)
+    printed = next(line for line in text.stdout.splitlines() if line.startswith("export: ")).split(": ", 1)[1]
+    assert printed == f"scenesuggest study export --study {DEMO_STUDY} --db sqlite:///{pilot_db} --out pilot-export/"
+    bare = {k: v for k, v in env.items() if k != "SCENESUGGEST_STUDIES"}  # works without the simulation's setting
+    exported = subprocess.run(["bash", "-c", printed.replace("scenesuggest", f"{sys.executable} -m scenesuggest.cli",
+                                                             1)], capture_output=True, text=True, env=bare,
+                              cwd=tmp_path)
     assert exported.returncode == 0, exported.stderr
-    assert pd.read_csv(tmp_path / "x" / "participants.csv")["pilot"].all()
+    assert pd.read_csv(tmp_path / "pilot-export" / "participants.csv")["pilot"].all()
 
     into_live = _cli("simulate", "--participants", "1", "--live", env=env)  # asked for: in, as a pilot
     assert into_live.returncode == 0, into_live.stderr
@@ -221,6 +246,8 @@ def test_a_pilot_by_command_leaves_the_live_database_untouched(tmp_path, demo_re
                     "last_seen_at, flags, events_stored, bytes_stored, pilot) VALUES ('demo', 'h', 'link', 'real', "
                     "'{}', 'tok', 0, 1, 'in_progress', 'trial', 0, 0, -1, '', '2026-12-04', '2026-12-04', '[]', 0, "
                     "0, 0)")
+    unasked = _cli("reset", "--study", "demo", "--pilots-only", "--json", env=env)  # no --yes, no answer: kept
+    assert unasked.returncode == 1 and "Aborted" in unasked.stderr
     refused = _cli("reset", "--study", "demo", "--yes", env=env)
     assert refused.returncode == 2 and "1 real participant(s) have arrived" in refused.stderr
     assert "Traceback" not in refused.stderr

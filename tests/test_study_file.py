@@ -165,3 +165,44 @@ def test_validate_warns_of_participants_the_rows_cannot_balance(study_dir, demo_
     human = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "validate", str(DEMO_STUDY)],
                            capture_output=True, text=True)
     assert "warning" not in human.stdout
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ('id = "full"', 'id = "ful"', "conditions[2].id"),  # not again as the practice's condition
+    ('id = "bedside"\n', "", "scenes[2].id"),  # not again as a period's scene
+    ("[consent]\nversion", "[agreement]\nversion", ""),  # not again as each of its keys
+    ("[design]\n", "[layout]\n", ""),
+])
+def test_one_mistake_is_reported_once(study_dir, old, new, key):
+    path = edit(study_dir, old, new)
+    if not key:  # a table renamed: its unknown name, and the table missing, and nothing under it
+        text = path.read_text()
+        if "[agreement]" in text:
+            path.write_text(text.replace("[consent.text]", "[agreement.text]"))
+    with pytest.raises(StudyFileError) as info:
+        load_study(path)
+    problems = [e.field for e in info.value.problems]
+    if key:
+        assert problems == [key]
+    else:
+        table = "consent" if "agreement" in new else "design"
+        assert sorted(problems) == sorted([new.strip("[]\n").split("]")[0], table]), problems
+
+
+def test_a_relative_database_url_keeps_its_meaning_and_a_command_lines_is_relative_to_where_it_runs(tmp_path,
+                                                                                                   monkeypatch):
+    from study_server import create_app
+
+    monkeypatch.chdir(tmp_path)
+    instance = tmp_path / "instance"
+    configured = create_app({"INSTANCE_PATH": str(instance), "SQLALCHEMY_DATABASE_URI": "sqlite:///rel.sqlite3",
+                             "STUDY_FILES": [DEMO_STUDY], "CHECK_RESOURCES": False, "WARM_STUDIES": False})
+    given = create_app({"INSTANCE_PATH": str(instance), "SQLALCHEMY_DATABASE_URI": "sqlite:///rel.sqlite3",
+                        "DATABASE_FROM_COMMAND_LINE": True, "STUDY_FILES": [DEMO_STUDY], "CHECK_RESOURCES": False,
+                        "WARM_STUDIES": False})
+    from study_server.extensions import db
+
+    with configured.app_context():
+        assert db.engine.url.database == str(instance / "rel.sqlite3")  # Flask-SQLAlchemy's: the instance folder
+    with given.app_context():
+        assert db.engine.url.database == str(tmp_path / "rel.sqlite3")

@@ -372,7 +372,8 @@ def briefing(study_id: str):
     """The participant dismissed the instructions of the next trial's condition: the trial starts."""
     p = _post_participant(study_id)
     if p is not None and p.step == "trial":
-        flow.finish_briefing(p)
+        position = request.form.get("position", "")
+        flow.finish_briefing(p, int(position) if position.isdigit() and len(position) < 9 else None)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
 
