@@ -56,6 +56,16 @@ def in_german(page, study, name: str) -> None:
     assert not leaked, f"{name}: English on the page: {leaked}"
 
 
+def _german_browser_at(browser, base: str, http, step: str):
+    """A German browser taking over the session ``http`` walked (its cookies), on its current page, ``step``."""
+    context = new_context(browser, locale="de-DE")
+    context.add_cookies(http.cookies())
+    page = context.new_page()
+    page.goto(f"{base}/study/demo/")
+    until(page, f"document.body.dataset.step === '{step}'")
+    return context, page
+
+
 def test_a_german_participant_sees_the_demo_in_german(server, browser):
     from conftest import DEMO_STUDY
 
@@ -99,11 +109,7 @@ def test_a_german_participant_sees_the_demo_in_german(server, browser):
 
     http, step = walked(base, "de-change", GERMAN, trials=1)  # past the practice: the interface changes
     assert step == "briefing"
-    context = new_context(browser, locale="de-DE")
-    context.add_cookies(http.cookies())
-    page = context.new_page()
-    page.goto(f"{base}/study/demo/")
-    until(page, "document.body.dataset.step === 'briefing'")
+    context, page = _german_browser_at(browser, base, http, "briefing")
     in_german(page, study, "the next condition explained")
     assert "Ab dieser Szene fügen Sie Objekte auf eine andere Art hinzu." in page.inner_text("main")
     screenshot(page, "de-briefing")
@@ -112,11 +118,7 @@ def test_a_german_participant_sees_the_demo_in_german(server, browser):
     context.close()
 
     http = walked_to_exit(base, "de-exit", GERMAN)  # a third German participant, to the exit survey
-    context = new_context(browser, locale="de-DE")
-    context.add_cookies(http.cookies())
-    page = context.new_page()
-    page.goto(f"{base}/study/demo/")
-    until(page, "document.body.dataset.step === 'exit'")
+    context, page = _german_browser_at(browser, base, http, "exit")
     in_german(page, study, "exit survey")
     screenshot(page, "de-exit")
     for name, value in (("enjoy_list", "4"), ("competent_list", "4"), ("enjoy_suggestions", "5"),
