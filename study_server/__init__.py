@@ -48,21 +48,6 @@ def _private_sqlite_file(url: str) -> None:
         path.chmod(0o600)
 
 
-def _relative_to_here(url: str) -> str:
-    """A SQLite URL given on a command line (``--db sqlite:///var/study.sqlite3``) names a file relative to the
-    working directory, as every path there does (Flask-SQLAlchemy takes a relative one relative to the instance
-    folder, which is what ``DATABASE_URL`` keeps meaning)."""
-    from sqlalchemy.engine import make_url
-
-    if not url.startswith("sqlite"):
-        return url
-    parsed = make_url(url)
-    name = parsed.database
-    if not name or name == ":memory:" or name.startswith("file:") or Path(name).is_absolute():
-        return url
-    return parsed.set(database=str(Path(name).resolve())).render_as_string(hide_password=False)
-
-
 def _check_driver(url: str) -> None:
     """PostgreSQL needs its driver, an optional dependency: say how to install it instead of a traceback."""
     import importlib.util
@@ -99,8 +84,11 @@ def create_app(config: dict | None = None) -> Flask:
     app.json = Answers(app)
     app.config.update(settings.from_environment(instance))
     app.config.update(config or {})
-    if app.config.get("DATABASE_FROM_COMMAND_LINE"):  # (DATABASE_URL keeps Flask-SQLAlchemy's meaning)
-        app.config["SQLALCHEMY_DATABASE_URI"] = _relative_to_here(app.config["SQLALCHEMY_DATABASE_URI"])
+    # a relative SQLite path: a command line's --db is relative to where it runs; DATABASE_URL's to the instance
+    # folder (Flask-SQLAlchemy's meaning); made absolute here, so that every part of the app opens the same file
+    app.config["SQLALCHEMY_DATABASE_URI"] = settings.absolute_sqlite(
+        app.config["SQLALCHEMY_DATABASE_URI"],
+        Path.cwd() if app.config.get("DATABASE_FROM_COMMAND_LINE") else Path(app.instance_path))
     options = app.config.setdefault("SQLALCHEMY_ENGINE_OPTIONS", {})
     options.setdefault("json_serializer", json_text)
     options.setdefault("json_deserializer", json_value)

@@ -70,6 +70,15 @@ def find(study: Study, platform: str, platform_id: str) -> Participant | None:
         Participant.study_id == study.id, Participant.platform == platform, Participant.platform_id == platform_id))
 
 
+class Removed(StudyError):
+    """The participant's session was removed (``study reset``) while they consented."""
+
+    status = 410
+
+    def __init__(self):
+        super().__init__("this session was removed", "participant")
+
+
 class QuotaExceeded(StudyError):
     """Too many new participants from one client address within the hour."""
 
@@ -125,8 +134,12 @@ def assign(study: Study, p: Participant, now: datetime | None = None) -> int:
     participant_id = p.id
     db.session.commit()
     _lock_study(study)  # the lock: first statement
-    row, pilot = db.session.execute(select(Participant.row, Participant.pilot)
-                                    .where(Participant.id == participant_id)).one()
+    found = db.session.execute(select(Participant.row, Participant.pilot).where(Participant.id == participant_id)
+                               ).first()
+    if found is None:  # removed meanwhile (a reset): nothing to assign
+        db.session.rollback()
+        raise Removed()
+    row, pilot = found
     if row is not None and row >= 0:  # assigned already (a second tab consented first)
         db.session.rollback()
         db.session.refresh(p)

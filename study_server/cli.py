@@ -297,8 +297,12 @@ def study_reset_cmd(study: str, database_url: str | None, pilots_only: bool, for
 
 
 def _database_url(database_url: str | None) -> str:
-    """--db, else what the server uses (DATABASE_URL, else the instance folder's SQLite file)."""
-    return database_url or config.from_environment(config.instance_path())["SQLALCHEMY_DATABASE_URI"]
+    """--db (a relative SQLite path: relative to where the command runs), else what the server uses (DATABASE_URL,
+    relative to the instance folder as the server takes it, else the instance folder's SQLite file)."""
+    if database_url:
+        return config.absolute_sqlite(database_url, Path.cwd())
+    return config.absolute_sqlite(config.from_environment(config.instance_path())["SQLALCHEMY_DATABASE_URI"],
+                                  config.instance_path())
 
 
 @study.command("backup")

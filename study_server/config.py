@@ -75,6 +75,19 @@ def instance_path() -> Path:
     return Path(os.environ.get("SCENESUGGEST_INSTANCE") or data_home() / "instance").resolve()
 
 
+def absolute_sqlite(url: str, base: Path) -> str:
+    """``url`` with a relative SQLite path made absolute against ``base`` (other URLs as they are)."""
+    from sqlalchemy.engine import make_url
+
+    if not url.startswith("sqlite"):
+        return url
+    parsed = make_url(url)
+    name = parsed.database
+    if not name or name == ":memory:" or name.startswith("file:") or Path(name).is_absolute():
+        return url
+    return parsed.set(database=str((base / name).resolve())).render_as_string(hide_password=False)
+
+
 class ConfigError(SceneSuggestError):
     """A setting that stops the server from starting; the message names the variable."""
 

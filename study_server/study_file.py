@@ -226,8 +226,9 @@ def _conditions(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) ->
     """The conditions, and whether every one has a valid id; one with a problem is recorded and stands in by its id
     (what later keys refer to), so that only a wrong id makes what refers to conditions uncheckable."""
     conditions: list[Condition] = []
-    whole = True
-    for i, c in enumerate(r.attempt(lambda: r.tables(doc, "conditions", "conditions"), None) or []):
+    tables = r.attempt(lambda: r.tables(doc, "conditions", "conditions"))
+    whole = tables is not None
+    for i, c in enumerate(tables or []):
         p = f"conditions[{i}]"
         cid = r.attempt(lambda c=c, p=p: r.choice(c, "id", f"{p}.id", CONDITIONS))
         if cid is None:
@@ -238,7 +239,7 @@ def _conditions(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) ->
             continue
         conditions.append(r.attempt(lambda c=c, p=p, cid=cid: _condition(r, c, p, cid, base, languages),
                                     Condition(cid, cid, "", None)))
-    return conditions, whole and "conditions" in doc
+    return conditions, whole
 
 
 def _condition(r: Reader, c: dict, p: str, cid: str, base: Path, languages: tuple[str, ...]) -> Condition:
@@ -255,8 +256,9 @@ def _raise(error: Exception):
 def _scenes(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> tuple[dict[str, TargetScene], bool]:
     """The target scenes, and whether every one has an id; one with a problem is recorded and stands in by its id
     (what the periods and the practice refer to)."""
-    scenes, whole = {}, True
-    for i, s in enumerate(r.attempt(lambda: r.tables(doc, "scenes", "scenes"), None) or []):
+    tables = r.attempt(lambda: r.tables(doc, "scenes", "scenes"))
+    scenes, whole = {}, tables is not None
+    for i, s in enumerate(tables or []):
         p = f"scenes[{i}]"
         sid = r.attempt(lambda s=s, p=p: r.string(s, "id", f"{p}.id"))
         if sid is None:
@@ -264,7 +266,7 @@ def _scenes(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> tup
             continue
         scenes[sid] = r.attempt(lambda s=s, p=p, sid=sid: _scene(r, s, p, sid, base, languages),
                                 TargetScene(sid, sid, Path(), None))
-    return scenes, whole and "scenes" in doc
+    return scenes, whole
 
 
 def _scene(r: Reader, s: dict, p: str, sid: str, base: Path, languages: tuple[str, ...]) -> TargetScene:

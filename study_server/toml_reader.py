@@ -100,9 +100,11 @@ class Reader:
         return v
 
     def unknown(self, doc: dict, allowed, path: str) -> None:
-        for key in doc:
-            if key not in allowed:
-                raise self.fail(f"{path}.{key}" if path else key, "unknown key")
+        """Raise for the first key of ``doc`` not ``allowed``; the others are recorded for :meth:`finish`."""
+        wrong = [self.fail(f"{path}.{key}" if path else key, "unknown key") for key in doc if key not in allowed]
+        if wrong:
+            self.problems += wrong[1:]
+            raise wrong[0]
 
 
 

@@ -79,7 +79,8 @@ def test_a_repeated_stale_or_blind_dismissal_changes_nothing(client, app):
     walker, page = _walk_to_briefing(client)
     token = page.csrf
     assert page.hidden == {"position": "0"}  # the page says whose instructions it shows
-    for blind in ({}, {"position": "1"}, {"position": "-1"}, {"position": "x" * 20}, {"position": "9" * 40}):
+    for blind in ({}, {"position": "1"}, {"position": "-1"}, {"position": "x" * 20}, {"position": "9" * 40},
+                  {"position": "²"}, {"position": "①"}, {"position": "٠"}, {"position": "0 "}):
         assert client.post("/study/demo/briefing", data={"csrf_token": token, **blind}).status_code == 302
         assert _plan(app)[0].briefed_at is None  # not the instructions shown: nothing dismissed
     first = walker.submit("briefing", fixed_answer(page), page)

@@ -105,6 +105,7 @@ def test_the_dashboard_counts_pilots_and_visitors_apart_and_gives_a_test_link(tm
     client = _consent(app, pilot)
     page = client.get("/study/demo/")
     client.post("/study/demo/leave", data={"csrf_token": csrf(page)})  # a pilot gets a code for leaving …
+    assert _people(app)[pilot["pid"]].code == "DEMO-RETURNED"
     with app.app_context():
         assert outcomes.issued_codes("demo") == []  # … which is not the platform's to count
 
@@ -209,7 +210,7 @@ def test_reset_removes_pilots_and_refuses_real_participants_unless_forced(app):
 
 def _cli(*args, env):
     return subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", *args], capture_output=True, text=True,
-                          env=env, cwd=ROOT, timeout=600)
+                          env=env, cwd=ROOT, timeout=600, stdin=subprocess.DEVNULL)  # no one answers a question
 
 
 @pytest.mark.slow

@@ -172,6 +172,7 @@ def test_validate_warns_of_participants_the_rows_cannot_balance(study_dir, demo_
     ('id = "bedside"\n', "", "scenes[2].id"),  # not again as a period's scene
     ("[consent]\nversion", "[agreement]\nversion", ""),  # not again as each of its keys
     ("[design]\n", "[layout]\n", ""),
+    ("[[conditions]]", "[[condition]]", ""),  # every condition table misnamed: not again as the practice's
 ])
 def test_one_mistake_is_reported_once(study_dir, old, new, key):
     path = edit(study_dir, old, new)
@@ -179,14 +180,15 @@ def test_one_mistake_is_reported_once(study_dir, old, new, key):
         text = path.read_text()
         if "[agreement]" in text:
             path.write_text(text.replace("[consent.text]", "[agreement.text]"))
+        path.write_text(path.read_text().replace(old, new))
     with pytest.raises(StudyFileError) as info:
         load_study(path)
     problems = [e.field for e in info.value.problems]
     if key:
         assert problems == [key]
     else:
-        table = "consent" if "agreement" in new else "design"
-        assert sorted(problems) == sorted([new.strip("[]\n").split("]")[0], table]), problems
+        table = {"[agreement]": "consent", "[layout]": "design", "[[condition]]": "conditions"}[new.split("\n")[0]]
+        assert sorted(problems) == sorted([new.split("\n")[0].strip("[]"), table]), problems
 
 
 def test_a_relative_database_url_keeps_its_meaning_and_a_command_lines_is_relative_to_where_it_runs(tmp_path,
@@ -195,14 +197,28 @@ def test_a_relative_database_url_keeps_its_meaning_and_a_command_lines_is_relati
 
     monkeypatch.chdir(tmp_path)
     instance = tmp_path / "instance"
+    from study_server.extensions import db
+
     configured = create_app({"INSTANCE_PATH": str(instance), "SQLALCHEMY_DATABASE_URI": "sqlite:///rel.sqlite3",
                              "STUDY_FILES": [DEMO_STUDY], "CHECK_RESOURCES": False, "WARM_STUDIES": False})
+    with configured.app_context():
+        assert db.engine.url.database == str(instance / "rel.sqlite3")  # Flask-SQLAlchemy's: the instance folder
+    assert (instance / "rel.sqlite3").stat().st_mode & 0o777 == 0o600  # the one file, made private
+    assert not (tmp_path / "rel.sqlite3").exists()  # and no other beside it
     given = create_app({"INSTANCE_PATH": str(instance), "SQLALCHEMY_DATABASE_URI": "sqlite:///rel.sqlite3",
                         "DATABASE_FROM_COMMAND_LINE": True, "STUDY_FILES": [DEMO_STUDY], "CHECK_RESOURCES": False,
                         "WARM_STUDIES": False})
-    from study_server.extensions import db
-
-    with configured.app_context():
-        assert db.engine.url.database == str(instance / "rel.sqlite3")  # Flask-SQLAlchemy's: the instance folder
     with given.app_context():
         assert db.engine.url.database == str(tmp_path / "rel.sqlite3")
+
+
+def test_a_malformed_list_of_tables_is_reported_once(study_dir):
+    """`conditions = []` or `scenes = "oops"`: the list is wrong once, and nothing that refers to its items is
+    reported again (the Williams design's two conditions, the practice's condition and scene, the periods)."""
+    path = study_dir / "study.toml"
+    text = path.read_text().replace('languages = ["en", "de"]', 'languages = ["en", "de"]\nconditions = []\n'
+                                    'scenes = "oops"')
+    path.write_text(text.replace("[[conditions]]", "[[condition]]").replace("[[scenes]]", "[[scene]]"))
+    with pytest.raises(StudyFileError) as info:
+        load_study(path)
+    assert sorted(e.field for e in info.value.problems) == ["condition", "conditions", "scene", "scenes"]

@@ -373,7 +373,7 @@ def briefing(study_id: str):
     p = _post_participant(study_id)
     if p is not None and p.step == "trial":
         position = request.form.get("position", "")
-        flow.finish_briefing(p, int(position) if position.isdigit() and len(position) < 9 else None)
+        flow.finish_briefing(p, int(position) if re.fullmatch(r"[0-9]{1,8}", position) else None)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
 
