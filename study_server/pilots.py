@@ -127,8 +127,8 @@ def reset(study_id: str, *, pilots_only: bool = False, force: bool = False) -> d
                for table, name in ((Event, "events"), (ShownList, "lists"), (SurveyResponse, "surveys"),
                                    (Trial, "trials"), (SessionLog, "session_log"))}
     if not pilots_only:  # the study's own log (engine fallbacks) and its count of assignments start afresh
-        removed["session_log"] += db.session.execute(delete(SessionLog).where(SessionLog.study_id == study_id)
-                                                      ).rowcount
+        removed["session_log"] += db.session.execute(delete(SessionLog).where(
+            SessionLog.study_id == study_id, SessionLog.participant_id.is_(None))).rowcount
         db.session.execute(update(StudyRecord).where(StudyRecord.id == study_id).values(assignments=0))
     removed["participants"] = db.session.execute(delete(Participant).where(*chosen)).rowcount
     return removed

@@ -27,7 +27,7 @@ from simulation.walker import Walker
 from study_server import authoring, outcomes, pilots
 from study_server.assignment import row_counts
 from study_server.extensions import db
-from study_server.models import Event, Participant, Trial
+from study_server.models import Event, Participant, SessionLog, Trial
 
 UA = {"User-Agent": "Mozilla/5.0 (X11; Linux x86_64) Chrome/150"}
 
@@ -184,11 +184,14 @@ def test_a_reset_without_force_removes_pilots_alone_whoever_arrives_meanwhile(ap
     stays (without --force only pilots are ever deleted)."""
     _walk_pilot_and_real(app)
     with app.app_context():
+        real = {p.id for p in db.session.query(Participant).filter_by(pilot=False)}
+        logged = db.session.query(SessionLog).filter(SessionLog.participant_id.in_(real)).count()
         monkeypatch.setattr(pilots, "counts", lambda study_id: {"pilot": 2, "real": 0})  # counted before they came
         pilots.reset("demo")
         db.session.commit()
         assert {p.pilot for p in db.session.query(Participant)} == {False}
         assert db.session.query(Participant).count() == 2
+        assert db.session.query(SessionLog).filter(SessionLog.participant_id.in_(real)).count() == logged > 0
 
 
 def test_reset_removes_pilots_and_refuses_real_participants_unless_forced(app):
