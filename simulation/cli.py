@@ -84,14 +84,13 @@ def simulate_cmd(participants: int, seed: int, url: str | None, database_url: st
                        behaviours=Behaviours.mixed() if mix else None, human=human,
                        entry=lambda i: pilots.entry_query(key, study),
                        progress=lambda label: click.echo(label, err=True))
-    used = url or where or app.config["SQLALCHEMY_DATABASE_URI"]
-    summary["database"] = None if url else _masked(used)
+    summary["database"] = None if url else _masked(app.config["SQLALCHEMY_DATABASE_URI"])  # (made absolute)
     means = ", ".join(f"{c} {s:.0f} s" for c, s in summary["mean_seconds"].items())
     emit(summary, as_json, f"{summary['completed']}/{participants} participants completed {summary['trials']} "
                            f"trials, {summary['events']} events ({summary['dropped_out']} dropped out); "
                            f"mean trial time {means}"
                            + "".join(f"\nfailed: {f['participant']}: {f['error']}" for f in summary["failures"])
-                           + _where_note(str(study.path), url, where, summary["database"]))
+                           + _where_note(str(study.path), url, where is not None, summary["database"]))
     if summary["failures"]:
         raise SceneSuggestError(f"{len(summary['failures'])} simulated participant(s) could not finish")
 
@@ -102,7 +101,7 @@ def _masked(url: str) -> str:
     return make_url(url).render_as_string(hide_password=True)
 
 
-def _where_note(study_file: str, url: str | None, apart: str | None, database: str | None) -> str:
+def _where_note(study_file: str, url: str | None, apart: bool, database: str | None) -> str:
     """Where the pilots went, and the commands that export them and clear them away (naming the study by its
     file, so that they work without the environment this command ran in)."""
     import shlex

@@ -184,14 +184,17 @@ def turn_instructions(p: Participant, study: Study, direction: str) -> None:
     log("instructions", p, page=p.instruction_page, step=p.step)
 
 
-def briefing_due(p: Participant, t: Trial | None) -> bool:
+def briefing_due(p: Participant, t: Trial | None, plan: list[Trial] | None = None) -> bool:
     """Whether the condition's instructions are shown before the current trial ``t``: before the first trial and
     whenever the condition differs from the trial before it (the interface changes), until the participant has
-    dismissed them. A trial already begun (begun before briefings were shown) has none."""
+    dismissed them. A trial already begun (begun before briefings were shown) has none. ``plan``: the
+    participant's trials in order (:func:`trials`), when the caller has them (else the one before is read)."""
     if t is None or t.briefed_at is not None or t.started_at is not None:
         return False
     if t.position == 0:
         return True
+    if plan is not None:
+        return plan[t.position - 1].condition != t.condition
     before = db.session.scalar(select(Trial.condition).where(Trial.participant_id == p.id,
                                                              Trial.position == t.position - 1))
     return before != t.condition
@@ -223,12 +226,11 @@ def briefing_seconds(t: Trial) -> float | None:
     return (t.briefed_at - t.briefing_shown_at).total_seconds()
 
 
-def start_trial(p: Participant) -> Trial | None:
-    t = current_trial(p)
-    if t is not None and t.started_at is None:
+def start_trial(p: Participant, t: Trial) -> None:
+    """The current trial ``t``'s page is shown: its first showing is when it starts."""
+    if t.started_at is None:
         t.started_at = utcnow()
         log("trial_start", p, position=t.position, index=t.index)
-    return t
 
 
 def finish_trial(p: Participant, study: Study, index: int, scene: dict | None) -> Trial:

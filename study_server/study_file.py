@@ -235,7 +235,7 @@ def _conditions(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) ->
             whole = False
             continue
         if any(x.id == cid for x in conditions):
-            r.attempt(lambda p=p, cid=cid: _raise(r.fail(f"{p}.id", f"condition {cid!r} given twice")))
+            r.record(r.fail(f"{p}.id", f"condition {cid!r} given twice"))
             continue
         conditions.append(r.attempt(lambda c=c, p=p, cid=cid: _condition(r, c, p, cid, base, languages),
                                     Condition(cid, cid, "", None)))
@@ -247,10 +247,6 @@ def _condition(r: Reader, c: dict, p: str, cid: str, base: Path, languages: tupl
     instructions = _text(r, c, "instructions", f"{p}.instructions", languages) if "instructions" in c else ""
     return Condition(cid, _text(r, c, "label", f"{p}.label", languages, cid), instructions,
                      _engine(r, r.table(c, "engine", f"{p}.engine", required=False), f"{p}.engine", base))
-
-
-def _raise(error: Exception):
-    raise error
 
 
 def _scenes(r: Reader, doc: dict, base: Path, languages: tuple[str, ...]) -> tuple[dict[str, TargetScene], bool]:
@@ -450,7 +446,7 @@ def load_study(path: str | Path) -> Study:
         **(r.attempt(lambda: _resources(r, doc, base), {})), **(r.attempt(lambda: _platform(r, doc), {})),
         **_texts(r, doc, languages), **_limits(r, doc)}
     if fields["design"] == "williams" and conditions_whole and len(conditions) < 2:
-        r.attempt(lambda: _raise(r.fail("design.kind", "a Williams design needs at least two conditions")))
+        r.record(r.fail("design.kind", "a Williams design needs at least two conditions"))
     r.finish()
     return Study(path=path, hash=hashlib.sha256(data).hexdigest(), id=study_id, languages=languages,
                  conditions=tuple(conditions), scenes=scenes, periods=tuple(periods), **fields)

@@ -50,6 +50,10 @@ class Reader:
                 self.problems.append(e)
             return default
 
+    def record(self, error: StudyFileError) -> None:
+        """Record a problem found outside any :meth:`attempt` (reading goes on)."""
+        self.problems.append(error)
+
     def finish(self) -> None:
         """Raise :class:`StudyFileErrors` naming every problem recorded, if any."""
         if self.problems:

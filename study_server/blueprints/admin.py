@@ -110,10 +110,9 @@ def dashboard():
     glances = [(rt.study, plots.glance(rt.study)) for rt in current_app.extensions["studies"].values()]
     studies = [(study, g["progress"], g) for study, g in glances]
     codes = {rt.study.id: issued_codes(rt.study.id) for rt in current_app.extensions["studies"].values()}
-    links = {study.id: {"participant": pilots.participant_link(study, url_for("participant.start", study_id=study.id,
-                                                                              _external=True)),
-                        "pilot": pilots.test_link(current_app.config["SECRET_KEY"], study,
-                                                  url_for("participant.start", study_id=study.id, _external=True))}
+    starts = {study.id: url_for("participant.start", study_id=study.id, _external=True) for study, _ in glances}
+    links = {study.id: {"participant": pilots.participant_link(study, starts[study.id]),
+                        "pilot": pilots.test_link(current_app.config["SECRET_KEY"], study, starts[study.id])}
              for study, _ in glances}
     return render_template("admin/dashboard.html", studies=studies, codes=codes, outcomes=list(plots.OUTCOMES),
                            links=links)

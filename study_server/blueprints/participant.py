@@ -249,14 +249,15 @@ def _page(rt, p: Participant):
 
 def _trial_page(rt, p: Participant):
     """The current trial's page, or before it the page of its condition's instructions when they are due."""
-    t = flow.current_trial(p)
-    plan = [x for x in flow.trials(p) if x.kind == "trial"]
+    everything = flow.trials(p)  # in order: a trial's position is its place here
+    t = everything[p.position]
+    plan = [x for x in everything if x.kind == "trial"]
     condition = rt.study.condition(t.condition)
-    if flow.briefing_due(p, t):
+    if flow.briefing_due(p, t, everything):
         flow.show_briefing(p, t)
         return render_template("briefing.html", study=rt.study, p=p, trial=t, condition=condition,
                                first=t.position == 0, of=len(plan))
-    flow.start_trial(p)
+    flow.start_trial(p, t)
     seconds = flow.briefing_seconds(t)
     boot = trial_boot(rt.study, p.token, {"index": t.index, "kind": t.kind, "condition": t.condition,
                                           "scene": t.scene_id, "block": t.block, "number": t.index + 1,
