@@ -4,6 +4,7 @@ logged (session log, an event the replay shows, the export's trials) and its tim
 
 from __future__ import annotations
 
+import json
 from datetime import timedelta
 
 from flowhelp import DEMOGRAPHICS, auth
@@ -14,7 +15,7 @@ from simulation.page import read_page
 from simulation.transport import FlaskTransport
 from simulation.walker import Walker, fixed_answer
 from study_server.extensions import db
-from study_server.models import Participant, SessionLog, Trial
+from study_server.models import Event, Participant, SessionLog, Trial
 from study_server.replays import label
 
 
@@ -146,3 +147,37 @@ def test_the_export_says_how_long_each_briefing_was_open(client, app, tmp_path):
     assert trials.loc[trials["position"] == 0, "briefing_seconds"].tolist() == [7.25]
     assert trials.loc[trials["position"] > 0, "briefing_seconds"].isna().all()
     assert read_page(client.get("/study/demo/").data).step == "trial"
+
+
+def test_hostile_values_for_the_briefing_change_nothing_and_get_a_clear_answer(client, app):
+    """Whatever a browser can send as the instructions' form or the briefing event: a 4xx naming what is wrong
+    (or, for the form, nothing dismissed), nothing stored, no 500."""
+    walker, page = _walk_to_briefing(client)
+    token = page.csrf
+    for position in ("\x00", "0\x00", "2147483648", "1" * 100, "0" * 8 + "0", "\ufffd"):
+        r = client.post("/study/demo/briefing", data={"csrf_token": token, "position": position})
+        assert r.status_code == 302 and _plan(app)[0].briefed_at is None, position
+    huge = client.post("/study/demo/briefing", data={"csrf_token": token, "position": "0" * 10_000_000})
+    assert huge.status_code == 413 and _plan(app)[0].briefed_at is None
+    page = walker.submit("briefing", fixed_answer(page), page)
+    b = page.boot
+    with app.app_context():
+        before = db.session.query(Event).count()
+    for payload, field in (({"condition": "none", "seconds": -1}, "seconds"),
+                           ({"condition": "none", "seconds": "12"}, "seconds"),
+                           ({"condition": "none", "seconds": True}, "seconds"),
+                           ({"condition": "none", "seconds": 2**1100}, "seconds"),
+                           ({"condition": "other", "seconds": 1}, "condition"),
+                           ({"condition": "none\x00", "seconds": 1}, "condition"),
+                           ({"condition": "\ud800", "seconds": 1}, "condition"),
+                           ({"condition": "n" * 3_000_000, "seconds": 1}, None),
+                           ({"seconds": 1}, "condition")):
+        event = {"seq": 0, "t": 1.7e12, "type": "briefing", "trial": -1, "payload": payload}
+        body = json.dumps({"page_id": b["page_id"], "events": [event]}).encode()  # (a lone surrogate, escaped)
+        r = client.post("/api/events", headers={**auth(b), "Content-Type": "application/json"}, data=body)
+        if field is None:  # over the body's limit
+            assert r.status_code == 413 and r.json["field"] == "body"
+        else:
+            assert r.status_code == 422 and r.json["field"] == f"events[0].payload.{field}", (payload, r.json)
+    with app.app_context():
+        assert db.session.query(Event).count() == before  # nothing stored

@@ -60,6 +60,10 @@ def test_only_the_servers_key_makes_a_pilot(app):
                    {"pid": "me", "pilot": ""}):
         r = app.test_client().get(f"/study/demo/start?{urlencode(forged)}", headers=UA)
         assert r.status_code == 422 and b"pilot is not a test link of this study" in r.data
+    for raw in ("pid=me&pilot=%00", "pid=me&pilot=%ED%A0%80", "pid=me&pilot=" + "a" * 10_000_000,
+                "pid=me&pilot=2147483648", "pilot=" + query["pilot"], "pid=me&pilot=x&pilot=" + query["pilot"]):
+        r = app.test_client().get(f"/study/demo/start?{raw}", headers=UA)  # NUL, bad UTF-8, 10 MB, no id …
+        assert r.status_code == 422 and b"pilot is not a test link of this study" in r.data, raw[:40]
     assert "me" not in _people(app)  # refused: no session made
     assert client and real
 

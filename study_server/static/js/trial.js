@@ -224,7 +224,15 @@ async function main() {
   testHook = await loadTestHook();
   handOver();
   const { models, target, scene, saved } = await load();
-  const viewer = new Viewer($("editor"));
+  let viewer;
+  try {
+    viewer = new Viewer($("editor"));
+  } catch (e) {  // no WebGL (switched off, blocklisted, no driver): say so, not a grey page; the server hears it
+    log("client_error", { message: `no WebGL: ${String(e?.message ?? e).slice(0, 300)}` });
+    outbox.flush();
+    say(strings.noWebgl);
+    return;
+  }
   const { library, editor } = makeEditor(viewer, models, scene);
   viewer.startControls();
   viewer.setRoom(scene);
