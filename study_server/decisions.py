@@ -37,13 +37,18 @@ def state(status: str, row: int, seen, fresh) -> str:
 
 def progress(study: Study) -> dict:
     """Counts per schedule row and per condition of completed / in progress / stale / excluded / other (visitors
-    who have not consented, and pilots, apart: ``totals["visiting"]``, ``totals["pilot"]``), and the engines' use
-    (:func:`engine_use`)."""
+    who have not consented, and pilots, apart: ``totals["visiting"]``, ``totals["pilot"]``), the device check's
+    reasons for those it screened out (``screened``: code → participants, study_server.device), and the engines'
+    use (:func:`engine_use`)."""
     fresh = fresh_after(study, utcnow())
     people = db.session.execute(select(Participant.row, Participant.status, Participant.last_seen_at,
                                        Participant.pilot).where(Participant.study_id == study.id)).all()
     rows = [Counter() for _ in range(study.n_rows)]
     totals = Counter()
+    screened = Counter()
+    for (report,) in db.session.execute(select(Participant.viewport).where(
+            Participant.study_id == study.id, Participant.status == "screened_out", Participant.pilot.is_(False))):
+        screened.update((report or {}).get("reasons", ()))
     for row, status, seen, pilot in people:
         if pilot:  # a test run or a simulated participant: not study data
             totals["pilot"] += 1
@@ -61,7 +66,8 @@ def progress(study: Study) -> dict:
     for condition, done, status, n in trials:  # not done: open while the session goes on, else never finished
         kind = "done" if done else "open" if status == "in_progress" else "unfinished"
         conditions.setdefault(condition, Counter())[kind] += n
-    return {"rows": rows, "totals": totals, "conditions": conditions, "engines": engine_use(study)}
+    return {"rows": rows, "totals": totals, "conditions": conditions, "screened": screened,
+            "engines": engine_use(study)}
 
 
 def engine_use(study: Study) -> list[dict]:

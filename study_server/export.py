@@ -110,7 +110,10 @@ def _participants(rt: StudyRuntime, ids, seen: dict) -> Iterator[dict]:
                "created_at": _iso(p.created_at), "last_seen_at": _iso(p.last_seen_at),
                "finished_at": _iso(p.finished_at), "acked_seq": p.acked_seq,
                "flags": " | ".join(f["reason"] for f in open_flags(p)), "viewport_width": v.get("width", ""),
-               "viewport_height": v.get("height", ""), "user_agent": p.user_agent, "language": p.language or "",
+               "viewport_height": v.get("height", ""),
+               "device_fps": "" if v.get("fps") is None else v["fps"], "device_renderer": v.get("renderer", ""),
+               "screened_out_reasons": " | ".join(v.get("reasons", ())), "user_agent": p.user_agent,
+               "language": p.language or "",
                "pilot": "true" if p.pilot else "false"}
 
 

@@ -80,6 +80,13 @@ TABLES: tuple[Table, ...] = (
                               "empty: none; flags the experimenter cleared are not listed)"),
         _c("viewport_width", "integer", "browser window width at the device check (px)"),
         _c("viewport_height", "integer", "browser window height at the device check (px)"),
+        _c("device_fps", "number", "frames per second the editor's renderer drew at the device check (empty: not "
+                                   "measured)", minimum=0),
+        _c("device_renderer", "string", "the WebGL renderer the browser named at the device check"),
+        _c("screened_out_reasons", "string", "why the device check screened the browser out (codes separated by "
+                                             "' | ': script, modules, importmap, storage, pointer_events, "
+                                             "resize_observer, dialog, webgl2, shaders, desktop, window, slow; "
+                                             "empty: it passed or was not checked)"),
         _c("user_agent", "string", "browser user agent"),
         _c("language", "string", "the language the participant's pages spoke (chosen at arrival among the study's "
                                  "languages)", enum="languages"),

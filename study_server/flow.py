@@ -11,19 +11,18 @@ Every function takes the participant, changes it in the current transaction and 
 from __future__ import annotations
 
 import math
-import re
 from datetime import timedelta
 from urllib.parse import quote
 
 from flask_babel import gettext as _
 from sqlalchemy import case, func, select, update
 
+from . import device
 from .errors import StudyError
 from .extensions import db
 from .models import Event, Participant, SurveyResponse, Trial, flag, log, utcnow
 from .study_file import Question, Study
 
-MOBILE = re.compile(r"Mobi|Android|iPhone|iPad|iPod|Windows Phone", re.I)
 MAX_ANSWER = 5000
 
 
@@ -81,27 +80,13 @@ def _finish(p: Participant, study: Study, status: str, code_key: str) -> None:
     log("finish", p, status=status)
 
 
-def _pixels(value) -> int:
-    """A window size the browser reported, in CSS pixels; 0 (unknown) for what is not one."""
-    try:
-        n = int(value)
-    except (TypeError, ValueError):
-        return 0
-    return n if 0 <= n <= 100_000 else 0
-
-
-def check_device(p: Participant, study: Study, info: dict) -> bool:
-    """Record the browser's report; screen out phones/tablets and small windows when the study asks to."""
-    width, height = _pixels(info.get("width")), _pixels(info.get("height"))
-    touch_only = str(info.get("touch_only", "")).lower() in ("1", "true", "yes")
-    p.viewport = {"width": width, "height": height, "touch_only": touch_only,
-                  "pixel_ratio": str(info.get("pixel_ratio", ""))[:16]}
-    reasons = []
-    if study.desktop_only and (MOBILE.search(p.user_agent or "") or touch_only):
-        reasons.append("not a desktop browser")
-    if width < study.min_width or height < study.min_height:
-        reasons.append(f"window {width}×{height} smaller than {study.min_width}×{study.min_height}")
-    log("device_check", p, ok=not reasons, reasons=reasons, **p.viewport)
+def check_device(p: Participant, study: Study, report: dict) -> bool:
+    """Record the browser's report (:func:`study_server.device.parse_report`) and the reasons, if any, that the study
+    screens it out (:func:`study_server.device.screen`): then the session ends before consent, holding no
+    schedule row."""
+    reasons = device.screen(report, study, p.user_agent)
+    p.viewport = {**report, "reasons": reasons}
+    log("device_check", p, ok=not reasons, **p.viewport)
     if reasons:
         _finish(p, study, "screened_out", "screened_out")
         return False

@@ -97,6 +97,8 @@ class Study:
     desktop_only: bool
     min_width: int
     min_height: int
+    #: The device check's lowest frame rate (frames per second of the editor's renderer on a small scene; 0: none).
+    min_fps: float = 10.0
     #: Prolific's id of this study: arrivals whose STUDY_ID differs are refused (None: not checked).
     platform_study_id: str | None = None
     #: What a trial's events must show for it to count as work (else the participant is flagged for review):
@@ -373,7 +375,7 @@ def _limits(r: Reader, doc: dict) -> dict:
     limits = r.attempt(lambda: r.table(doc, "limits", "limits", required=False), {})
     r.attempt(lambda: r.unknown(limits, LIMITS, "limits"))
     device = r.attempt(lambda: r.table(doc, "device", "device", required=False), {})
-    r.attempt(lambda: r.unknown(device, ("desktop_only", "min_width", "min_height"), "device"))
+    r.attempt(lambda: r.unknown(device, ("desktop_only", "min_width", "min_height", "min_fps"), "device"))
 
     def number(key: str, default: float, minimum: float = 0.0) -> float:
         return r.attempt(lambda: r.number(limits, key, f"limits.{key}", default, minimum=minimum), default)
@@ -390,6 +392,7 @@ def _limits(r: Reader, doc: dict) -> dict:
         "desktop_only": r.attempt(lambda: r.boolean(device, "desktop_only", "device.desktop_only", True), True),
         "min_width": int(r.attempt(lambda: r.number(device, "min_width", "device.min_width", 1024), 1024)),
         "min_height": int(r.attempt(lambda: r.number(device, "min_height", "device.min_height", 600), 600)),
+        "min_fps": r.attempt(lambda: r.number(device, "min_fps", "device.min_fps", 10, maximum=120), 10),
     }
 
 

@@ -85,10 +85,15 @@ class Reader:
             raise self.fail(path, "missing" if key not in doc else "expected a non-empty string")
         return v
 
-    def number(self, doc: dict, key: str, path: str, default=None, minimum: float = 0.0) -> float:
+    def number(self, doc: dict, key: str, path: str, default=None, minimum: float = 0.0,
+               maximum: float = math.inf) -> float:
         v = doc.get(key, default)
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < minimum:
-            raise self.fail(path, f"expected a finite number ≥ {minimum:g}" if key in doc else "missing")
+        if (isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < minimum
+                or v > maximum):
+            if key not in doc:
+                raise self.fail(path, "missing")
+            raise self.fail(path, f"expected a finite number ≥ {minimum:g}" + (f" and ≤ {maximum:g}" if
+                                                                                  maximum < math.inf else ""))
         return float(v)
 
     def boolean(self, doc: dict, key: str, path: str, default: bool) -> bool:

@@ -16,6 +16,7 @@ from flowhelp import csrf
 from analysis.load import read_database
 from analysis.measures import trials_table
 from simulation.run import simulate
+from simulation.walker import CAPABLE_DEVICE
 from study_server.extensions import db
 from study_server.i18n import TRANSLATIONS, CatalogueError, check_catalogue, shipped
 from study_server.models import Participant
@@ -94,7 +95,7 @@ def test_a_participants_browser_chooses_the_language_and_the_export_records_it(t
     assert english.get("/study/demo/start?pid=en-1", follow_redirects=True).get_data(as_text=True).count(
         '<html lang="en">') == 1
     # the language stays the participant's, whatever the browser says later
-    german.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "1440", "height": "900"})
+    german.post("/study/demo/device", data={**CAPABLE_DEVICE, "csrf_token": csrf(page)})
     consent = german.get("/study/demo/")
     assert "Ich stimme der Teilnahme zu" in consent.get_data(as_text=True)
     german.post("/study/demo/consent", data={"csrf_token": csrf(consent), "agree": "yes"})
@@ -182,7 +183,7 @@ def test_the_corpus_speaks_german_too_on_tiles_and_in_search(tmp_path, demo_reso
     assert {m.category for m in rt.library.values()} <= set(named), "categories without a German name"
     german = app.test_client()
     page = german.get("/study/demo/start?pid=de-3", headers=GERMAN, follow_redirects=True)
-    german.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "1440", "height": "900"})
+    german.post("/study/demo/device", data={**CAPABLE_DEVICE, "csrf_token": csrf(page)})
     german.post("/study/demo/consent", data={"csrf_token": csrf(german.get("/study/demo/")), "agree": "yes"})
     with app.app_context():
         token = db.session.query(Participant).filter_by(platform_id="de-3").one().token

@@ -13,6 +13,7 @@ from flowhelp import EXIT, auth, csrf, enter, finish_all_trials, next_trial, to_
 from integrityhelp import PASSWORD, PID, SESSION, STUDY, event, participant_of, post_events, study_copy
 from werkzeug.security import generate_password_hash
 
+from simulation.walker import CAPABLE_DEVICE
 from study_server.assignment import row_counts
 from study_server.extensions import db
 from study_server.models import Participant, Trial, utcnow
@@ -154,7 +155,7 @@ def test_coming_back_under_another_id_after_declining_is_flagged(tmp_path, demo_
     c = app.test_client()
     page = enter(c, query=f"PROLIFIC_PID={PID}&STUDY_ID={STUDY}")
     token = csrf(page)
-    c.post("/study/demo/device", data={"csrf_token": token, "width": "1400", "height": "900"})
+    c.post("/study/demo/device", data={**CAPABLE_DEVICE, "csrf_token": token})
     c.post("/study/demo/consent", data={"csrf_token": token, "agree": "no"})
     other = "9" * 24
     assert c.get(f"/study/demo/start?PROLIFIC_PID={other}&STUDY_ID={STUDY}").status_code == 302

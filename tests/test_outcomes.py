@@ -11,6 +11,7 @@ from flowhelp import EXIT, auth, csrf, enter, finish_all_trials, to_trials
 from integrityhelp import PASSWORD
 from werkzeug.security import generate_password_hash
 
+from simulation.walker import CAPABLE_DEVICE
 from study_server.extensions import db
 from study_server.models import Participant
 
@@ -53,13 +54,13 @@ def test_each_way_out_sends_the_participant_to_prolific_with_its_own_code(prolif
 
     declined = app.test_client()
     page = enter(declined, query=entry(2))
-    declined.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "1400", "height": "900"})
+    declined.post("/study/demo/device", data={**CAPABLE_DEVICE, "csrf_token": csrf(page)})
     declined.post("/study/demo/consent", data={"csrf_token": csrf(page), "agree": "no"})
     assert platform_link(declined.get("/study/demo/")) == PROLIFIC + "DEMO-NOCONSENT"
 
     small = app.test_client()
     page = enter(small, query=entry(3))
-    small.post("/study/demo/device", data={"csrf_token": csrf(page), "width": "800", "height": "900"})
+    small.post("/study/demo/device", data={**CAPABLE_DEVICE, "csrf_token": csrf(page), "width": "800"})
     assert platform_link(small.get("/study/demo/")) == PROLIFIC + "DEMO-SCREENED"
 
     leaving = app.test_client()

@@ -25,6 +25,7 @@ from sqlalchemy import select
 from werkzeug.exceptions import NotFound
 
 from .. import assignment, flow, i18n, pilots, trial_check
+from .. import device as device_check
 from ..boot import trial_boot
 from ..extensions import db
 from ..models import Participant, SessionLog, flag, log, log_again, utcnow
@@ -225,7 +226,7 @@ def _page(rt, p: Participant):
     study, study_id = rt.study, p.study_id
     context = {"study": study, "p": p}
     if not flow.is_open(p):  # finished, declined, screened out or excluded: only the end page
-        return render_template("done.html", completion_url=flow.completion_url(study, p), **context)
+        return _end_page(study, p, context)
     if p.step == "device":
         return render_template("device.html", **context)
     if p.step == "consent":
@@ -244,7 +245,17 @@ def _page(rt, p: Participant):
         return render_template("survey.html", survey="exit", questions=study.exit_survey, errors={}, answers={},
                                action=url_for(".exit_survey", study_id=study_id), heading=_("Almost done"),
                                **context)
-    return render_template("done.html", completion_url=flow.completion_url(study, p), **context)
+    return _end_page(study, p, context)
+
+
+def _end_page(study, p: Participant, context: dict):
+    """The end page: the code and the way back to the platform; for a browser the device check screened out, what
+    it lacks, in the participant's language."""
+    report = p.viewport or {}
+    reasons = [device_check.reason_text(code, study, report) for code in report.get("reasons", ())
+               if p.status == "screened_out"]
+    return render_template("done.html", completion_url=flow.completion_url(study, p), screen_reasons=reasons,
+                           **context)
 
 
 def _trial_page(rt, p: Participant):
@@ -293,9 +304,11 @@ def _post_participant(study_id: str) -> Participant | None:
 @bp.post("/device")
 def device(study_id: str):
     study = runtime(study_id).study
+    check_csrf()
+    report = device_check.parse_report(request.form)  # a report no browser sends: 422 naming the field, nothing stored
     p = _post_participant(study_id)
     if p is not None and p.step == "device":
-        _unless_ended(flow.check_device, p, study, request.form)
+        _unless_ended(flow.check_device, p, study, report)
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
 
