@@ -131,9 +131,13 @@ function handOver() {
   channel.postMessage({ type: "hello", page: boot.page_id });
 }
 
-/** The test hook, imported only when a test set `window.sceneSuggestTestHook` before the page's scripts ran. */
+/** The test hook, imported only when a test set `window.sceneSuggestTestHook` before the page's scripts ran, or
+ * `sceneSuggestTestHook` in this tab's sessionStorage (where a driver that cannot run a script before the page's
+ * own puts it: tests/browser/engines.py). */
 async function loadTestHook() {
-  if (!window.sceneSuggestTestHook) return null;
+  let asked = !!window.sceneSuggestTestHook;
+  try { asked ||= sessionStorage.getItem("sceneSuggestTestHook") === "1"; } catch (e) { /* storage blocked */ }
+  if (!asked) return null;
   const { installTestHook } = await import("./test-hook.js");
   return installTestHook(trial);
 }
