@@ -4,6 +4,10 @@ import * as THREE from "three";
 import * as G from "./geometry.js";
 
 const CLICK_PX = 5;
+// The rotation ring answers a press this close to it on screen (CSS pixels), however small the object or far the
+// camera: its drawn tube alone can be thinner than a pixel.
+const RING_HIT_PX = 8;
+const RING_SAMPLES = 96;
 const COARSE_DEG = 15;
 const FINE_DEG = 1;
 
@@ -221,7 +225,7 @@ export class Editor {
     if (e.button !== 0) return;
     this.press = { x: e.clientX, y: e.clientY, t: performance.now(), shift: e.shiftKey };
     const hit = this.viewer.pick(e.clientX, e.clientY, { extra: this.ring.visible ? [this.ring] : [] });
-    if (hit?.handle === "rotate") {
+    if (hit?.handle === "rotate" || this.nearRing(e.clientX, e.clientY)) {
       this.startRotate(e, hit);
     } else if (hit && !hit.room && hit.objectId && !e.shiftKey && !this.placingModel) {
       this.drag = { id: hit.objectId, start: { x: e.clientX, y: e.clientY }, moved: false, distance: 0,
@@ -229,6 +233,30 @@ export class Editor {
       this.viewer.controls.enabled = false;
       this.viewer.renderer.domElement.setPointerCapture(e.pointerId);
     }
+  }
+
+  /** Whether a pixel is within RING_HIT_PX of the visible ring's circle as drawn on screen. */
+  nearRing(x, y) {
+    if (!this.ring.visible) return false;
+    const n = new THREE.Vector3(0, 0, 1).applyQuaternion(this.ring.quaternion);
+    const u = new THREE.Vector3(1, 0, 0).applyQuaternion(this.ring.quaternion);
+    const v = new THREE.Vector3().crossVectors(n, u);
+    const r = this.ring.scale.x;
+    const point = (k) => {
+      const a = (2 * Math.PI * k) / RING_SAMPLES;
+      const p = this.ring.position.clone().addScaledVector(u, r * Math.cos(a)).addScaledVector(v, r * Math.sin(a));
+      return this.viewer.worldToPixel(p.x, p.y, p.z);
+    };
+    let [ax, ay] = point(0);
+    for (let k = 1; k <= RING_SAMPLES; k += 1) {
+      const [bx, by] = point(k);
+      const dx = bx - ax;
+      const dy = by - ay;
+      const along = Math.max(0, Math.min(1, ((x - ax) * dx + (y - ay) * dy) / (dx * dx + dy * dy || 1)));
+      if (Math.hypot(x - ax - along * dx, y - ay - along * dy) <= RING_HIT_PX) return true;
+      [ax, ay] = [bx, by];
+    }
+    return false;
   }
 
   startRotate(e, hit) {
