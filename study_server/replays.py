@@ -6,8 +6,8 @@ from __future__ import annotations
 from flask import url_for
 from sqlalchemy import select
 
-from scenesuggest.contract.events import as_event
-from scenesuggest.contract.replay import ReplayUnavailable, apply, start_scene
+from scenesuggest.contract.events import SCENE_CHANGES, as_event
+from scenesuggest.contract.replay import ReplayUnavailable, apply, final_scene, start_scene
 
 from .extensions import db
 from .models import Event, Trial
@@ -23,6 +23,23 @@ def trial_events(participant_id: int, index: int) -> list[dict]:
     rows = db.session.scalars(select(Event).where(Event.participant_id == participant_id, Event.trial == index)
                               .order_by(Event.seq))
     return [as_event(e.seq, e.client_t, e.type, e.trial, e.payload) for e in rows]
+
+
+def progress(rt: StudyRuntime, p, scene_id: str) -> dict:
+    """The participant's current trial, when it is on ``scene_id``, as far as its stored events rebuild it: the start scene's document
+    with the rebuilt ``objects``, ``changes`` (its scene-changing events; 0: nothing to restore) and
+    ``last_change_seq`` (the seq of the last of them, −1: none). What a page in a browser that kept no copy of the
+    scene (another browser, a cleared storage) starts from."""
+    doc = rt.scene(scene_id, "start")
+    t = db.session.scalar(select(Trial).where(Trial.participant_id == p.id, Trial.position == p.position,
+                                              Trial.scene_id == scene_id))  # the current trial, if on this scene
+    events = [e for e in trial_events(p.id, t.index) if e["type"] in SCENE_CHANGES] if t is not None else []
+    try:
+        rebuilt = final_scene(doc["objects"], events)
+    except ReplayUnavailable:  # events of vocabulary 1 carry no states: nothing to restore from
+        events, rebuilt = [], start_scene(doc["objects"])
+    return {**doc, "objects": list(rebuilt.values()), "changes": len(events),
+            "last_change_seq": events[-1]["seq"] if events else -1}
 
 
 def label(event: dict) -> str:

@@ -16,7 +16,7 @@ from scenesuggest.contract.event_schema import json_schema
 from scenesuggest.contract.events import MAX_SEQ, EventError, text_problem
 from scenesuggest.scenes import scene_json
 
-from .. import flow, i18n, ingest, lists, trial_check
+from .. import flow, i18n, ingest, lists, replays, trial_check
 from ..authoring import live_scene
 from ..errors import RequestError
 from ..extensions import db, json_value
@@ -266,8 +266,12 @@ def scene(scene_id: str):
     if scene_id not in allowed or scene_id not in rt.study.scenes:
         raise RequestError(404, "no such scene in this session", "scene_id")
     which = request.args.get("which", "target")
-    if which not in ("target", "start"):
-        raise RequestError(400, "must be 'target' or 'start'", "which")
+    if which not in ("target", "start", "progress"):
+        raise RequestError(400, "must be 'target', 'start' or 'progress'", "which")
+    if which == "progress":
+        if isinstance(who, Preview):
+            raise RequestError(400, "a preview keeps no progress", "which")
+        return jsonify(replays.progress(rt, who, scene_id))
     return jsonify(rt.scene(scene_id, which))
 
 

@@ -2,7 +2,7 @@
 and WebKit (Safari's) — driven the same way (engines.py), behind a proxy that brings the field's faults
 (faultproxy.py): the device check, consent, surveys, instructions, a trial in each condition with shift-click
 suggestions, another suggestion swapped in, search, a drag along the floor, Q/E, the ring, delete, undo and redo,
-a reload mid-trial, a spell without network, a refused event (422), a busy server (429), seqs another sender took
+a reload mid-trial, going on in a fresh browser (the scene rebuilt from the server's events), a spell without network, a refused event (422), a busy server (429), seqs another sender took
 (409), done, the exit survey and the code. The database must then hold every event once, gap-free, and each
 trial's events must rebuild the scene it submitted.
 
@@ -17,6 +17,8 @@ import sqlite3
 
 import pytest
 import urllib3
+
+from scenesuggest.contract.replay import differences
 
 from .engines import DRIVERS, ENGINES, Display, require
 from .faultproxy import FaultProxy
@@ -37,7 +39,8 @@ def walk_study(tmp_path_factory, demo_resources):
     study = copy_demo_study(tmp)
     text = study.read_text()
     assert 'scenes = ["desk-corner", "bedside", "sofa-corner"]' in text
-    study.write_text(text.replace('scenes = ["desk-corner", "bedside", "sofa-corner"]', 'scenes = ["desk-corner"]'))
+    text = text.replace('scenes = ["desk-corner", "bedside", "sofa-corner"]', 'scenes = ["desk-corner"]')
+    study.write_text(text.replace('kind = "link"', 'kind = "prolific"'))  # its SESSION_ID lets a browser resume
     database = tmp / "study.sqlite3"
     make_app(tmp, f"sqlite:///{database}", studies=[study])
     with StudyServer(tmp / "instance", f"sqlite:///{database}", migrate=False, study=study) as server, \
@@ -47,9 +50,9 @@ def walk_study(tmp_path_factory, demo_resources):
 
 @pytest.fixture(scope="module")
 def display():
-    from .engines import XVFB
-
     from pathlib import Path
+
+    from .engines import XVFB
     if not Path(XVFB).exists():
         yield None
         return
@@ -201,6 +204,13 @@ def taken_seqs(d, base: str, n: int = 3) -> None:
     assert r.status == 200, r.data
 
 
+def enter(d, base: str, entry: str) -> None:
+    """Follow the entry link in a page that asks for the trial page's test hook (on the study's origin)."""
+    d.goto(f"{base}/study/demo/")
+    d.evaluate("sessionStorage.setItem('sceneSuggestTestHook', '1')")
+    d.goto(entry)
+
+
 def done(d):
     d.click("#done-button")
     d.submit("#confirm-yes", timeout=60)
@@ -210,12 +220,12 @@ def done(d):
 def test_a_participant_walks_the_study_in_every_engine(engine, walk_study, display):
     require(engine)
     proxy, database = walk_study
-    base, pid = proxy.base, f"walk-{engine}"
+    n = ENGINES.index(engine) + 1
+    base, pid = proxy.base, f"{n:024x}"
+    entry = f"{base}/study/demo/start?PROLIFIC_PID={pid}&SESSION_ID={n + 1000:024x}"
     d = DRIVERS[engine](display)
     try:
-        d.goto(f"{base}/study/demo/")
-        d.evaluate("sessionStorage.setItem('sceneSuggestTestHook', '1')")
-        d.goto(f"{base}/study/demo/start?pid={pid}")
+        enter(d, base, entry)
         assert d.until("document.body.dataset.step !== 'device' && document.body.dataset.step") == "consent"
         with sqlite3.connect(database) as con:
             (report,) = con.execute("SELECT viewport FROM participants WHERE platform_id = ?", (pid,)).fetchone()
@@ -244,6 +254,16 @@ def test_a_participant_walks_the_study_in_every_engine(engine, walk_study, displ
                 d.until("window.sceneSuggestTest.pending() === 0")
                 taken_seqs(d, base)
                 d.click_at(*hook(d, "worldToPixel(1.5, 0, -1.5)"))  # events under the seqs taken: 409, renumbered
+            if position == 2:  # the participant goes on in a fresh browser: the scene comes back from the server
+                d.until("window.sceneSuggestTest.pending() === 0")
+                before = objects(d)
+                d.close()
+                d = DRIVERS[engine](display)
+                enter(d, base, entry)
+                ready(d)
+                assert not differences(before, list(objects(d).values()))  # (states as the events round them)
+                assert "brought back from the study's server" in d.evaluate("document.getElementById('banner')"
+                                                                             ".textContent")
             done(d)
         assert d.evaluate("document.body.dataset.step") == "exit"
         assert conditions[0] == "full" and sorted(conditions[1:]) == ["basic", "full", "none"]

@@ -72,6 +72,7 @@ function ringPixel(viewer, ring, deg) {
 /** The scene, the outbox and the renderer as the page holds them. */
 function stateHelpers({ viewer, scene, outbox }) {
   const canvas = viewer.renderer.domElement;
+  let lose = null;
   return {
     objects: () => [...scene.objects.values()].map(SceneModel.toJSON),
     lastSeq: () => outbox.lastSeq,
@@ -86,6 +87,11 @@ function stateHelpers({ viewer, scene, outbox }) {
     renderInfo: () => ({ calls: viewer.renderer.info.render.calls, triangles: viewer.renderer.info.render.triangles }),
     orbit: (ms, options) => orbit(viewer, ms, options),
     firstFrameAt: () => viewer.firstFrameAt ?? null,
+    /** Take the editor's WebGL context away, or give it back, as a GPU reset would (WEBGL_lose_context; the
+     * extension is asked for while the context lives: a lost context gives none). */
+    loseContext: () => { lose = viewer.renderer.getContext().getExtension("WEBGL_lose_context"); lose.loseContext();
+      return true; },
+    restoreContext: () => { lose.restoreContext(); return true; },
     targetObjects: () => viewer.target.objects,
     loaded: () => Promise.all([...viewer.meshes.values()].map((m) => m.userData.ready).concat([viewer.target.ready])),
   };

@@ -142,14 +142,22 @@ async function loadTestHook() {
   return installTestHook(trial);
 }
 
-/** The models, the target, and the scene to edit: the one kept from before a reload, else the trial's start
+/** The models, the target, and the scene to edit: the one this browser kept (from before a reload), unless the
+ * server holds a newer change of this trial (the participant went on in another browser, or this one lost its
+ * storage): then the scene the server's events rebuild, and the participant is told. Else the trial's start
  * (authoring edits the target itself). */
 async function load() {
   if (!boot.preview) outbox.resumeFrom((await json("/session")).acked_seq);
+  const which = boot.author ? "target" : boot.preview ? "start" : "progress";
   const [models, target, start] = await Promise.all([json("/models"), json(`/scenes/${trial.scene}?which=target`),
-    json(`/scenes/${trial.scene}?which=${boot.author ? "target" : "start"}`)]);
+    json(`/scenes/${trial.scene}?which=${which}`)]);
   say("");
   const saved = localStorage.getItem(sceneKey);
+  const savedSeq = Number(localStorage.getItem(`${sceneKey}-seq`) ?? -1);
+  if (start.changes > 0 && (!saved || start.last_change_seq > savedSeq)) {
+    say(strings.restored, { action: strings.close, onAction: () => say("") });
+    return { models: models.models, target, scene: new SceneModel(start), saved: true };
+  }
   return { models: models.models, target, scene: new SceneModel(saved ? JSON.parse(saved) : start), saved: !!saved };
 }
 
@@ -169,7 +177,10 @@ function makeEditor(viewer, models, scene) {
   const editor = new Editor({ viewer, models: library, scene, condition: trial.condition, trial: trial.index, log, strings,
     onChange: () => {
       if (steppedAside) return;  // the newer page keeps the scene now
-      try { localStorage.setItem(sceneKey, JSON.stringify(scene.toJSON())); } catch (e) { /* storage full */ }
+      try {
+        localStorage.setItem(sceneKey, JSON.stringify(scene.toJSON()));
+        localStorage.setItem(`${sceneKey}-seq`, String(outbox.lastSeq));  // the change this copy holds
+      } catch (e) { /* storage full */ }
       $("delete-button").disabled = !editor.selected;
     } });
   editor.disabled = steppedAside;
@@ -188,6 +199,23 @@ function logStart(saved) {
   if (fresh) log("trial_start", { scene: trial.scene, condition: trial.condition });
   else log("resume", { reason: performance.getEntriesByType("navigation")[0]?.type || "reload" });
   outbox.flush();
+}
+
+/** A WebGL context the browser takes away mid-trial (a GPU reset, too many contexts): the participant is told and
+ * may reload (the scene and the outbox are kept); when the browser gives it back, three.js rebuilds what it drew
+ * and the view goes on. The server hears of both as client_error events. */
+function watchContext(viewer) {
+  const canvas = viewer.renderer.domElement;
+  canvas.addEventListener("webglcontextlost", () => {
+    log("client_error", { message: "WebGL context lost" });
+    outbox.flush();
+    say(strings.contextLost, { action: strings.reload, onAction: () => location.reload() });
+  });
+  canvas.addEventListener("webglcontextrestored", () => {
+    log("client_error", { message: "WebGL context restored" });
+    say("");
+    viewer.invalidate();
+  });
 }
 
 function wireToolbar(viewer, editor) {
@@ -237,6 +265,7 @@ async function main() {
     say(strings.noWebgl);
     return;
   }
+  watchContext(viewer);
   const { library, editor } = makeEditor(viewer, models, scene);
   viewer.startControls();
   viewer.setRoom(scene);
@@ -268,6 +297,7 @@ async function finish(scene) {
       const r = await api("/trial/done", { method: "POST", body: JSON.stringify({ trial: trial.index, scene: scene.objectsJSON(), last_seq: outbox.lastSeq }) });
       if (r.ok || r.status === 409 || r.status === 410) {  // done, done before, or the session has ended
         localStorage.removeItem(sceneKey);
+        localStorage.removeItem(`${sceneKey}-seq`);
         location.assign(boot.next);
         return;
       }
