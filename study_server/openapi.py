@@ -110,10 +110,12 @@ def _trial_paths(auth: list) -> dict:
     """A trial's target and start scenes, and its end."""
     return {
         "/api/scenes/{scene_id}": {"get": {
-            "summary": "A target or start scene of this session (native scene JSON)", "security": auth,
+            "summary": "A target or start scene of this session (native scene JSON); `progress`: the current "
+                       "trial's scene as its stored events rebuild it, with `changes` and `last_change_seq`",
+            "security": auth,
             "parameters": [{"name": "scene_id", "in": "path", "required": True, "schema": {"type": "string"}},
                            {"name": "which", "in": "query", "required": False,
-                            "schema": {"type": "string", "enum": ["target", "start"]}}],
+                            "schema": {"type": "string", "enum": ["target", "start", "progress"]}}],
             "responses": {**_ok({"type": "object"}), **_errors(400, 401, 404)}}},
         "/api/trial/done": {"post": {
             "summary": "Finish the current trial with its final scene", "security": auth,

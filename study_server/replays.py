@@ -26,10 +26,10 @@ def trial_events(participant_id: int, index: int) -> list[dict]:
 
 
 def progress(rt: StudyRuntime, p, scene_id: str) -> dict:
-    """The participant's current trial, when it is on ``scene_id``, as far as its stored events rebuild it: the start scene's document
-    with the rebuilt ``objects``, ``changes`` (its scene-changing events; 0: nothing to restore) and
-    ``last_change_seq`` (the seq of the last of them, −1: none). What a page in a browser that kept no copy of the
-    scene (another browser, a cleared storage) starts from."""
+    """The participant's current trial, when it is on ``scene_id``, as far as its stored events rebuild it: the
+    start scene's document with the rebuilt ``objects``, ``changes`` (its scene-changing events; 0: nothing to
+    restore) and ``last_change_seq`` (the seq of the last of them, −1: none). What a page in a browser that kept
+    no copy of the scene (another browser, a cleared storage) starts from."""
     doc = rt.scene(scene_id, "start")
     t = db.session.scalar(select(Trial).where(Trial.participant_id == p.id, Trial.position == p.position,
                                               Trial.scene_id == scene_id))  # the current trial, if on this scene

@@ -2,9 +2,10 @@
 and WebKit (Safari's) — driven the same way (engines.py), behind a proxy that brings the field's faults
 (faultproxy.py): the device check, consent, surveys, instructions, a trial in each condition with shift-click
 suggestions, another suggestion swapped in, search, a drag along the floor, Q/E, the ring, delete, undo and redo,
-a reload mid-trial, going on in a fresh browser (the scene rebuilt from the server's events), a spell without network, a refused event (422), a busy server (429), seqs another sender took
-(409), done, the exit survey and the code. The database must then hold every event once, gap-free, and each
-trial's events must rebuild the scene it submitted.
+a reload mid-trial, going on in a fresh browser (the scene rebuilt from the server's events), a spell without
+network, a refused event (422), a busy server (429), seqs another sender took (409), done, the exit survey and
+the code. The database must then hold every event once, gap-free, and each trial's events must rebuild the scene
+it submitted.
 
 The study is the demo cut to one scene per condition (four trials with the practice): every step and fault of a
 trial is in it, at a third of the demo's length, which keeps the three runs within the CI budget."""
