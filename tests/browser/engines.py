@@ -14,7 +14,6 @@ import json
 import os
 import shutil
 import subprocess
-import tempfile
 import time
 from pathlib import Path
 
@@ -229,14 +228,14 @@ class FirefoxDriver(Driver):
 
 
 class WebKitDriver(Driver):
-    """WebKitGTK through WebKitWebDriver (Selenium), headful on ``display``. It exposes no console."""
+    """WebKitGTK through WebKitWebDriver (Selenium), headful on ``display``; each session is an ephemeral profile
+    (WebKit's automation sessions keep no storage). It exposes no console."""
 
     name = "webkit"
 
     def __init__(self, display: Display | None = None):
         from selenium import webdriver
 
-        self._profile = tempfile.mkdtemp(prefix="webkit-")
         options = webdriver.WebKitGTKOptions()
         service = webdriver.WebKitGTKService(executable_path=WEBKIT_DRIVER, env=display.env if display else None)
         self._d = webdriver.WebKitGTK(options=options, service=service)
@@ -298,7 +297,6 @@ class WebKitDriver(Driver):
 
     def close(self):
         self._d.quit()
-        shutil.rmtree(self._profile, ignore_errors=True)
 
 
 DRIVERS = {"chromium": ChromiumDriver, "firefox": FirefoxDriver, "webkit": WebKitDriver}

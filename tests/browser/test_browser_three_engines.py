@@ -164,6 +164,7 @@ def faults(d, proxy: FaultProxy):
     d.reload()
     ready(d)
     assert objects(d).keys() == before.keys()
+    assert "brought back" not in d.evaluate("document.getElementById('banner').textContent")  # its own copy
     d.until("window.sceneSuggestTest.pending() === 0")
     gone = {"on": True}
     proxy.rules.append(("/api/events", lambda *_: "drop" if gone["on"] else None))

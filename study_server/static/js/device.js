@@ -26,6 +26,14 @@ const FEATURES = {
 };
 
 const nextFrame = () => new Promise((resolve) => requestAnimationFrame(resolve));
+/** Resolves once the page shows (a link opened in a background tab is checked when the participant looks). */
+const visible = () => new Promise((resolve) => {
+  if (!document.hidden) { resolve(); return; }
+  const shown = () => { if (!document.hidden) { document.removeEventListener("visibilitychange", shown); resolve(); } };
+  document.addEventListener("visibilitychange", shown);
+});
+const RETRIES_KEY = "scenesuggest-device-retries";
+const MAX_FPS = 1000;  // study_server.device.MAX_FPS
 
 /** A small room with the editor's materials, drawn by a renderer made as the editor makes it: what is missing
  * ("webgl2", "shaders") and the frames per second it drew, with the GPU's name where the browser gives it. */
@@ -66,9 +74,15 @@ async function probe(THREE, shading) {
   if (shaderFailed || gl.isContextLost()) return { missing: ["shaders"], renderer: name };
   let frames = -WARM_UP;
   let from = 0;
-  const began = performance.now();
+  let began = performance.now();
   for (;;) {
+    await visible();
     await nextFrame();
+    if (document.hidden) {  // a tab in the background draws no frames: time only while it shows
+      frames = -WARM_UP;
+      began = performance.now();
+      continue;
+    }
     group.rotation.y += 0.02;
     renderer.render(scene, camera);
     gl.finish?.();
@@ -88,6 +102,17 @@ async function check() {
   let result = { missing: ["importmap"] };
   const mapped = !HTMLScriptElement.supports || HTMLScriptElement.supports("importmap");
   const loaded = mapped && await Promise.all([import("three"), import("./shading.js")]).catch(() => null);
+  if (mapped && !loaded) {  // import maps work here: the download failed (a flaky network); load the page again
+    let retries = 2;
+    try {
+      retries = Number(sessionStorage.getItem(RETRIES_KEY) || 0);
+      sessionStorage.setItem(RETRIES_KEY, String(retries + 1));
+    } catch (e) { /* storage blocked: no retry (it is reported as missing anyway) */ }
+    if (retries < 2) {
+      setTimeout(() => location.reload(), 1000 * (retries + 1));
+      return;
+    }
+  }
   if (loaded) result = await probe(...loaded).catch(() => ({ missing: ["webgl2"] }));
   missing.push(...result.missing);
   form.missing.value = missing.join(",");
@@ -97,8 +122,9 @@ async function check() {
   const coarse = window.matchMedia && window.matchMedia("(pointer: coarse)").matches;
   const fine = window.matchMedia && window.matchMedia("(any-pointer: fine)").matches;
   form.touch_only.value = coarse && !fine ? "true" : "false";
-  form.fps.value = result.fps === undefined ? "" : result.fps.toFixed(2);
-  form.renderer.value = result.renderer || "";
+  form.fps.value = result.fps === undefined ? "" : Math.min(result.fps, MAX_FPS).toFixed(2);
+  // the GPU's name as the server takes it: printable, within the Basic Multilingual Plane, 200 characters
+  form.renderer.value = (result.renderer || "").replace(/[^\x20-\x7e\u00a0-\uffff]/gu, "").slice(0, 200);
   form.submit();
 }
 

@@ -225,7 +225,8 @@ export class Editor {
     if (e.button !== 0) return;
     this.press = { x: e.clientX, y: e.clientY, t: performance.now(), shift: e.shiftKey };
     const hit = this.viewer.pick(e.clientX, e.clientY, { extra: this.ring.visible ? [this.ring] : [] });
-    if (hit?.handle === "rotate" || this.nearRing(e.clientX, e.clientY)) {
+    // the ring's hit area reaches beyond its tube, but never over an object under the pointer
+    if (hit?.handle === "rotate" || ((!hit || hit.room) && !e.shiftKey && this.nearRing(e.clientX, e.clientY))) {
       this.startRotate(e, hit);
     } else if (hit && !hit.room && hit.objectId && !e.shiftKey && !this.placingModel) {
       this.drag = { id: hit.objectId, start: { x: e.clientX, y: e.clientY }, moved: false, distance: 0,

@@ -1,7 +1,9 @@
 // The page's hook for the browser tests and the client benchmark, as `window.sceneSuggestTest`. trial.js imports
-// this module only when `window.sceneSuggestTestHook` is set before the page's scripts run, so a participant's
-// page never loads it and keeps no copy of its events. It records what the page logs and reports, and converts
-// world points to pixels so that tests click real pixels on real objects instead of guessing coordinates.
+// this module only when `window.sceneSuggestTestHook` is set before the page's scripts run, or `sceneSuggestTestHook`
+// is in the tab's sessionStorage (tests/browser/engines.py): a participant's page does not load it. It only reads
+// the page (and can take the WebGL context away, as a GPU reset would), so a participant who switches it on in their
+// own tab gains nothing their browser's developer tools do not give. It records what the page logs and reports, and
+// converts world points to pixels so that tests click real pixels on real objects instead of guessing coordinates.
 import * as THREE from "three";
 import * as G from "./geometry.js";
 import { SceneModel } from "./scene-model.js";

@@ -177,10 +177,13 @@ function makeEditor(viewer, models, scene) {
   const editor = new Editor({ viewer, models: library, scene, condition: trial.condition, trial: trial.index, log, strings,
     onChange: () => {
       if (steppedAside) return;  // the newer page keeps the scene now
-      try {
-        localStorage.setItem(sceneKey, JSON.stringify(scene.toJSON()));
-        localStorage.setItem(`${sceneKey}-seq`, String(outbox.lastSeq));  // the change this copy holds
-      } catch (e) { /* storage full */ }
+      // kept once the change's event is logged (the editor logs it after this call), with its seq
+      queueMicrotask(() => {
+        try {
+          localStorage.setItem(sceneKey, JSON.stringify(scene.toJSON()));
+          localStorage.setItem(`${sceneKey}-seq`, String(outbox.lastSeq));
+        } catch (e) { /* storage full */ }
+      });
       $("delete-button").disabled = !editor.selected;
     } });
   editor.disabled = steppedAside;
