@@ -60,14 +60,15 @@ function grabPixel(viewer, b, id) {
 }
 
 /** Pixel of the selected object's rotation ring at ``deg`` degrees about its support normal (0° = the plane's
- * zero direction: +Z on floors), on the ring as drawn (a whole pixel near it is on its hit area), or null when no
- * ring shows. */
+ * zero direction: +Z on floors), on the support plane under the ring (a whole pixel there is within the ring's hit
+ * area), or null when no ring shows. */
 function ringPixel(viewer, ring, deg) {
   if (!ring.visible) return null;
   const n = new THREE.Vector3(0, 0, 1).applyQuaternion(ring.quaternion);
   const zero = G.isHorizontal(n) ? new THREE.Vector3(0, 0, 1) : new THREE.Vector3(0, 1, 0);
   zero.addScaledVector(n, -zero.dot(n)).normalize();
-  const p = zero.applyAxisAngle(n, THREE.MathUtils.degToRad(deg)).multiplyScalar(ring.scale.x).add(ring.position);
+  const p = zero.applyAxisAngle(n, THREE.MathUtils.degToRad(deg)).multiplyScalar(ring.scale.x).add(ring.position)
+    .addScaledVector(n, -0.01);  // on the support plane, where the turn is measured (within the ring's hit area)
   return viewer.worldToPixel(p.x, p.y, p.z);
 }
 
