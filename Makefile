@@ -60,7 +60,8 @@ audit: $(PIP_STAMP) $(NPM_STAMP)
 	$(BIN)/python .ci/audit
 
 # Every test: those without a browser on two processes (a test file each at a time, single-threaded BLAS, as in
-# test-fast), then the browser tests, which drive Chromium (and Firefox and WebKit on Xvfb) and a server of their own, one at a time.
+# test-fast), then the browser tests, which drive Chromium (Firefox and WebKit on Xvfb) and a server of their own,
+# one at a time.
 PARALLEL := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(BIN)/pytest -n 2 --dist loadfile
 pytest: setup
 	$(PARALLEL) -m "not browser"
