@@ -15,6 +15,7 @@ import os
 import shutil
 import subprocess
 import time
+from abc import ABC, abstractmethod
 from pathlib import Path
 
 from conftest import IN_CI, ROOT  # tests/conftest.py (this folder is a package)
@@ -71,23 +72,35 @@ class Display:
         self.proc.wait(10)
 
 
-class Driver:
+class Driver(ABC):
     """One page of one browser engine (see the module's docstring)."""
 
     name = ""
     version = ""
 
-    # --- each engine's own ---------------------------------------------------------------------------------
-    def goto(self, url: str) -> None: raise NotImplementedError
-    def reload(self) -> None: raise NotImplementedError
-    def evaluate(self, expression: str): raise NotImplementedError
-    def click(self, selector: str) -> None: raise NotImplementedError
-    def fill(self, selector: str, text: str) -> None: raise NotImplementedError
-    def mouse(self, action: str, x: float = 0, y: float = 0) -> None: raise NotImplementedError
-    def key(self, action: str, key: str) -> None: raise NotImplementedError
-    def screenshot(self, path: Path) -> None: raise NotImplementedError
-    def problems(self) -> list[str] | None: return None  # console errors since last asked (None: unknown)
-    def close(self) -> None: raise NotImplementedError
+    # --- each engine's own (every driver below implements them) --------------------------------------------
+    @abstractmethod
+    def goto(self, url: str) -> None: ...
+    @abstractmethod
+    def reload(self) -> None: ...
+    @abstractmethod
+    def evaluate(self, expression: str): ...
+    @abstractmethod
+    def click(self, selector: str) -> None: ...
+    @abstractmethod
+    def fill(self, selector: str, text: str) -> None: ...
+    @abstractmethod
+    def mouse(self, action: str, x: float = 0, y: float = 0) -> None: ...
+    @abstractmethod
+    def key(self, action: str, key: str) -> None: ...
+    @abstractmethod
+    def screenshot(self, path: Path) -> None: ...
+    @abstractmethod
+    def close(self) -> None: ...
+
+    def problems(self) -> list[str] | None:
+        """Console errors since last asked (None: the engine's driver shows no console)."""
+        return None
 
     # --- the same in every engine ---------------------------------------------------------------------------
     def until(self, expression: str, timeout: float = 30.0):
