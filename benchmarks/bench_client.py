@@ -1,12 +1,18 @@
-"""Client benchmark: the trial page in headless Chromium (WebGL on SwiftShader) at 800×600 with 60 objects.
+"""Client benchmark: the trial page at 800×600 with 60 objects in each browser engine a crowd uses — Chromium
+(headless, WebGL on SwiftShader), Firefox ESR and WebKitGTK (Safari's engine; both on Xvfb, WebGL on Mesa's
+llvmpipe) — each run in a fresh profile, driven as the browser tests drive them (``browsers.py``).
 
 Measures the frame rate while the camera orbits (one step per animation frame, through the page's own orbit
 controls) — ``fps`` as participants get it (the view drops to ``motion_scale`` of its resolution while the camera
 moves if frames come slower than 30 ms, sharp again when it stops) and ``fps_sharp`` with that adaptation off —,
-the time from navigation to the first rendered frame, and
-the bytes transferred for the trial page (HTML, JS, CSS, models, thumbnails). Budgets on a 2-core machine:
-≥ 30 fps, first frame ≤ 2 s on localhost, ≤ 5 MB for the demo trial page.
-Usage: .venv/bin/python benchmarks/bench_client.py [--objects 60] [--seconds 5]
+the time from navigation to the first rendered frame, and the bytes transferred for the trial page (HTML, JS, CSS,
+models, thumbnails). Each engine is measured ``--runs`` times, the engines taking turns within a run so that the
+machine's noise falls on each alike; it prints each figure's median and range per engine, and the other engines'
+medians as a ratio of Chromium's. With software WebGL these are figures of this machine, to compare engines by —
+not a promise for a participant's GPU. Budgets on a 2-core machine, in every engine: ≥ 30 fps, first frame ≤ 2 s on
+localhost, ≤ 5 MB for the demo trial page.
+Usage: .venv/bin/python benchmarks/bench_client.py [--objects 60] [--seconds 5] [--runs 3]
+       [--engines chromium,firefox,webkit]
 """
 
 from __future__ import annotations
@@ -14,23 +20,19 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import shutil
+import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import checkout
+from browsers import DRIVERS, ENGINES, Display, Driver, missing
 from demostudy import to_first_trial
 from serverproc import StudyServer, demo_missing
 
 from simulation.transport import HttpTransport
 
 ROOT = Path(__file__).resolve().parents[1]
-
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
 
 
 def scene_with(models: list[dict], n: int) -> dict:
@@ -64,93 +66,132 @@ TRANSFERRED = """() => {
 }"""
 
 
+RENDERER = """(() => {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  const info = gl && gl.getExtension('WEBGL_debug_renderer_info');
+  return gl ? String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER)).slice(0, 120) : null;
+})()"""
+
+
 def parse_args() -> argparse.Namespace:
-    """The command line: objects in the room and the length of each orbit (s)."""
-    parser = argparse.ArgumentParser(description=__doc__)
+    """The command line: objects in the room, the length of each orbit (s), runs, engines."""
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--objects", type=int, default=60)
     parser.add_argument("--seconds", type=float, default=5.0)
-    return parser.parse_args()
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--engines", default=",".join(ENGINES),
+                        help="comma-separated, of " + ", ".join(ENGINES) + " (default: all)")
+    args = parser.parse_args()
+    args.engines = [e.strip() for e in args.engines.split(",") if e.strip()]
+    unknown = sorted(set(args.engines) - set(ENGINES))
+    if unknown or not args.engines or args.runs < 1 or args.objects < 1 or args.seconds <= 0:
+        parser.error(f"unknown engine {unknown}" if unknown else "--runs, --objects and --seconds must be > 0 "
+                     "and --engines name at least one engine")
+    return args
 
 
-def walk_to_trial(base: str, objects: int) -> tuple[HttpTransport, str, str]:
-    """The participant's walk to the first trial over HTTP: its transport, the page's scene key, the scene as JSON."""
+def walk_to_trial(base: str, objects: int, who: str) -> tuple[HttpTransport, str, str]:
+    """Participant ``who``'s walk to the first trial over HTTP: its transport, the page's scene key, the scene
+    (``objects`` on the floor) as JSON."""
     http = HttpTransport(base)
-    boot = to_first_trial(http, "bench-client").boot
+    boot = to_first_trial(http, who).boot
     models = http.get("/api/models", headers={"Authorization": f"Bearer {boot['token']}"}).json()["models"]
     key = f"scenesuggest-scene-{boot['study']}-{boot['token'][-12:]}-{boot['trial']['index']}"
     return http, key, json.dumps(scene_with(models, objects))
 
 
-def open_trial(browser, http: HttpTransport, base: str, key: str, scene: str):
-    """The trial page at 800×600 with the participant's cookies, resumed from ``scene``, its hook ready (≤ 20 s)."""
-    fresh = browser.new_context(viewport={"width": 800, "height": 600})
-    fresh.add_cookies(http.cookies())
-    # the scene the page resumes from, and the test hook (loaded only when asked for)
-    fresh.add_init_script(f"localStorage.setItem({json.dumps(key)}, {json.dumps(scene)}); "
-                          "window.sceneSuggestTestHook = true")
-    page = fresh.new_page()
-    page.goto(f"{base}/study/demo/")
-    for _ in range(400):
-        if page.evaluate("() => !!(window.sceneSuggestTest && window.sceneSuggestTest.ready)"):
-            break
-        time.sleep(0.05)
-    return page
+def open_trial(driver: Driver, http: HttpTransport, base: str, key: str, scene: str) -> None:
+    """The trial page in ``driver``'s fresh profile as the participant ``http`` walked there, resumed from
+    ``scene`` (put in the origin's localStorage first), with the test hook asked for; waits until it is ready."""
+    driver.goto(f"{base}/healthz")  # the study's origin, for its cookies and storage
+    driver.add_cookies(base, http.cookies())
+    driver.evaluate(f"(localStorage.setItem({json.dumps(key)}, {json.dumps(scene)}), "
+                    "sessionStorage.setItem('sceneSuggestTestHook', '1'), true)")
+    driver.goto(f"{base}/study/demo/")
+    driver.until("!!(window.sceneSuggestTest && window.sceneSuggestTest.ready)", timeout=60)
 
 
-def measure(page, seconds: float) -> dict:
-    """The page's first frame (ms), objects, orbits of ``seconds`` s sharp and adaptive, draws and bytes loaded."""
-    page.evaluate("() => window.sceneSuggestTest.loaded()")
-    first_frame = page.evaluate("() => window.sceneSuggestTest.firstFrameAt()")
-    count = len(page.evaluate("() => window.sceneSuggestTest.objects()")) - 1
-    time.sleep(0.5)
-    sharp = page.evaluate(f"() => window.sceneSuggestTest.orbit({seconds * 1000}, {{adaptive: false}})")
-    time.sleep(0.5)
-    orbit = page.evaluate(f"() => window.sceneSuggestTest.orbit({seconds * 1000})")
-    drawn = page.evaluate("() => window.sceneSuggestTest.renderInfo()")
-    return {"first_frame": first_frame, "count": count, "sharp": sharp, "orbit": orbit, "drawn": drawn,
-            "transferred": page.evaluate(TRANSFERRED)}
+def measure(driver: Driver, seconds: float) -> dict:
+    """The page's first frame (ms), objects, orbits of ``seconds`` s sharp and adaptive, draws, bytes loaded and
+    the WebGL renderer."""
+    hook = "window.sceneSuggestTest"
+    driver.evaluate(f"{hook}.loaded().then(() => true)")
+    measured = {"first_frame": driver.evaluate(f"{hook}.firstFrameAt()"),
+                "count": driver.evaluate(f"{hook}.objects().length") - 1}
+    driver.evaluate("new Promise((r) => setTimeout(r, 500))")
+    measured["sharp"] = driver.evaluate(f"{hook}.orbit({seconds * 1000}, {{adaptive: false}})")
+    driver.evaluate("new Promise((r) => setTimeout(r, 500))")
+    measured["orbit"] = driver.evaluate(f"{hook}.orbit({seconds * 1000})")
+    measured["drawn"] = driver.evaluate(f"{hook}.renderInfo()")
+    measured["transferred"] = driver.evaluate(f"({TRANSFERRED.strip()})()")
+    measured["renderer"] = driver.evaluate(RENDERER)
+    return measured
 
 
-def report(measured: dict) -> dict:
-    """The printed result: frame rates (fps), first frame (ms), sizes (MB) and requests."""
+def figures(measured: dict) -> dict:
+    """One run's figures: frame rates (fps), first frame (ms), sizes (MB) and requests."""
     orbit, sharp, drawn, transferred = (measured[k] for k in ("orbit", "sharp", "drawn", "transferred"))
     total = transferred["page"] + max(transferred["transfer"], transferred["body"])
-    return {
-        "benchmark": "client",
-        "viewport": "800x600",
-        "objects": measured["count"],
-        "fps": round(orbit["fps"], 1),
-        "motion_scale": orbit["scale"],
-        "fps_sharp": round(sharp["fps"], 1),
-        "draw_calls": drawn["calls"],
-        "triangles": drawn["triangles"],
-        "first_frame_ms": round(measured["first_frame"], 1),
-        "page_mb": round(total / 2**20, 3),
-        "js_mb": round(transferred["js"] / 2**20, 3),
-        "models_mb": round(transferred["models"] / 2**20, 3),
-        "requests": transferred["count"] + 1,
-        "renderer": "SwiftShader (software WebGL)",
-    }
+    return {"objects": measured["count"], "fps": round(orbit["fps"], 1), "motion_scale": orbit["scale"],
+            "fps_sharp": round(sharp["fps"], 1), "draw_calls": drawn["calls"], "triangles": drawn["triangles"],
+            "first_frame_ms": round(measured["first_frame"], 1), "page_mb": round(total / 2**20, 3),
+            "js_mb": round(transferred["js"] / 2**20, 3), "models_mb": round(transferred["models"] / 2**20, 3),
+            "requests": transferred["count"] + 1, "renderer": measured["renderer"]}
+
+
+SPREAD = ("fps", "fps_sharp", "first_frame_ms", "page_mb")
+
+
+def summary(runs: dict[str, list[dict]], versions: dict[str, str]) -> dict:
+    """Per engine: each figure of :data:`SPREAD` as median and [min, max] over the runs, the others from the last
+    run; and each engine's medians as a ratio of Chromium's (when Chromium ran)."""
+    engines = {}
+    for engine, figs in runs.items():
+        out = {"version": versions[engine], **{k: v for k, v in figs[-1].items() if k not in SPREAD}}
+        for k in SPREAD:
+            values = [f[k] for f in figs]
+            out[k] = {"median": round(statistics.median(values), 3), "range": [min(values), max(values)]}
+        engines[engine] = out
+    ratios = {}
+    if "chromium" in engines:
+        base = engines["chromium"]
+        for engine, out in engines.items():
+            if engine != "chromium":
+                ratios[f"{engine}/chromium"] = {k: round(out[k]["median"] / base[k]["median"], 3) for k in SPREAD
+                                               if base[k]["median"]}
+    return {"benchmark": "client", "viewport": "800x600", "runs": len(next(iter(runs.values()))),
+            "engines": engines, "ratios": ratios}
 
 
 def main() -> int:
     args = parse_args()
     checkout.require(ROOT)
-    chromium = shutil.which("chromium") or "/usr/bin/chromium"
-    if not Path(chromium).exists() or demo_missing():
-        print(json.dumps({"benchmark": "client", "error": demo_missing() or "needs Chromium (apt)"}))
+    absent = {e: missing(e) for e in args.engines if missing(e)}
+    if absent or demo_missing():
+        print(json.dumps({"benchmark": "client", "error": demo_missing() or absent}))
         return 1
-    from playwright.sync_api import sync_playwright
-
-    with tempfile.TemporaryDirectory() as tmp, \
-            StudyServer(Path(tmp) / "instance", f"sqlite:///{tmp}/db.sqlite3") as server:
-        # the participant walks to the first trial over HTTP; the browser then carries on with its cookies
-        http, key, scene = walk_to_trial(server.base, args.objects)
-        with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=chromium, args=ARGS)
-            measured = measure(open_trial(browser, http, server.base, key, scene), args.seconds)
-            browser.close()
-    print(json.dumps(report(measured), indent=1))
+    runs: dict[str, list[dict]] = {e: [] for e in args.engines}
+    versions: dict[str, str] = {}
+    display = Display() if set(args.engines) - {"chromium"} else None  # Firefox and WebKit draw on Xvfb
+    try:
+        with tempfile.TemporaryDirectory() as tmp, \
+                StudyServer(Path(tmp) / "instance", f"sqlite:///{tmp}/db.sqlite3") as server:
+            for run in range(args.runs):
+                for engine in args.engines:
+                    # each participant walks to the first trial over HTTP; the browser carries on with its cookies
+                    http, key, scene = walk_to_trial(server.base, args.objects, f"bench-{engine}-{run}")
+                    driver = DRIVERS[engine](display)
+                    try:
+                        versions[engine] = driver.version
+                        open_trial(driver, http, server.base, key, scene)
+                        runs[engine].append(figures(measure(driver, args.seconds)))
+                    finally:
+                        driver.close()
+                    print(f"run {run + 1}/{args.runs} {engine}: {json.dumps(runs[engine][-1])}", file=sys.stderr)
+    finally:
+        if display:
+            display.close()
+    print(json.dumps(summary(runs, versions), indent=1))
     return 0
 
 

@@ -38,7 +38,8 @@ import time
 from pathlib import Path
 
 import checkout
-from bench_client import ARGS, scene_with
+from bench_client import scene_with
+from browsers import CHROMIUM_ARGS as ARGS
 from demostudy import to_first_trial
 from large_library import STUDY_ID, demo_resources, library_models, write_study
 from serverproc import StudyServer, demo_missing

@@ -3,16 +3,12 @@ server run as `make serve` runs it, and the trial page's test hook."""
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
+from browsers import CHROMIUM  # benchmarks/browsers.py
+from browsers import CHROMIUM_ARGS as ARGS
 from conftest import IN_CI, copy_demo_study, gunicorn, make_app  # tests/conftest.py (this folder is a package)
-
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]
 
 
 def _require_browser():

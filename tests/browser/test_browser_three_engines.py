@@ -1,5 +1,5 @@
 """A participant's whole way through a study in each of the three browser engines a crowd uses — Chromium, Firefox
-and WebKit (Safari's) — driven the same way (engines.py), behind a proxy that brings the field's faults
+and WebKit (Safari's) — driven the same way (benchmarks/browsers.py), behind a proxy that brings the field's faults
 (faultproxy.py): the device check, consent, surveys, instructions, a trial in each condition with shift-click
 suggestions, another suggestion swapped in, search, a drag along the floor, Q/E, the ring, delete, undo and redo,
 a reload mid-trial, going on in a fresh browser (the scene rebuilt from the server's events), a spell without

@@ -1,5 +1,5 @@
 // Firefox for the browser tests: puppeteer-core drives Debian's Firefox ESR over WebDriver BiDi, and this bridge
-// lets the Python tests drive it the way they drive the other engines (tests/browser/engines.py). It reads one
+// lets the browser tests and the client benchmark drive it as they drive the other engines (browsers.py). It reads one
 // JSON command per line on stdin ({id, op, ...}) and answers each with one line on stdout ({id, value} or
 // {id, error}). Launched as: node bidi_bridge.mjs FIREFOX WIDTH HEIGHT HEADLESS(0|1)
 import { createInterface } from "node:readline";
@@ -34,6 +34,8 @@ const ops = {
     else await page.keyboard.press(key);
   },
   screenshot: ({ path }) => page.screenshot({ path }).then(() => null),
+  cookies: ({ url, cookies }) => page.setCookie(...cookies.map(
+    (c) => ({ name: c.name, value: c.value, url, path: c.path, httpOnly: c.httpOnly }))).then(() => null),
   problems: () => problems.splice(0),
   close: async () => { await browser.close(); process.exit(0); },
 };
