@@ -1,6 +1,6 @@
-"""Client benchmark: the trial page at 800×600 with 60 objects in each browser engine a crowd uses — Chromium
-(headless, WebGL on SwiftShader), Firefox ESR and WebKitGTK (Safari's engine; both on Xvfb, WebGL on Mesa's
-llvmpipe) — each run in a fresh profile, driven as the browser tests drive them (``browsers.py``).
+"""Client benchmark: the trial page with 60 objects, at 800×600 and at 1920×1080, in each browser engine a crowd
+uses — Chromium (headless, WebGL on SwiftShader), Firefox ESR and WebKitGTK (Safari's engine; both on Xvfb, WebGL
+on Mesa's llvmpipe) — each run in a fresh profile, driven as the browser tests drive them (``browsers.py``).
 
 Measures the frame rate while the camera orbits (one step per animation frame, through the page's own orbit
 controls) — ``fps`` as participants get it (the view drops to ``motion_scale`` of its resolution while the camera
@@ -18,6 +18,7 @@ Usage: .venv/bin/python benchmarks/bench_client.py [--objects 60] [--seconds 5] 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import statistics
@@ -33,6 +34,9 @@ from serverproc import StudyServer, demo_missing
 from simulation.transport import HttpTransport
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The page's sizes in CSS pixels: the budgets' 800×600, and a full-HD screen, where software WebGL falls below
+#: the display's refresh rate (which caps every engine's frame rate at 800×600) and the engines' speeds show.
+VIEWPORTS = {"800x600": (800, 600), "1920x1080": (1920, 1080)}
 
 
 def scene_with(models: list[dict], n: int) -> dict:
@@ -125,6 +129,7 @@ def measure(driver: Driver, seconds: float) -> dict:
     measured["drawn"] = driver.evaluate(f"{hook}.renderInfo()")
     measured["transferred"] = driver.evaluate(f"({TRANSFERRED.strip()})()")
     measured["renderer"] = driver.evaluate(RENDERER)
+    measured["viewport"] = driver.evaluate("`${innerWidth}x${innerHeight}@${devicePixelRatio}`")
     return measured
 
 
@@ -132,7 +137,8 @@ def figures(measured: dict) -> dict:
     """One run's figures: frame rates (fps), first frame (ms), sizes (MB) and requests."""
     orbit, sharp, drawn, transferred = (measured[k] for k in ("orbit", "sharp", "drawn", "transferred"))
     total = transferred["page"] + max(transferred["transfer"], transferred["body"])
-    return {"objects": measured["count"], "fps": round(orbit["fps"], 1), "motion_scale": orbit["scale"],
+    return {"viewport": measured["viewport"], "objects": measured["count"], "fps": round(orbit["fps"], 1),
+            "motion_scale": orbit["scale"],
             "fps_sharp": round(sharp["fps"], 1), "draw_calls": drawn["calls"], "triangles": drawn["triangles"],
             "first_frame_ms": round(measured["first_frame"], 1), "page_mb": round(total / 2**20, 3),
             "js_mb": round(transferred["js"] / 2**20, 3), "models_mb": round(transferred["models"] / 2**20, 3),
@@ -143,8 +149,8 @@ SPREAD = ("fps", "fps_sharp", "first_frame_ms", "page_mb")
 
 
 def summary(runs: dict[str, list[dict]], versions: dict[str, str]) -> dict:
-    """Per engine: each figure of :data:`SPREAD` as median and [min, max] over the runs, the others from the last
-    run; and each engine's medians as a ratio of Chromium's (when Chromium ran)."""
+    """Of one viewport, per engine: each figure of :data:`SPREAD` as median and [min, max] over the runs, the
+    others from the last run; and each engine's medians as a ratio of Chromium's (when Chromium ran)."""
     engines = {}
     for engine, figs in runs.items():
         out = {"version": versions[engine], **{k: v for k, v in figs[-1].items() if k not in SPREAD}}
@@ -159,8 +165,7 @@ def summary(runs: dict[str, list[dict]], versions: dict[str, str]) -> dict:
             if engine != "chromium":
                 ratios[f"{engine}/chromium"] = {k: round(out[k]["median"] / base[k]["median"], 3) for k in SPREAD
                                                if base[k]["median"]}
-    return {"benchmark": "client", "viewport": "800x600", "runs": len(next(iter(runs.values()))),
-            "engines": engines, "ratios": ratios}
+    return {"engines": engines, "ratios": ratios}
 
 
 def main() -> int:
@@ -170,28 +175,30 @@ def main() -> int:
     if absent or demo_missing():
         print(json.dumps({"benchmark": "client", "error": demo_missing() or absent}))
         return 1
-    runs: dict[str, list[dict]] = {e: [] for e in args.engines}
+    runs = {size: {e: [] for e in args.engines} for size in VIEWPORTS}
     versions: dict[str, str] = {}
     display = Display() if set(args.engines) - {"chromium"} else None  # Firefox and WebKit draw on Xvfb
     try:
         with tempfile.TemporaryDirectory() as tmp, \
                 StudyServer(Path(tmp) / "instance", f"sqlite:///{tmp}/db.sqlite3") as server:
-            for run in range(args.runs):
-                for engine in args.engines:
-                    # each participant walks to the first trial over HTTP; the browser carries on with its cookies
-                    http, key, scene = walk_to_trial(server.base, args.objects, f"bench-{engine}-{run}")
-                    driver = DRIVERS[engine](display)
-                    try:
-                        versions[engine] = driver.version
-                        open_trial(driver, http, server.base, key, scene)
-                        runs[engine].append(figures(measure(driver, args.seconds)))
-                    finally:
-                        driver.close()
-                    print(f"run {run + 1}/{args.runs} {engine}: {json.dumps(runs[engine][-1])}", file=sys.stderr)
+            for run, (size, viewport), engine in itertools.product(range(args.runs), VIEWPORTS.items(),
+                                                                  args.engines):
+                # each participant walks to the first trial over HTTP; the browser carries on with its cookies
+                http, key, scene = walk_to_trial(server.base, args.objects, f"bench-{engine}-{size}-{run}")
+                driver = DRIVERS[engine](display, viewport=viewport)
+                try:
+                    versions[engine] = driver.version
+                    open_trial(driver, http, server.base, key, scene)
+                    runs[size][engine].append(figures(measure(driver, args.seconds)))
+                finally:
+                    driver.close()
+                print(f"run {run + 1}/{args.runs} {size} {engine}: {json.dumps(runs[size][engine][-1])}",
+                      file=sys.stderr)
     finally:
         if display:
             display.close()
-    print(json.dumps(summary(runs, versions), indent=1))
+    print(json.dumps({"benchmark": "client", "runs": args.runs,
+                      "viewports": {size: summary(r, versions) for size, r in runs.items()}}, indent=1))
     return 0
 
 

@@ -32,6 +32,7 @@ FIREFOX = shutil.which("firefox-esr") or "/usr/bin/firefox-esr"
 WEBKIT_DRIVER = shutil.which("WebKitWebDriver") or "/usr/bin/WebKitWebDriver"
 XVFB = shutil.which("Xvfb") or "/usr/bin/Xvfb"
 BRIDGE = Path(__file__).with_name("bidi_bridge.mjs")
+#: The page's size in CSS pixels (width, height) unless a driver is given another.
 VIEWPORT = (1280, 720)
 #: Keys as the tests name them, in each driver's words (Playwright's and puppeteer's names are the DOM's).
 MODIFIERS = {"Control", "Shift", "Alt", "Meta"}
@@ -55,7 +56,7 @@ class Display:
 
     def __init__(self):
         read, write = os.pipe()
-        self.proc = subprocess.Popen([XVFB, "-displayfd", str(write), "-screen", "0", "1440x900x24", "-nolisten",
+        self.proc = subprocess.Popen([XVFB, "-displayfd", str(write), "-screen", "0", "1920x1200x24", "-nolisten",
                                       "tcp", "-noreset"], pass_fds=(write,), stderr=subprocess.DEVNULL)
         os.close(write)
         with os.fdopen(read) as f:
@@ -154,13 +155,13 @@ class Driver(ABC):
 class ChromiumDriver(Driver):
     name = "chromium"
 
-    def __init__(self, display: Display | None = None):
+    def __init__(self, display: Display | None = None, viewport: tuple[int, int] = VIEWPORT):
         from playwright.sync_api import sync_playwright
 
         self._pw = sync_playwright().start()
         self._browser = self._pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         self.version = self._browser.version
-        self._context = self._browser.new_context(viewport={"width": VIEWPORT[0], "height": VIEWPORT[1]})
+        self._context = self._browser.new_context(viewport={"width": viewport[0], "height": viewport[1]})
         self.page = self._context.new_page()
         self._problems: list[str] = []
         self.page.on("console", lambda m: m.type == "error" and self._problems.append(m.text))
@@ -197,8 +198,8 @@ class FirefoxDriver(Driver):
 
     name = "firefox"
 
-    def __init__(self, display: Display | None = None):
-        args = ["node", str(BRIDGE), FIREFOX, str(VIEWPORT[0]), str(VIEWPORT[1]), "0" if display else "1"]
+    def __init__(self, display: Display | None = None, viewport: tuple[int, int] = VIEWPORT):
+        args = ["node", str(BRIDGE), FIREFOX, str(viewport[0]), str(viewport[1]), "0" if display else "1"]
         env = {**(display.env if display else os.environ), "MOZ_CRASHREPORTER_DISABLE": "1"}
         self._proc = subprocess.Popen(args, cwd=ROOT, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                       stderr=subprocess.DEVNULL, text=True, bufsize=1)
@@ -248,13 +249,15 @@ class WebKitDriver(Driver):
 
     name = "webkit"
 
-    def __init__(self, display: Display | None = None):
+    def __init__(self, display: Display | None = None, viewport: tuple[int, int] = VIEWPORT):
         from selenium import webdriver
 
         options = webdriver.WebKitGTKOptions()
         service = webdriver.WebKitGTKService(executable_path=WEBKIT_DRIVER, env=display.env if display else None)
         self._d = webdriver.WebKitGTK(options=options, service=service)
-        self._d.set_window_size(VIEWPORT[0], VIEWPORT[1] + 0)
+        self._d.set_window_size(*viewport)  # the window's size: its page is as much smaller as its frame takes
+        inner = self._d.execute_script("return [window.innerWidth, window.innerHeight]")
+        self._d.set_window_size(2 * viewport[0] - inner[0], 2 * viewport[1] - inner[1])
         self.version = self._d.capabilities.get("browserVersion", "")
 
     def goto(self, url): self._d.get(url)

@@ -49,6 +49,24 @@ def test_a_report_no_browser_sends_is_refused_naming_the_field_and_nothing_is_st
     assert (p.step, p.status, p.viewport, p.row, checks) == ("device", "in_progress", None, -1, 0)
 
 
+@pytest.mark.parametrize("field,raw", [
+    ("missing", "%ED%A0%80"), ("missing", "webgl2%00"), ("fps", "6%000"), ("fps", "%ED%A0%80"),
+    ("width", "1280%00"), ("touch_only", "0%C0%80"),
+])
+def test_a_nul_or_a_lone_surrogate_as_sent_raw_is_refused_naming_the_field(app, field, raw):
+    """Bytes no form field of a browser holds (a NUL, a UTF-16 surrogate or an overlong NUL as UTF-8) in the body."""
+    from urllib.parse import urlencode
+
+    c, token = _arrive(app, "raw")
+    body = urlencode({**{k: v for k, v in CAPABLE_DEVICE.items() if k != field}, "csrf_token": token})
+    r = c.post("/study/demo/device", data=f"{body}&{field}={raw}",
+               content_type="application/x-www-form-urlencoded")
+    assert r.status_code == 422, r.data
+    assert field.encode() in r.data and b"Traceback" not in r.data
+    p, checks = _stored(app, "raw")
+    assert (p.step, p.viewport, p.row, checks) == ("device", None, -1, 0)
+
+
 @pytest.mark.parametrize("left_out", sorted(CAPABLE_DEVICE))
 def test_a_report_without_a_field_is_refused(app, left_out):
     c, token = _arrive(app, "short")
