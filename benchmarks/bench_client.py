@@ -86,11 +86,14 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--engines", default=",".join(ENGINES),
                         help="comma-separated, of " + ", ".join(ENGINES) + " (default: all)")
     args = parser.parse_args()
-    args.engines = [e.strip() for e in args.engines.split(",") if e.strip()]
-    unknown = sorted(set(args.engines) - set(ENGINES))
-    if unknown or not args.engines or args.runs < 1 or args.objects < 1 or args.seconds <= 0:
-        parser.error(f"unknown engine {unknown}" if unknown else "--runs, --objects and --seconds must be > 0 "
-                     "and --engines name at least one engine")
+    args.engines = list(dict.fromkeys(e.strip() for e in args.engines.split(",") if e.strip()))
+    unknown = [e for e in args.engines if e not in ENGINES]
+    if unknown:
+        parser.error(f"--engines: no engine {', '.join(unknown)} (there are {', '.join(ENGINES)})")
+    if not args.engines:
+        parser.error("--engines: name at least one engine")
+    if args.runs < 1 or args.objects < 1 or not (math.isfinite(args.seconds) and 0 < args.seconds <= 300):
+        parser.error("--runs and --objects must be ≥ 1, --seconds more than 0 and at most 300")
     return args
 
 
@@ -158,7 +161,7 @@ def summary(runs: dict[str, list[dict]], versions: dict[str, str]) -> dict:
             values = [f[k] for f in figs]
             out[k] = {"median": round(statistics.median(values), 3), "range": [min(values), max(values)]}
         engines[engine] = out
-    ratios = {}
+    ratios = {} if "chromium" in engines else {"note": "no ratios: Chromium, the baseline, was not measured"}
     if "chromium" in engines:
         base = engines["chromium"]
         for engine, out in engines.items():
@@ -189,9 +192,14 @@ def main() -> int:
                 try:
                     versions[engine] = driver.version
                     open_trial(driver, http, server.base, key, scene)
-                    runs[size][engine].append(figures(measure(driver, args.seconds)))
+                    measured = figures(measure(driver, args.seconds))
                 finally:
                     driver.close()
+                if measured["objects"] != args.objects or not measured["viewport"].startswith(f"{size}@"):
+                    print(json.dumps({"benchmark": "client", "error": f"{engine} drew {measured['objects']} "
+                                      f"objects at {measured['viewport']}, not {args.objects} at {size}"}))
+                    return 1
+                runs[size][engine].append(measured)
                 print(f"run {run + 1}/{args.runs} {size} {engine}: {json.dumps(runs[size][engine][-1])}",
                       file=sys.stderr)
     finally:

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import statistics
 import sys
 import tempfile
@@ -39,7 +38,7 @@ from pathlib import Path
 
 import checkout
 from bench_client import scene_with
-from browsers import CHROMIUM_ARGS as ARGS
+from browsers import CHROMIUM, CHROMIUM_ARGS
 from demostudy import to_first_trial
 from large_library import STUDY_ID, demo_resources, library_models, write_study
 from serverproc import StudyServer, demo_missing
@@ -179,8 +178,7 @@ def main() -> int:
     parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
     args = parser.parse_args()
     checkout.require(ROOT)
-    chromium = shutil.which("chromium") or "/usr/bin/chromium"
-    if not Path(chromium).exists() or demo_missing():
+    if not Path(CHROMIUM).exists() or demo_missing():
         print(json.dumps({"benchmark": "panel", "error": demo_missing() or "needs Chromium (apt)"}))
         return 1
     from playwright.sync_api import sync_playwright
@@ -190,7 +188,7 @@ def main() -> int:
     scene = scene_with(shared, args.objects)
     rows = []
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=chromium, args=ARGS)
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         try:
             for n in args.models:
                 rows.extend(measure(browser, n, scene, args.variants, args.runs, args.seconds))

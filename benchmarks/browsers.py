@@ -34,8 +34,6 @@ XVFB = shutil.which("Xvfb") or "/usr/bin/Xvfb"
 BRIDGE = Path(__file__).with_name("bidi_bridge.mjs")
 #: The page's size in CSS pixels (width, height) unless a driver is given another.
 VIEWPORT = (1280, 720)
-#: Keys as the tests name them, in each driver's words (Playwright's and puppeteer's names are the DOM's).
-MODIFIERS = {"Control", "Shift", "Alt", "Meta"}
 
 
 def missing(engine: str) -> str | None:
@@ -255,9 +253,15 @@ class WebKitDriver(Driver):
         options = webdriver.WebKitGTKOptions()
         service = webdriver.WebKitGTKService(executable_path=WEBKIT_DRIVER, env=display.env if display else None)
         self._d = webdriver.WebKitGTK(options=options, service=service)
+        self._d.set_script_timeout(600)  # an evaluated promise may take minutes (a benchmark's orbit)
         self._d.set_window_size(*viewport)  # the window's size: its page is as much smaller as its frame takes
         inner = self._d.execute_script("return [window.innerWidth, window.innerHeight]")
         self._d.set_window_size(2 * viewport[0] - inner[0], 2 * viewport[1] - inner[1])
+        inner = self._d.execute_script("return [window.innerWidth, window.innerHeight]")
+        if tuple(inner) != tuple(viewport):
+            self._d.quit()
+            raise RuntimeError(f"webkit: a page of {viewport[0]}×{viewport[1]} was asked for, the window gives "
+                               f"{inner[0]}×{inner[1]} (is the display large enough?)")
         self.version = self._d.capabilities.get("browserVersion", "")
 
     def goto(self, url): self._d.get(url)
