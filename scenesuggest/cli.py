@@ -291,9 +291,10 @@ def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, 
               help="Bootstrap resamples of the paired MRR differences.")
 @click.option("--group-similar/--no-group-similar", default=True, show_default=True,
               help="Keep near-copies of a scene in one fold (and report plain k-fold figures beside).")
-@click.option("--scene-type", "scene_type", type=click.Choice(["given", "inferred"]), default="given",
-              show_default=True, help="A query's room type: its scene's own, or inferred from the objects left "
-                                      "once the queried one is removed.")
+@click.option("--scene-type", "scene_type", type=click.Choice(["inferred", "given"]), default="inferred",
+              show_default=True, help="A query's room type: inferred from the objects left once the queried one "
+                                      "is removed (as a participant's scene gives it), or 'given': the scene's own "
+                                      "(Stanford's was inferred from every object, the queried one too: it leaks).")
 @click.option("--by-category", is_flag=True, help="Also print orientation and MRR per category.")
 @click.option("--ablations", is_flag=True, help="Also train and measure each orientation ablation (slow).")
 @meshes_option

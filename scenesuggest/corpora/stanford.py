@@ -28,7 +28,7 @@ from ..errors import SceneSuggestError
 from ..library.index import ModelInfo
 from ..library.objfile import obj_bounds
 from ..scenes import frames, surfaces
-from ..scenes.scene import ROOM, ObjectInstance, Scene
+from ..scenes.scene import ROOM, UNKNOWN, ObjectInstance, Scene
 from ..scenes.scene_types import infer_scene_type
 from ..scenes.taxonomy import Taxonomy
 from ..scenes.walls import mesh_walls
@@ -49,7 +49,6 @@ from .stanford_format import RawObject, read_scene_file
 WORLD = frames.scaling(frames.INCH) @ frames.linear(frames.Z_UP_TO_Y_UP)
 #: Size of a model we know nothing about (no mesh, no metadata), in metres.
 GUESS_SIZE_M = 0.2
-UNKNOWN = "Unknown"
 MESHES_ENV = "SCENESUGGEST_STANFORD_MESHES"
 
 

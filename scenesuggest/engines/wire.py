@@ -1,9 +1,10 @@
 """What the ``http`` engine and an external engine say to each other: the query document, the answer document,
 their JSON Schemas (published in the study API's OpenAPI document) and the strict reading of an answer.
 
-An answer is read by the rules of :mod:`.http`'s docstring; a broken one raises :class:`EngineUnavailable` naming
-the first broken rule (``invalid answer: suggestions[3].placement is not a rigid transform``) — never the engine's
-address or its bytes.
+An answer is read by the rules of :mod:`.http`'s docstring (a placeholder category is refused, as
+:mod:`scenesuggest.suggestion.suggestable` decides for every engine); a broken one raises
+:class:`EngineUnavailable` naming the first broken rule (``invalid answer: suggestions[3].placement is not a rigid
+transform``) — never the engine's address or its bytes.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from ..scenes import frames, poses
 from ..scenes.scene_json import finite, scene_to_dict
 from ..suggestion.suggest import MODES, Suggestion
+from ..suggestion.suggestable import suggestable
 
 PROTOCOL_VERSION = 1
 #: A placement's rotation must be orthonormal to this tolerance, and its origin this close to the click (metres).
@@ -126,6 +128,9 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
     for i, (item, placement) in enumerate(zip(items, placements, strict=True)):
         where = f"suggestions[{i}]"
         category = item.get("category")
+        if isinstance(category, str) and not suggestable(category):
+            raise EngineUnavailable(f"invalid answer: {where}.category {category!r} is a placeholder, which no one "
+                                    "can place")
         if not isinstance(category, str) or category not in allowed:
             raise EngineUnavailable(f"invalid answer: {where}.category is not one the query allows")
         if category in seen:

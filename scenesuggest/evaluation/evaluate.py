@@ -40,8 +40,8 @@ from ..errors import SceneSuggestError
 from ..learning.priors import Priors
 from ..scenes import poses
 from ..scenes.scene import ObjectInstance, Scene
-from ..scenes.scene_types import infer_scene_type
 from ..scenes.surfaces import attachment_face
+from ..suggestion.held_out import DEFAULT_SCENE_TYPE, check_scene_type, held_out_queries
 from ..suggestion.suggest import ContextQuery, Engine, EngineOptions
 
 BASELINES = ("frequency", "parent_only", "no_backoff", "no_position")
@@ -61,16 +61,17 @@ ABLATIONS = {
 #: the canonical pose of basic mode.
 POSES = ("full", "paper", "canonical")
 TOLERANCES_DEG = (15, 45)
-#: What a held-out query says of its room (see :func:`evaluate`).
-SCENE_TYPES = ("given", "inferred")
 
 __all__ = ["evaluate", "folds_of", "rank_of", "summary", "orientation_summary", "paired_difference"]
 
 
-def rank_of(scores: np.ndarray, index: int | None) -> float:
-    """1-based rank of ``index`` in ``scores`` (higher is better; ties count half); inf when absent."""
+def rank_of(scores: np.ndarray, index: int | None, among: np.ndarray | None = None) -> float:
+    """1-based rank of ``index`` in ``scores`` (higher is better; ties count half) among the candidates ``among``
+    (a bool mask; default: all); inf when absent."""
     if index is None:
         return math.inf
+    if among is not None:
+        scores = np.where(among, scores, -np.inf)
     s = scores[index]
     return 1.0 + float((scores > s).sum()) + float((scores == s).sum() - 1) / 2.0
 
@@ -173,7 +174,7 @@ def _rank_and_poses(engine, query: ContextQuery, category: str):
     """(rank of ``category``, its full-mode and basic-mode placements or None, the engine's scores or None)
     for an engine that scores every candidate, else from its answers (the protocol only)."""
     if hasattr(engine, "score") and hasattr(engine, "choose_poses"):
-        scores = engine.score(query)
+        scores = engine.score(query, engine.suggestable)  # (the learned engine shortlists as it suggests)
         index = engine.index.get(category)
         if index is None:
             return math.inf, None, None, scores
@@ -182,7 +183,7 @@ def _rank_and_poses(engine, query: ContextQuery, category: str):
         for mode in ("full", "basic"):
             faces, alphas, _ = engine.choose_poses(scores, mode, [index])
             placed.append(poses.placement(prep.point, prep.normal, faces[0], engine.size[index], float(alphas[0])))
-        return rank_of(scores.total, index), placed[0], placed[1], scores
+        return rank_of(scores.total, index, engine.suggestable), placed[0], placed[1], scores
     ranked = [s.category for s in engine.suggest(query, "basic")]
     rank = ranked.index(category) + 1.0 if category in ranked else math.inf
     placed = [engine.suggest(query, mode, top=1, only=[category]) for mode in ("full", "basic")]
@@ -194,10 +195,11 @@ def _rank_and_poses(engine, query: ContextQuery, category: str):
 def run_folds(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
               progress, fit_options: dict | None = None, rankings: bool = True,
               specs: list[EngineSpec] | None = None, groups: list[int] | None = None, seed: int = 0,
-              scene_type: str = "given") -> Run:
+              scene_type: str = DEFAULT_SCENE_TYPE) -> Run:
     """Every engine of ``specs`` (default: the paper's with ``options``) and the baselines on the held-out
-    queries of ``folds`` (``rankings=False``: the baselines are not ranked, for orientation-only runs); each query
-    has its scene's type (``given``) or the type inferred from the scene without the object (``inferred``)."""
+    queries of ``folds`` (``rankings=False``: the baselines are not ranked, for orientation-only runs), each with
+    the room's type as ``scene_type`` says (:mod:`scenesuggest.suggestion.held_out`). Ranks are among the
+    categories that may be suggested (no placeholder)."""
     specs = specs or [EngineSpec("paper", {"name": "paper"}, options)]
     run = Run({b: [] for b in BASELINES}, {s.name: EngineRun() for s in specs})
     for held in progress(folds, "folds"):
@@ -210,13 +212,7 @@ def run_folds(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, p
                    fitted_engine(s, priors, train, corpus, seed, periods, progress) for s in specs}
         for i in held:
             scene = corpus.scenes[i]
-            for o in scene:
-                if o.parent is None or o.contact_point is None or o.contact_normal is None:
-                    continue
-                rest = scene.without(o.id)
-                query = ContextQuery(rest, o.parent, o.contact_point, o.contact_normal,
-                                     scene_type=scene.scene_type if scene_type == "given" else
-                                     infer_scene_type((x.category for x in rest), corpus.taxonomy))
+            for query, o in held_out_queries(scene, corpus.taxonomy, scene_type):
                 try:
                     scores = paper.score(query)
                 except SceneSuggestError:  # a contact far from its parent's box: bad data, not a query
@@ -227,10 +223,12 @@ def run_folds(corpus: Corpus, folds: list[np.ndarray], options: EngineOptions, p
                 index = paper.index.get(o.category)
                 if rankings:
                     b = run.baselines
-                    b["frequency"].append(rank_of(paper.base_rate, index))
-                    b["parent_only"].append(rank_of(scores.occurrence, index))
-                    b["no_position"].append(rank_of(options.lambda1 * scores.occurrence * scores.surface, index))
-                    b["no_backoff"].append(rank_of(plain.score(query).total, plain.index.get(o.category)))
+                    ok = paper.suggestable
+                    b["frequency"].append(rank_of(paper.base_rate, index, ok))
+                    b["parent_only"].append(rank_of(scores.occurrence, index, ok))
+                    b["no_position"].append(rank_of(options.lambda1 * scores.occurrence * scores.surface, index, ok))
+                    b["no_backoff"].append(rank_of(plain.score(query).total, plain.index.get(o.category),
+                                                   plain.suggestable))
                 for spec in specs:
                     measure_query(run.engines[spec.name], engines[spec.name], paper_rule, query, scene, o, corpus,
                              periods, rankings)
@@ -413,7 +411,7 @@ def _ungrouped(corpus: Corpus, plain_folds: list[np.ndarray], options: EngineOpt
 def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptions | None = None,
              progress: Callable[[Iterable, str], Iterable] | None = None, group_similar: bool = True,
              periods: ModelPeriods | None = None, ablations: bool = False, engines: list[EngineSpec] | None = None,
-             resamples: int = 1000, scene_type: str = "given") -> dict:
+             resamples: int = 1000, scene_type: str = DEFAULT_SCENE_TYPE) -> dict:
     """Run the k-fold evaluation; returns the JSON-ready summary (see the CLI's ``evaluate --json``).
 
     ``engines`` (default: the paper's, with ``options``) are each trained on every fold's training scenes and
@@ -425,12 +423,11 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
     With ``ablations`` every variant of :data:`ABLATIONS` is trained and measured on the main folds too
     (``"ablations"``: the paper engine's full-mode orientation summary and the chairs beside tables of each).
 
-    ``scene_type``: what a query says of its room — ``given``, the scene's own type (what a study's target scene
-    says, and how the paper queried), or ``inferred`` from the objects left once the queried one is removed (a
-    corpus whose types were themselves inferred from its furniture otherwise tells, say, that a Study has a desk
-    when the desk is the object asked about)."""
-    if scene_type not in SCENE_TYPES:
-        raise SceneSuggestError(f"expected one of {', '.join(SCENE_TYPES)}", field="scene_type")
+    ``scene_type``: what a query says of its room — ``inferred`` (the default) from the objects left once the
+    queried one is removed, as a participant's scene would give it, or ``given``, the scene's own type as its corpus
+    set it (Stanford's was inferred from every object, the queried one too: it tells that a Study has a desk when
+    the desk is the object asked about) — see :mod:`scenesuggest.suggestion.held_out`."""
+    check_scene_type(scene_type)
     progress = progress or (lambda items, label="": items)
     options = options or EngineOptions()
     specs = list(engines or [EngineSpec("paper", {"name": "paper"}, options)])

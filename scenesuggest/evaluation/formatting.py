@@ -65,7 +65,8 @@ def format_evaluation(result: dict, by_category: bool = False, top: int = 30) ->
     how = (f"{result['folds']}-fold by scene, near-copies kept together ({grouping['groups']} groups; "
            f"{grouping['scenes_with_near_copies']} scenes have near-copies)" if grouping["group_similar"]
            else f"{result['folds']}-fold by scene")
-    types = "" if result.get("scene_type", "given") == "given" else ", room types inferred without the object"
+    types = (", room types inferred without the object" if result.get("scene_type") == "inferred" else
+             ", room types as the corpus gives them (Stanford's were inferred with the queried object)")
     lines = [f"{result['source']}: {result['queries']} queries ({result['skipped']} skipped), {how}, "
              f"seed {result['seed']}{types}", "", f"the {result['engine']} engine",
              f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]

@@ -21,6 +21,8 @@ SURFACE_TYPES = tuple(f"{d}_{s}" for d in SURFACE_DIRECTIONS for s in SURFACE_SI
 
 #: The category of room shells (the root of every support tree).
 ROOM = "Room"
+#: The category of a model no label names (a corpus's bookkeeping, not a thing anyone places).
+UNKNOWN = "Unknown"
 
 
 @dataclass

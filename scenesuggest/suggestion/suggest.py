@@ -47,6 +47,7 @@ from ..scenes.scene import SURFACE_TYPES
 from . import headings
 from .placement_checks import check_fit, refine_anchors
 from .query import ContextQuery, Prepared, prepare
+from .suggestable import suggestable, suggestable_mask
 
 MODES = ("basic", "full")
 ORIENTATIONS = ("learned", "paper")
@@ -201,6 +202,7 @@ class Engine:
         self.candidates = p.candidate_categories
         self.names = [p.categories[c] for c in self.candidates]
         self.index = {name: i for i, name in enumerate(self.names)}
+        self.suggestable = suggestable_mask(self.names)  # placeholders (Room, Unknown) score but are never ranked
         self.name_order = np.argsort(np.argsort(self.names))  # ties are broken by name
         n = len(self.candidates)
         self.stat_entity = np.array([self._stat_entity(name) for name in self.names], dtype=np.int64)
@@ -228,9 +230,10 @@ class Engine:
 
     @property
     def categories(self) -> dict[str, tuple[str, ...]]:
-        """Every category the engine can suggest → its models, the most used first."""
+        """Every category the engine can suggest (no placeholder) → its models, the most used first."""
         if self._categories is None:
-            self._categories = dict(zip(self.names, self.members, strict=True))
+            self._categories = {name: members for name, members, ok in
+                                zip(self.names, self.members, self.suggestable, strict=True) if ok}
         return self._categories
 
     # --- per-category statistics after back-off -------------------------------------------------------------
@@ -378,14 +381,15 @@ class Engine:
     def suggest(self, query: ContextQuery, mode: str = "full", top: int | None = None,
                 only: Collection[str] | None = None) -> SuggestionList:
         """Ranked suggestions (best first, ties by name), each with a placement; ``top`` limits the list and
-        ``only`` (category names) the categories that may appear, as a study whose library lacks some does."""
+        ``only`` (category names) the categories that may appear, as a study whose library lacks some does; a
+        placeholder category never does (:mod:`.suggestable`)."""
         if mode not in MODES:
             raise SceneSuggestError(f"mode must be one of {', '.join(MODES)} (the 'none' condition never asks "
                                     "the engine)", field="mode")
         if top is not None and (not isinstance(top, int) or top < 1):
             raise SceneSuggestError("top must be a positive integer", field="top")
         n = len(self.candidates)
-        allowed = np.ones(n, dtype=bool) if only is None else np.isin(self.names, list(only))
+        allowed = self.suggestable if only is None else self.suggestable & np.isin(self.names, list(only))
         scores = self.score(query, allowed)
         prep = scores.prepared
         points = np.tile(prep.point, (n, 1))
@@ -439,11 +443,12 @@ class Engine:
         return out
 
     def explained(self, scores: Scores, top: int | None, categories: Collection[str]) -> tuple[dict, list[int]]:
-        """(candidate → its rank among every candidate, the candidates to explain: the ``top`` and ``categories``
-        wherever they rank) — what every engine's ``explain`` lists."""
-        order = self._ranking(scores.total, np.ones(len(self.candidates), dtype=bool))
+        """(candidate → its rank among every candidate that may be suggested, the candidates to explain: the
+        ``top`` and ``categories`` wherever they rank) — what every engine's ``explain`` lists."""
+        order = self._ranking(scores.total, self.suggestable)
         rank = {int(i): r for r, i in enumerate(order, start=1)}
-        wanted = [int(i) for i in order[: top or len(order)]] + [self.index[c] for c in categories if c in self.index]
+        wanted = [int(i) for i in order[: top or len(order)]] + [self.index[c] for c in categories
+                                                                 if c in self.index and suggestable(c)]
         return rank, list(dict.fromkeys(wanted))
 
     def terms(self, scores: Scores, i: int) -> dict[str, float]:

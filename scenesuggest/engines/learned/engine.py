@@ -153,9 +153,9 @@ class LearnedEngine(Engine):
         ``top`` suggestions and for ``categories`` wherever they rank. A category the first trees left out of the
         shortlist is explained by those trees, and its place below the shortlist is one more contribution
         (``below the shortlist``), so that the contributions and the baseline always sum to the score."""
-        scores = self.score(query)
+        scores = self.score(query, self.suggestable)  # shortlisted as suggest does
         rank, wanted = self.explained(scores, top, categories)
-        found = self._shortlist(scores.features)
+        found = self._shortlist(scores.features, self.suggestable)
         short = set(range(len(self.candidates))) if found is None else set(found[1].tolist())
         out = []
         for i in wanted:

@@ -1,13 +1,15 @@
 """Training the learned engine so that its models never see a prior that already contains the answer.
 
-The training scenes are split into INNER_FOLDS folds that keep near-copies together (:mod:`scenesuggest.corpora.folds`).
-For each fold, the paper's priors and the context counts are learned from the other folds, and every support edge
-of the fold's scenes becomes a query exactly as ``evaluate`` asks it (the object removed, the click at its
-contact point): its ranking rows, labelled 1 for the object's category, and — for the object's category — its
-orientation rows, labelled by whether each frame's heading comes within FRAME_TOLERANCE_DEG of the object's true
-pose (folded by the model's rotational symmetry when its period is known, :mod:`scenesuggest.assets.symmetry`). The
-ranker (LightGBM lambdarank) and the frame classifier (LightGBM, binary) learn from those out-of-fold rows; the
-engine then answers from priors and counts learned on all the training scenes.
+The training scenes are split into INNER_FOLDS folds that keep near-copies together
+(:mod:`scenesuggest.corpora.folds`). For each fold, the paper's priors and the context counts are learned from the
+other folds, and every support edge of the fold's scenes becomes a query exactly as ``evaluate`` asks it by default
+(the object removed, the click at its contact point, the room's type inferred without it;
+:mod:`scenesuggest.suggestion.held_out`): its ranking rows, labelled 1 for the object's category, and — for the
+object's category — its orientation rows, labelled by whether each frame's heading comes within FRAME_TOLERANCE_DEG
+of the object's true pose (folded by the model's rotational symmetry when its period is known,
+:mod:`scenesuggest.assets.symmetry`). The ranker (LightGBM lambdarank) and the frame classifier (LightGBM, binary)
+learn from those out-of-fold rows; the engine then answers from priors and counts learned on all the training
+scenes.
 
 Deterministic: the folds follow ``seed``, LightGBM runs with ``deterministic`` and a fixed thread count, and the
 file is written byte-stably (:mod:`scenesuggest.npz`).
@@ -31,7 +33,7 @@ from ...scenes import poses
 from ...scenes.frames import FACES
 from ...scenes.scene import Scene
 from ...scenes.taxonomy import Taxonomy
-from ...suggestion.query import ContextQuery
+from ...suggestion.held_out import held_out_queries
 from ...suggestion.suggest import Engine
 from .context import ContextStats
 from .engine import LearnedEngine
@@ -74,15 +76,6 @@ class Rows:
             getattr(self, name).extend(getattr(other, name))
 
 
-def queries(scene: Scene):
-    """(query, object) for every support edge of a scene, as ``evaluate`` asks them."""
-    for o in scene:
-        if o.parent is None or o.contact_point is None or o.contact_normal is None:
-            continue
-        yield ContextQuery(scene.without(o.id), o.parent, o.contact_point, o.contact_normal,
-                           scene_type=scene.scene_type), o
-
-
 def frame_errors(engine: Engine, scores, index: int, truth, headings: np.ndarray, period: float) -> np.ndarray:
     """Rotation error (degrees, folded by ``period``) of candidate ``index`` placed at each of ``headings``."""
     prep = scores.prepared
@@ -96,7 +89,7 @@ def fold_rows(engine: Engine, stats: ContextStats, scenes: Iterable[Scene], peri
     """The rows of every query of ``scenes``, asked of ``engine`` and ``stats`` (learned without them)."""
     rows = Rows()
     for scene in scenes:
-        for query, o in queries(scene):
+        for query, o in held_out_queries(scene, engine.priors.taxonomy):  # as evaluate asks, by default
             index = engine.index.get(o.category)
             if index is None:  # a category the training folds never saw: nothing to learn from
                 continue

@@ -160,6 +160,8 @@ def test_a_bad_query_is_still_the_participants_error(external, demo_priors):
 
 
 def test_answers_are_checked_strictly():
+    from scenesuggest.engines.http import EngineUnavailable
+
     point, normal = (1.0, 0.75, 2.0), (0.0, 1.0, 0.0)
     upright = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 1.0, 0.75, 2.0, 1]
     models = {"Mug": ("m1", "m2"), "Lamp": ("l1",)}
@@ -178,6 +180,10 @@ def test_answers_are_checked_strictly():
     assert "expected" in problem([item])
     assert "appears twice" in problem({"suggestions": [item, item]})
     assert "4 suggestions, at most 3" in problem({"suggestions": [item] * 4})
+    # a placeholder is refused even where the query would allow it (a library that named a model "Unknown")
+    with pytest.raises(EngineUnavailable, match=r"suggestions\[0\].category 'Unknown' is a placeholder"):
+        parse_answer({"suggestions": [{**item, "category": "Unknown"}]}, {"Unknown", "Mug"},
+                     {**models, "Unknown": ("u1",)}, point, normal, 3)
     assert "score" in problem({"suggestions": [{**item, "score": True}]})
     assert "16 finite numbers" in problem({"suggestions": [{**item, "placement": upright[:15]}]})
     assert "16 finite numbers" in problem({"suggestions": [{**item, "placement": [*upright[:15], "1"]}]})

@@ -53,11 +53,14 @@ def test_evaluation_on_a_synthetic_corpus():
     assert "MRR" in text and "OfficeChair" in text and "near-copies kept together" in text
     plain = evaluate(synthetic.corpus(), folds=4, seed=0, group_similar=False)
     assert "ungrouped" not in plain and plain["grouping"]["group_similar"] is False
-    # the room type inferred from what is left (a study whose only desk is asked about is a plain Room then)
-    inferred = evaluate(synthetic.corpus(), folds=4, seed=0, group_similar=False, scene_type="inferred")
-    assert inferred["scene_type"] == "inferred" and inferred["queries"] == plain["queries"]
-    assert "room types inferred without the object" in format_evaluation(inferred)
-    with pytest.raises(SceneSuggestError, match="one of given, inferred"):
+    # by default the room type is inferred from what is left (a study whose only desk is asked about is a plain
+    # Room then); 'given' reads the scene's own type, which its desk made a Study
+    assert plain["scene_type"] == "inferred" and "room types inferred without the object" in format_evaluation(plain)
+    given = evaluate(synthetic.corpus(), folds=4, seed=0, group_similar=False, scene_type="given")
+    assert given["scene_type"] == "given" and given["queries"] == plain["queries"]
+    assert "as the corpus gives them" in format_evaluation(given)
+    assert given["categories"]["Desk"]["mrr"] >= plain["categories"]["Desk"]["mrr"]
+    with pytest.raises(SceneSuggestError, match="one of inferred, given"):
         evaluate(synthetic.corpus(), folds=4, scene_type="guessed")
 
 
