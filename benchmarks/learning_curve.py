@@ -85,7 +85,8 @@ def _in_sample(spec, corpus, periods) -> dict:
     from scenesuggest.errors import SceneSuggestError
     from scenesuggest.evaluation.evaluate import EngineRun, fitted_engine, measure_query
     from scenesuggest.learning.priors import Priors
-    from scenesuggest.suggestion.suggest import ContextQuery, Engine
+    from scenesuggest.suggestion.held_out import held_out_queries
+    from scenesuggest.suggestion.suggest import Engine
 
     quiet = lambda items, label="": items  # noqa: E731
     priors = Priors.fit(corpus.scenes, corpus.taxonomy)
@@ -93,11 +94,7 @@ def _in_sample(spec, corpus, periods) -> dict:
     engine = fitted_engine(spec, priors, corpus.scenes, corpus, 0, periods, quiet)
     out = EngineRun()
     for scene in corpus.scenes:
-        for o in scene:
-            if o.parent is None or o.contact_point is None or o.contact_normal is None:
-                continue
-            query = ContextQuery(scene.without(o.id), o.parent, o.contact_point, o.contact_normal,
-                                 scene_type=scene.scene_type)
+        for query, o in held_out_queries(scene, corpus.taxonomy):  # as evaluate asks them
             try:
                 paper.score(query)
             except SceneSuggestError:  # bad data, skipped as evaluate skips it
