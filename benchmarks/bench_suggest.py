@@ -80,14 +80,14 @@ def fit_priors(corpus) -> tuple:
 
 
 def held_out_queries(corpus, count: int, seed: int) -> list:
-    """Up to ``count`` held-out support edges of scenes with 10–60 objects, asked at the removed object's contact."""
-    from scenesuggest.suggestion.suggest import ContextQuery
+    """Up to ``count`` queries of scenes with 10–60 objects, made as ``evaluate`` makes them (the object removed, asked
+    at its contact, the room's type inferred without it; no placeholder object)."""
+    from scenesuggest.suggestion import held_out
 
     rng = np.random.default_rng(seed)
-    edges = [(s, o) for s in corpus.scenes if 10 <= len(s) <= 60 for o in s if o.parent is not None]
-    picks = rng.choice(len(edges), size=min(count, len(edges)), replace=False)
-    return [ContextQuery(edges[i][0].without(edges[i][1].id), edges[i][1].parent, edges[i][1].contact_point,
-                         edges[i][1].contact_normal) for i in picks]
+    queries = [q for s in corpus.scenes if 10 <= len(s) <= 60 for q, _ in held_out.held_out_queries(s, corpus.taxonomy)]
+    picks = rng.choice(len(queries), size=min(count, len(queries)), replace=False)
+    return [queries[i] for i in picks]
 
 
 def time_paper(engine, queries) -> tuple[list, list]:

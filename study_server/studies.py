@@ -24,6 +24,7 @@ from scenesuggest.library.index import INDEX_FILE, ModelInfo, load_index
 from scenesuggest.library.search import SearchIndex
 from scenesuggest.scenes import scene_json
 from scenesuggest.scenes.taxonomy import Taxonomy
+from scenesuggest.suggestion.suggestable import suggestable
 
 from . import i18n
 from .study_file import Study, StudyFileError, load_study
@@ -182,9 +183,9 @@ class StudyRuntime:
             key = f"placeable:{condition_id}"
             if key not in self._placeable:
                 engine = self.engine(condition_id)
-                self._placeable[key] = frozenset(
-                    name for name, members in engine.categories.items()
-                    if any(m in self.library for m in members) or name in self.by_category)
+                self._placeable[key] = frozenset(  # (a plugin engine's list may hold a placeholder: never offered)
+                    name for name, members in engine.categories.items() if suggestable(name)
+                    and (any(m in self.library for m in members) or name in self.by_category))
             return self._placeable[key]
 
     @cached_property

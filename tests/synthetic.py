@@ -31,7 +31,8 @@ ROOM_SIZE = (5.0, 2.7, 4.0)  # x, height, z; the back wall is at z = -2, facing 
 
 class Builder:
     def __init__(self, scene_id: str, scene_type: str):
-        self.scene = Scene(scene_id, scene_type)
+        self.scene = Scene(scene_id, scene_type, type_from_objects=True)  # the type its furniture implies, as
+        # Stanford's: a held-out query infers it again without the object asked about
         room = ObjectInstance("room", "m:Room", "Room", frames.scaling(ROOM_SIZE), (1.0, 1.0, 1.0))
         self.scene.objects["room"] = room
 

@@ -270,4 +270,5 @@ class _Room:
         scene.validate(file=f"{METADATA}#{self.scene_id}")
         if self.scene_type is None:
             scene.scene_type = infer_scene_type((o.category for o in scene), taxonomy)
+            scene.type_from_objects = True
         return scene

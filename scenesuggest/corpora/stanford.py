@@ -215,4 +215,5 @@ def _convert_scene(scene_id: str, objs: list[RawObject], models: dict[str, Model
         scene.objects[inst.id] = inst
     scene.validate(file=str(file), lines={str(o.index): o.line for o in objs})
     scene.scene_type = infer_scene_type((o.category for o in scene), taxonomy)
+    scene.type_from_objects = True
     return scene

@@ -1,10 +1,12 @@
 """Offline evaluation: k-fold by scene, one query per held-out support edge.
 
 For every object of a held-out scene that rests on a parent, the object is removed (with everything it
-supports), the engine is asked at its true contact point on its true parent with the true normal, and
-the rank of its true category is recorded (edges whose contact lies far from the parent's box are bad
-data, skipped and counted). A category never seen in training has no rank (reciprocal
-rank 0). Ties count half: rank = 1 + (#scored higher) + (#scored equal)/2.
+supports), the engine is asked at its true contact point on its true parent with the true normal, in a room whose
+type does not come from the object (:mod:`scenesuggest.suggestion.held_out`), and the rank of its true category
+among those that may be suggested is recorded (:mod:`scenesuggest.suggestion.suggestable`: an object of a
+placeholder category, Unknown, is no query). Edges whose contact lies far from the parent's box are bad data,
+skipped and counted. A category never seen in training has no rank (reciprocal rank 0). Ties count half:
+rank = 1 + (#scored higher) + (#scored equal)/2.
 
 Folds keep near-copies of a scene together (:mod:`scenesuggest.corpora.folds`; ``group_similar``, the default); the
 figures of plain k-fold by scene are reported beside them under ``"ungrouped"``.
@@ -43,6 +45,7 @@ from ..scenes.scene import ObjectInstance, Scene
 from ..scenes.surfaces import attachment_face
 from ..suggestion.held_out import DEFAULT_SCENE_TYPE, check_scene_type, held_out_queries
 from ..suggestion.suggest import ContextQuery, Engine, EngineOptions
+from ..suggestion.suggestable import suggestable
 
 BASELINES = ("frequency", "parent_only", "no_backoff", "no_position")
 #: Orientation ablations (``evaluate(..., ablations=True)``): name → Priors.fit options. Each is trained and
@@ -71,6 +74,8 @@ def rank_of(scores: np.ndarray, index: int | None, among: np.ndarray | None = No
     if index is None:
         return math.inf
     if among is not None:
+        if not among[index]:
+            return math.inf
         scores = np.where(among, scores, -np.inf)
     s = scores[index]
     return 1.0 + float((scores > s).sum()) + float((scores == s).sum() - 1) / 2.0
@@ -184,7 +189,7 @@ def _rank_and_poses(engine, query: ContextQuery, category: str):
             faces, alphas, _ = engine.choose_poses(scores, mode, [index])
             placed.append(poses.placement(prep.point, prep.normal, faces[0], engine.size[index], float(alphas[0])))
         return rank_of(scores.total, index, engine.suggestable), placed[0], placed[1], scores
-    ranked = [s.category for s in engine.suggest(query, "basic")]
+    ranked = [s.category for s in engine.suggest(query, "basic") if suggestable(s.category)]
     rank = ranked.index(category) + 1.0 if category in ranked else math.inf
     placed = [engine.suggest(query, mode, top=1, only=[category]) for mode in ("full", "basic")]
     if not placed[0]:
@@ -382,7 +387,7 @@ def _engine_blocks(run: Run, specs: list[EngineSpec], resamples: int, seed: int)
 
 
 def _ablations(corpus: Corpus, main_folds: list[np.ndarray], options: EngineOptions, periods: ModelPeriods,
-               progress, specs: list[EngineSpec], run: Run) -> dict[str, dict]:
+               progress, specs: list[EngineSpec], run: Run, scene_type: str) -> dict[str, dict]:
     """Per variant of :data:`ABLATIONS`: the paper engine's full-mode orientation (degrees) and chairs at tables."""
     out = {}
     same = [sp for sp in specs if sp.name == "paper" and sp.config == options]
@@ -390,7 +395,7 @@ def _ablations(corpus: Corpus, main_folds: list[np.ndarray], options: EngineOpti
     for name, fit_options in ABLATIONS.items():
         if fit_options or paper_records is None:
             variant = run_folds(corpus, main_folds, options, periods, progress, fit_options,
-                                rankings=False).engines["paper"].records
+                                rankings=False, scene_type=scene_type).engines["paper"].records
         else:
             variant = paper_records
         out[name] = {**_orientation(variant, "full"), "chairs_at_tables": _chairs(variant)}
@@ -454,7 +459,7 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
         "categories": top["categories"], "chairs_at_tables": top["chairs_at_tables"], "engines": blocks,
     }
     if ablations:
-        result["ablations"] = _ablations(corpus, main_folds, options, periods, progress, specs, run)
+        result["ablations"] = _ablations(corpus, main_folds, options, periods, progress, specs, run, scene_type)
     if group_similar:
         result["ungrouped"] = _ungrouped(corpus, plain_folds, options, periods, progress, specs[0], seed, scene_type)
     return result

@@ -66,7 +66,8 @@ def format_evaluation(result: dict, by_category: bool = False, top: int = 30) ->
            f"{grouping['scenes_with_near_copies']} scenes have near-copies)" if grouping["group_similar"]
            else f"{result['folds']}-fold by scene")
     types = (", room types inferred without the object" if result.get("scene_type") == "inferred" else
-             ", room types as the corpus gives them (Stanford's were inferred with the queried object)")
+             ", room types as the corpus gives them (a type inferred from the scene's objects counts the one asked "
+             "about)")
     lines = [f"{result['source']}: {result['queries']} queries ({result['skipped']} skipped), {how}, "
              f"seed {result['seed']}{types}", "", f"the {result['engine']} engine",
              f"{'ranking':<14}{'MRR':>8}{'top-1':>8}{'top-5':>8}"]

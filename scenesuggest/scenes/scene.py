@@ -73,13 +73,16 @@ class ObjectInstance:
 @dataclass
 class Scene:
     """A scene: its type and its objects, keyed by id in file order. ``walls``: the room's walls when known
-    (:class:`scenesuggest.scenes.walls.Wall`; None: take them from the room object's box)."""
+    (:class:`scenesuggest.scenes.walls.Wall`; None: take them from the room object's box). ``type_from_objects``:
+    the type was inferred from the scene's own objects (Stanford's, RoboTHOR's), not declared apart from them (a
+    room group's, a scene file's) — a held-out query infers it again without the object asked about."""
 
     id: str
     scene_type: str
     objects: dict[str, ObjectInstance] = field(default_factory=dict)
     source: str = ""
     walls: list | None = None
+    type_from_objects: bool = False
 
     def __iter__(self) -> Iterator[ObjectInstance]:
         return iter(self.objects.values())
@@ -107,7 +110,7 @@ class Scene:
         """A copy of the scene with ``object_id`` and everything it supports removed."""
         gone = {object_id} | {o.id for o in self.descendants(object_id)}
         kept = {k: v for k, v in self.objects.items() if k not in gone}
-        return Scene(self.id, self.scene_type, kept, self.source, self.walls)
+        return Scene(self.id, self.scene_type, kept, self.source, self.walls, self.type_from_objects)
 
     def validate(self, file: str | None = None, lines: dict[str, int] | None = None) -> None:
         """Check the support tree: every parent exists, no object supports itself, no cycles.

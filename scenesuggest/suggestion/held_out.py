@@ -5,12 +5,16 @@ and the engine is asked on its parent at its contact point and normal. An object
 
 The room's type a query carries is one of :data:`SCENE_TYPES`:
 
-- ``inferred`` (the default): inferred from what is left of the scene — never from the queried object or what it
-  supports, as a participant's scene holds only what they have placed;
-- ``given``: the scene's own type as its corpus loader set it. Stanford's types are inferred from every object of
-  the scene, the queried one too (a desk makes its room a Study, and "what stands here?" then answers Desk), so
-  this reading leaks the answer; AI2-THOR's are its room groups', declared apart from the objects (except
-  RoboTHOR's rooms, which declare none and are inferred from all their objects).
+- ``inferred`` (the default, leak-free): a type the corpus inferred from the scene's objects
+  (``Scene.type_from_objects``: Stanford's, RoboTHOR's) is inferred again from what is left — never from the queried
+  object or what it supports; a type declared apart from the objects (AI2-THOR's room groups, a scene file's) is
+  kept, as a study's queries carry the type its target file declares whatever the participant has placed;
+- ``given``: the scene's own type, as the corpus set it. For Stanford that reading leaks the answer: its types were
+  inferred from every object, the queried one too (a desk makes its room a Study, and "what stands here?" then
+  answers Desk).
+
+A corpus converted to the native format (``json:``) declares the types it was given, so a Stanford corpus read back
+that way is read as ``given``.
 """
 
 from __future__ import annotations
@@ -42,5 +46,6 @@ def held_out_queries(scene: Scene, taxonomy: Taxonomy | None,
         if o.parent is None or o.contact_point is None or o.contact_normal is None or not suggestable(o.category):
             continue
         rest = scene.without(o.id)
-        room = scene.scene_type if scene_type == "given" else infer_scene_type((x.category for x in rest), taxonomy)
+        room = (infer_scene_type((x.category for x in rest), taxonomy)
+                if scene_type == "inferred" and scene.type_from_objects else scene.scene_type)
         yield ContextQuery(rest, o.parent, o.contact_point, o.contact_normal, scene_type=room), o

@@ -423,10 +423,10 @@ class Engine:
 
     def explain(self, query: ContextQuery, mode: str = "full", top: int | None = 10,
                 categories: Collection[str] = ()) -> list[dict]:
-        """Why each category got its rank among every category (whatever the study allows; the extras of
-        EngineOptions are not applied), for the ``top`` suggestions and ``categories`` wherever they rank: its
-        score and the contributions that sum to it — λ1 · occurrence · surface, then λ2 · the position density
-        next to each reference (the parent and the objects on it)."""
+        """Why each category got its rank among every category that may be suggested (whatever the study allows;
+        the extras of EngineOptions are not applied), for the ``top`` suggestions and ``categories`` wherever they
+        rank: its score and the contributions that sum to it — λ1 · occurrence · surface, then λ2 · the position
+        density next to each reference (the parent and the objects on it)."""
         scores = self.score(query)
         rank, wanted = self.explained(scores, top, categories)
         o = self.options

@@ -148,12 +148,13 @@ class LearnedEngine(Engine):
 
     # --- explanation ---------------------------------------------------------------------------------------
     def explain(self, query, mode: str = "full", top: int | None = 10, categories=()) -> list[dict]:
-        """Why each category got its rank among every category: the ranker's score, and the largest
+        """Why each category got its rank among every category that may be suggested (whatever the study allows):
+        the ranker's score, and the largest
         contributions of its features (SHAP values, in the ranker's score units) with the features' values; for the
         ``top`` suggestions and for ``categories`` wherever they rank. A category the first trees left out of the
         shortlist is explained by those trees, and its place below the shortlist is one more contribution
         (``below the shortlist``), so that the contributions and the baseline always sum to the score."""
-        scores = self.score(query, self.suggestable)  # shortlisted as suggest does
+        scores = self.score(query, self.suggestable)  # shortlisted as suggest does when the study allows all
         rank, wanted = self.explained(scores, top, categories)
         found = self._shortlist(scores.features, self.suggestable)
         short = set(range(len(self.candidates))) if found is None else set(found[1].tolist())

@@ -32,15 +32,58 @@ trials <- trials[as.logical(as.character(trials$complete)), ]
 picks <- read.csv(file.path(here, "measures", "picks.csv"), colClasses = ids, na.strings = "")
 converged <- glmerControl(optimizer = "bobyqa", tolPwrss = 1e-13, optCtrl = list(rhoend = 1e-10, maxfun = 1e5))
 
+# A measure is not modelled when a test of condition would say nothing true — the report's rule
+# (analysis/degenerate.py), in its words: no variance, none within a condition (a ceiling or a floor), a count that
+# is zero throughout a condition, a fit that reproduces every value exactly, or one below its nested null.
+joined <- function(x) if (length(x) > 1) paste(paste(head(x, -1), collapse = ", "), "and", tail(x, 1)) else x
+check_data <- function(d, family) {
+  rows <- split(d$y, d$condition)
+  if (family == "poisson") {
+    if (all(d$y == 0)) stop("is zero everywhere; there is nothing to model")
+    zero <- Filter(function(c) all(rows[[c]] == 0), names(rows))
+    if (length(zero)) stop(sprintf("is zero in every row of %s: its log rate there has no finite estimate (a floor)",
+                                   joined(zero)))
+  } else {
+    if (length(unique(d$y)) < 2) stop("is constant; there is no variance to model")
+    flat <- Filter(function(c) length(rows[[c]]) > 1 && length(unique(rows[[c]])) == 1, names(rows))
+    if (length(flat)) {
+      values <- paste(sprintf("every value in %s is %g", flat, sapply(flat, function(c) rows[[c]][1])),
+                      collapse = "; ")
+      stop(sprintf(paste("has no variance within a level of condition (%s): a ceiling or a floor, which a linear",
+                         "model with one residual variance cannot describe"), values))
+    }
+  }
+}
+check_fit <- function(d, family, f1, f0) {
+  if (family != "poisson" && nrow(d) > 1 && sigma(f1)^2 < 1e-06 * var(d$y)) {
+    stop(paste("the model reproduces every value exactly (no residual variance): its standard errors are",
+               "rounding noise"))
+  }
+  l1 <- as.numeric(logLik(f1))
+  l0 <- as.numeric(logLik(f0))
+  if (l1 < l0 - 1e-06) {
+    stop(sprintf(paste("the fit failed: the model with condition has a lower log-likelihood (%.6g) than the model",
+                       "without it (%.6g)"), l1, l0))
+  }
+  se <- sqrt(diag(as.matrix(vcov(f1))))
+  if (!all(is.finite(c(fixef(f1), se))) || min(se) <= 0) {
+    stop("the fit is degenerate: an estimate or standard error is not a finite positive number")
+  }
+}
+
 fit_measure <- function(m) {
   d <- if (m$rows == "picks") picks else trials
   d <- d[d$condition %in% conditions & !is.na(d[[m$measure]]), ]
   d$y <- d[[m$measure]]
-  if (m$family == "poisson" && all(d$y == 0)) stop("is zero everywhere; there is nothing to model")
-  if (m$family != "poisson" && length(unique(d$y)) < 2) stop("is constant; there is no variance to model")
   d$condition <- droplevels(factor(d$condition, levels = conditions))
   groups <- Filter(function(g) length(unique(d[[g]])) > 1, c("participant", "scene"))
-  if (length(groups) == 0) stop("no grouping factor with more than one level")
+  # the report's model matrices refuse these first (analysis/design.py), in these words
+  if (length(groups) == 0) stop("a mixed model needs at least one random term")
+  if (nrow(d) < 3) stop(sprintf("only %d complete row(s)", nrow(d)))
+  if (nlevels(d$condition) < 2) {
+    stop(sprintf("'condition' has %d level(s) with data; a fixed effect needs at least 2", nlevels(d$condition)))
+  }
+  check_data(d, m$family)
   random <- paste(sprintf("(1 | %s)", groups), collapse = " + ")
   full <- as.formula(paste("y ~ condition +", random))
   null <- as.formula(paste("y ~ 1 +", random))
@@ -51,6 +94,7 @@ fit_measure <- function(m) {
   })
   f1 <- fit(full)
   f0 <- fit(null)
+  check_fit(d, m$family, f1, f0)
   test <- anova(f0, f1)
   df <- if ("Chi Df" %in% names(test)) test[["Chi Df"]][2] else test$Df[2]  # lme4 before 1.1-23 named it so
   list(chisq = test$Chisq[2], df = df, n = nobs(f1), p = test[["Pr(>Chisq)"]][2],
