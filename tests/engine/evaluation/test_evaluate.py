@@ -62,7 +62,7 @@ def test_evaluation_on_a_synthetic_corpus():
     given = evaluate(synthetic.corpus(), folds=4, seed=0, group_similar=False, scene_type="given")
     assert given["scene_type"] == "given" and given["queries"] == plain["queries"]
     assert "as the corpus gives them" in format_evaluation(given)
-    assert given["categories"]["Desk"]["mrr"] > plain["categories"]["Desk"]["mrr"]  # the leak
+    # (which rooms each reading gives a desk's query: test_suggestable; the synthetic desks rank first either way)
     with pytest.raises(SceneSuggestError, match="one of inferred, given"):
         evaluate(synthetic.corpus(), folds=4, scene_type="guessed")
 
