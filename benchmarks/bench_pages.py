@@ -45,6 +45,8 @@ class Counting:
 
 def walk_one(app, pid: str) -> int:
     """One participant through the whole study (a small batch of events and "done" per trial); its requests."""
+    from demostudy import play_empty_trial
+
     from simulation.transport import FlaskTransport
     from simulation.walker import Walker
 
@@ -53,15 +55,7 @@ def walk_one(app, pid: str) -> int:
 
     def trial(boot: dict) -> bool:
         nonlocal seq
-        t, auth = boot["trial"], {"Authorization": f"Bearer {boot['token']}"}
-        events = [{"seq": seq, "t": 1.7e12 + seq, "type": "trial_start", "trial": t["index"],
-                   "payload": {"scene": t["scene"], "condition": t["condition"]}},
-                  {"seq": seq + 1, "t": 1.7e12 + seq + 20000, "type": "trial_done", "trial": t["index"],
-                   "payload": {"objects": 0}}]
-        seq += 2
-        assert http.post("/api/events", json_body={"page_id": boot["page_id"], "events": events},
-                         headers=auth).status == 200
-        assert http.post("/api/trial/done", json_body={"trial": t["index"]}, headers=auth).status == 200
+        seq = play_empty_trial(http, boot, seq, boot["page_id"], 1.7e12, 20000)
         return True
 
     def answers(page) -> dict:

@@ -12,6 +12,21 @@ from serverproc import DEMO_STUDY
 DEMOGRAPHICS = {"age": "30", "experience_3d": "Never", "pointing_device": "Mouse"}
 
 
+def play_empty_trial(transport, boot: dict, seq: int, page_id: str, t0_ms: float, duration_ms: float) -> int:
+    """The trial of a trial page's ``boot`` played with nothing placed over ``transport``: its trial_start and
+    trial_done events (seqs ``seq`` and ``seq`` + 1, at ``t0_ms`` and ``duration_ms`` later, ms since the epoch)
+    posted from page ``page_id``, then the trial finished; returns the next seq. AssertionError unless both are
+    acknowledged (200)."""
+    t, auth = boot["trial"], {"Authorization": f"Bearer {boot['token']}"}
+    events = [{"seq": seq, "t": t0_ms + seq, "type": "trial_start", "trial": t["index"],
+               "payload": {"scene": t["scene"], "condition": t["condition"]}},
+              {"seq": seq + 1, "t": t0_ms + seq + duration_ms, "type": "trial_done", "trial": t["index"],
+               "payload": {"objects": 0}}]
+    assert transport.post("/api/events", json_body={"page_id": page_id, "events": events}, headers=auth).status == 200
+    assert transport.post("/api/trial/done", json_body={"trial": t["index"]}, headers=auth).status == 200
+    return seq + 2
+
+
 def make_app(folder: Path, database_url: str | None = None, studies=None, **config):
     """The study server in process serving ``studies`` (study files; default the demo study), its instance folder
     ``folder``/instance, on ``database_url`` (default: the SQLite file ``folder``/study.sqlite3) with the schema

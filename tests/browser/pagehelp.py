@@ -173,6 +173,7 @@ def walked_to_exit(base: str, pid: str, headers: dict | None = None):
 def walked(base: str, pid: str, headers: dict | None = None, trials: int | None = None):
     """A participant walked over HTTP (with ``headers`` on arrival) through its first ``trials`` trials (all when
     None) and on to the next page; (the transport, that page's step)."""
+    from demostudy import play_empty_trial
     from flowhelp import DEMOGRAPHICS
 
     from simulation.transport import HttpTransport
@@ -183,14 +184,7 @@ def walked(base: str, pid: str, headers: dict | None = None, trials: int | None 
 
     def trial(b: dict) -> bool:
         nonlocal seq, played
-        t, auth = b["trial"], {"Authorization": f"Bearer {b['token']}"}
-        events = [{"seq": seq, "t": 1.0e12 + seq, "type": "trial_start", "trial": t["index"],
-                   "payload": {"scene": t["scene"], "condition": t["condition"]}},
-                  {"seq": seq + 1, "t": 1.0e12 + seq + 12000, "type": "trial_done", "trial": t["index"],
-                   "payload": {"objects": 0}}]
-        seq += 2
-        assert http.post("/api/events", json_body={"page_id": "walk", "events": events}, headers=auth).status == 200
-        assert http.post("/api/trial/done", json_body={"trial": t["index"]}, headers=auth).status == 200
+        seq = play_empty_trial(http, b, seq, "walk", 1.0e12, 12000)
         played += 1
         return trials is None or played < trials
 
