@@ -217,17 +217,6 @@ def _engine(name: str, trained: str, **paper_options):
     return load(configure({"name": name, **options}), LoadContext(Path(trained)))
 
 
-def _explanation_lines(explained: list[dict]) -> list[str]:
-    lines = ["", "why (each category's score: the contributions that sum to it from the baseline)"]
-    for e in sorted(explained, key=lambda e: e["rank"]):
-        lines.append(f"{e['rank']:>4}. {e['category']:<22} score {e['score']:8.3f} = baseline {e['baseline']:.3f}"
-                     " + …")
-        for c in e["contributions"]:
-            value = f"(value {c['value']:.3g})" if c["value"] is not None else ""
-            lines.append(f"        {c['contribution']:+8.3f}  {c['feature']:<34} {value}")
-    return lines
-
-
 @main.command("suggest")
 @click.option("--priors", "priors_file", required=True, type=click.Path(dir_okay=False),
               help="The engine's trained file: priors (paper, frequency) or the learned engine's file.")
@@ -250,6 +239,7 @@ def _explanation_lines(explained: list[dict]) -> list[str]:
 def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, mode, top, scene_type,
                 infer_scene_type, collision_aware, refine_anchor, explain, explain_categories, as_json) -> None:
     """Rank categories for a click on a surface, each with a placement (column-major 4×4)."""
+    from .evaluation.formatting import explanation_lines
     from .scenes import scene_json
     from .suggestion.suggest import ContextQuery
 
@@ -276,12 +266,21 @@ def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, 
         if unknown:
             raise SceneSuggestError(f"the engine has no category {unknown[0]!r}", field="category")
         data["explanations"] = engine.explain(query, mode, top, explain_categories)
-        lines += _explanation_lines(data["explanations"])
+        lines += explanation_lines(data["explanations"])
     emit(data, as_json, "\n".join(lines))
 
 
 @main.command("evaluate")
-@click.argument("source")
+@click.argument("source", required=False)
+@click.option("--train", "train_source", default=None,
+              help="Train every engine on all of this corpus and ask another's queries (with --test).")
+@click.option("--test", "test_source", default=None,
+              help="The corpus asked, its categories mapped into --train's through WordNet (with --train).")
+@click.option("--explain", "explain", default=0, show_default=True, type=click.IntRange(min=0),
+              help="With --train/--test: each explaining engine's N worst misses, with why.")
+@click.option("--like-for-like/--no-like-for-like", default=True, show_default=True,
+              help="With --train/--test: also each engine's in-corpus MRR on --train reweighted to --test's "
+                   "category mix (grouped folds; slow).")
 @click.option("--folds", default=5, show_default=True, type=click.IntRange(min=2))
 @click.option("--seed", default=0, show_default=True)
 @click.option("--engine", "engine_names", multiple=True,
@@ -299,11 +298,13 @@ def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, 
 @click.option("--ablations", is_flag=True, help="Also train and measure each orientation ablation (slow).")
 @meshes_option
 @click.option("--json", "as_json", is_flag=True)
-def evaluate_cmd(source: str, folds: int, seed: int, engine_names: tuple[str, ...], resamples: int,
+def evaluate_cmd(source: str | None, train_source: str | None, test_source: str | None, explain: int,
+                 like_for_like: bool, folds: int, seed: int, engine_names: tuple[str, ...], resamples: int,
                  group_similar: bool, scene_type: str, by_category: bool, ablations: bool, meshes: str | None,
                  as_json: bool) -> None:
     """Held-out MRR, top-1/top-5 and orientation accuracy, k-fold by scene, with baselines; with several
-    --engine, every engine on the same folds with paired intervals of the MRR differences."""
+    --engine, every engine on the same folds with paired intervals of the MRR differences. With --train and
+    --test instead of SOURCE: trained on one corpus, asked on another."""
     from .engines import configure, kind
     from .evaluation.evaluate import check_evaluable, evaluate
     from .evaluation.formatting import format_evaluation
@@ -314,12 +315,40 @@ def evaluate_cmd(source: str, folds: int, seed: int, engine_names: tuple[str, ..
                                     "evaluated on held-out folds", field="engine")
     specs = [configure({"name": name}) for name in engine_names or ("paper",)]
     check_evaluable(specs)
+    if (train_source is None) != (test_source is None):
+        raise SceneSuggestError("--train and --test go together", field="train" if train_source is None else "test")
+    if train_source is not None:
+        if source is not None:
+            raise SceneSuggestError("give SOURCE or --train and --test, not both", field="source")
+        if ablations or by_category:
+            raise SceneSuggestError("--ablations and --by-category are of one corpus's folds, not --train/--test",
+                                    field="train")
+        _transfer(train_source, test_source, specs, folds, seed, resamples, scene_type, like_for_like, explain,
+                  meshes, as_json)
+        return
+    if source is None:
+        raise SceneSuggestError("name the corpus to evaluate (SOURCE), or --train and --test", field="source")
+    if explain:
+        raise SceneSuggestError("--explain is of the misses of --train/--test", field="explain")
     c = _load(source, meshes)
     if len(c.scenes) < folds:
         raise SceneSuggestError(f"{len(c.scenes)} scenes cannot make {folds} folds", field="folds")
     result = evaluate(c, folds=folds, seed=seed, progress=progress, group_similar=group_similar,
                       ablations=ablations, engines=specs, resamples=resamples, scene_type=scene_type)
     emit(result, as_json, format_evaluation(result, by_category=by_category))
+
+
+def _transfer(train_source: str, test_source: str, specs, folds: int, seed: int, resamples: int, scene_type: str,
+              like_for_like: bool, explain: int, meshes: str | None, as_json: bool) -> None:
+    from .evaluation.formatting import format_transfer
+    from .evaluation.transfer import evaluate_transfer
+
+    train, test = _load(train_source, meshes), _load(test_source, meshes)
+    if like_for_like and len(train.scenes) < folds:
+        raise SceneSuggestError(f"{len(train.scenes)} scenes cannot make {folds} folds", field="folds")
+    result = evaluate_transfer(train, test, specs, seed=seed, resamples=resamples, scene_type=scene_type, folds=folds,
+                               like_for_like=like_for_like, explain=explain, progress=progress)
+    emit(result, as_json, format_transfer(result))
 
 
 if __name__ == "__main__":  # pragma: no cover

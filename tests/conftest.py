@@ -74,6 +74,17 @@ def require_node() -> str:
     return node
 
 
+def require_wordnet():
+    """The machine's WordNet 3.0 (Debian's wordnet-base); skips naming what to install (under CI=true: fails)."""
+    from scenesuggest.corpora.wordnet import wordnet
+    from scenesuggest.errors import SceneSuggestError
+
+    try:
+        return wordnet()
+    except SceneSuggestError as e:
+        lacking(str(e))
+
+
 def pytest_report_header(config) -> list[str]:
     """The lme4 oracle's seed, and the R and lme4 it runs against."""
     return [f"lme4 oracle: seed {LME4_SEED} (SCENESUGGEST_LME4_SEED={LME4_SEED} repeats this run's studies)",

@@ -9,9 +9,11 @@ the same kind of thing, by the first rule that finds one (its ``via``):
    name that is a physical thing (``GarbageCan`` → garbage_can.n.01, which Stanford's ``TrashBin`` models carry);
 3. ``hypernym`` — a training category whose synset is a hypernym of one of the category's, at most
    :data:`MAX_HYPERNYM_DISTANCE` links up, the nearest first (``ArmChair`` → chair.n.01 → ``Chair``);
-4. ``head`` — rules 1–3 on the last word of a compound name (``SideTable`` → table);
-5. ``parent`` — rules 1–4 on the category's taxonomy parents in its own corpus, nearest first (Stanford's
-   ``OfficeChair`` → ``Chair``).
+4. ``head`` — rules 1–3 and 5 on the last word of a compound name (``SideTable`` → table);
+5. ``narrower`` — the most common training category one WordNet link or one taxonomy link below the category
+   (AI2-THOR's ``Bed`` → Stanford's ``SingleBed``, filed under ``Bed``);
+6. ``parent`` — the category's taxonomy parents in its own corpus, nearest first, by a decision or rules 1–2 only
+   (Stanford's ``Barstool`` → ``Stool``; a looser match of a parent as broad as "sports equipment" finds shoes).
 
 Where a rule finds several training categories, the one with the most instances is taken. What no rule maps is
 *unmapped*: its queries are counted and left out of the figures, and its objects keep their own name, which the
@@ -68,6 +70,8 @@ DECISIONS: dict[tuple[str, str], tuple[str | None, str]] = {
     ("ai2thor", "DogBed"): (None, "no pets' beds in Stanford's scenes (the head noun finds a bed)"),
     ("ai2thor", "HousePlant"): ("PottedPlant", "a plant in a pot, as Stanford names it 60 times ('Plant': 5)"),
     ("ai2thor", "SideTable"): ("EndTable", "a small table beside a bed or a sofa (the head noun finds 'Table': 6)"),
+    ("ai2thor", "Drawer"): (None, "Stanford's drawers are part of their furniture (the parent finds a cabinet)"),
+    ("ai2thor", "CounterTop"): ("Counter", "a kitchen counter (the parent finds 'Table': 6)"),
     ("ai2thor", "SinkBasin"): ("Sink", "the basin of a sink (the head noun finds 'Basin': 2)"),
     # Stanford asked of an engine trained on AI2-THOR
     ("stanford", "Cadmium"): ("CD", "ShapeNetSem's synset for these compact discs is cadmium's"),
@@ -199,8 +203,8 @@ def _most(candidates: set[str], counts: Counter) -> str:
     return max(sorted(candidates), key=lambda c: counts[c])
 
 
-def _by_rules(name: str, synsets: list[str], train: _Concepts, wn: WordNet) -> Match | None:
-    """Rules 1–3 for a category called ``name`` with ``synsets``."""
+def _by_rules(name: str, synsets: list[str], train: _Concepts, wn: WordNet, strict: bool = False) -> Match | None:
+    """Rules 1–3 and 5 for a category called ``name`` with ``synsets`` (``strict``: 1–2 only)."""
     by_name = {c for c in train.counts if normalised(c) == normalised(name) and suggestable(c)}
     if by_name:
         return Match(_most(by_name, train.counts), "name")
@@ -212,6 +216,8 @@ def _by_rules(name: str, synsets: list[str], train: _Concepts, wn: WordNet) -> M
     for sid in synsets:
         if sid in holders:
             return Match(_most(holders[sid], train.counts), "synset", sid)
+    if strict:
+        return None
     best: tuple[int, str] | None = None
     for sid in synsets:
         for up, distance in wn.ancestors(sid):
@@ -254,8 +260,10 @@ def crosswalk(test: Corpus, train: Corpus, wn: WordNet) -> Crosswalk:
         found = direct(c, mine.of[c])
         if found is None:
             for parent in test.taxonomy.ancestors(c):
-                up = direct(parent, mine.named(parent))
-                if up is not None:
+                decided = DECISIONS.get((kind, parent))
+                up = Match(decided[0], "decided") if decided else _by_rules(parent, mine.named(parent), theirs, wn,
+                                                                            strict=True)
+                if up is not None and up.category is not None:
                     found = Match(up.category, "parent", parent)
                     break
         matches[c] = found or Match(None, "unmapped")

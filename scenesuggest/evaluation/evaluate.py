@@ -291,7 +291,7 @@ def _orientation(records: list[dict], pose: str) -> dict:
     return out
 
 
-def _block(ranks: list[float], records: list[dict]) -> dict:
+def engine_figures(ranks: list[float], records: list[dict]) -> dict:
     """An engine's figures: ranking in both modes (the ranking does not depend on the mode), orientation of
     its full mode with the canonical pose (and the paper's rule, the frame oracle where measured) beside."""
     full = summary(ranks)
@@ -339,7 +339,7 @@ def _chairs(records: list[dict]) -> dict:
     return out
 
 
-def _by_category(run: Run, name: str) -> dict[str, list[float]]:
+def ranks_by_category(run: Run, name: str) -> dict[str, list[float]]:
     by: dict[str, list[float]] = {}
     for category, rank in zip(run.categories, run.engines[name].ranks, strict=True):
         by.setdefault(category, []).append(rank)
@@ -375,10 +375,10 @@ def _engine_blocks(run: Run, specs: list[EngineSpec], resamples: int, seed: int)
     blocks = {}
     for spec in specs:
         er = run.engines[spec.name]
-        block = {**_block(er.ranks, er.records), **_timing(er.seconds), "version": spec.kind.version,
+        block = {**engine_figures(er.ranks, er.records), **_timing(er.seconds), "version": spec.kind.version,
                  "options": {k: v for k, v in spec.raw.items() if k != "name"},
                  "chairs_at_tables": _chairs(er.records),
-                 "categories": _categories(er.records, _by_category(run, spec.name))}
+                 "categories": _categories(er.records, ranks_by_category(run, spec.name))}
         if spec.name != first:
             block["vs_first"] = {"engine": first, **paired_difference(run.engines[first].ranks, er.ranks, run.groups,
                                                                       resamples, seed)}
@@ -408,7 +408,7 @@ def _ungrouped(corpus: Corpus, plain_folds: list[np.ndarray], options: EngineOpt
     plain = run_folds(corpus, plain_folds, options, periods, progress, specs=[spec], seed=seed,
                       scene_type=scene_type)
     er = plain.engines[spec.name]
-    return {"queries": len(plain.groups), **_block(er.ranks, er.records),
+    return {"queries": len(plain.groups), **engine_figures(er.ranks, er.records),
             "baselines": {b: summary(r) for b, r in plain.baselines.items()},
             "chairs_at_tables": _chairs(er.records)}
 

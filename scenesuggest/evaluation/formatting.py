@@ -1,6 +1,7 @@
 """The human tables of :func:`scenesuggest.evaluation.evaluate.evaluate`'s result: ranking against the baselines,
 orientation (with the paper's rule, the canonical pose and the frame oracle where measured), the engines side by side
-with the paired intervals of their MRR differences, and per category."""
+with the paired intervals of their MRR differences, and per category; and of
+:func:`scenesuggest.evaluation.transfer.evaluate_transfer`'s (:func:`format_transfer`)."""
 
 from __future__ import annotations
 
@@ -111,4 +112,58 @@ def format_evaluation(result: dict, by_category: bool = False, top: int = 30) ->
         if len(shown) > top:
             lines.append(f"… {len(shown) - top} more categories (use --json for all)")
         lines += [""] + _category_rows(result, top)
+    return "\n".join(lines)
+
+
+def explanation_lines(explained: list[dict]) -> list[str]:
+    """An engine's explanation (its ``explain``), one block per category: score and the contributions to it."""
+    lines = ["", "why (each category's score: the contributions that sum to it from the baseline)"]
+    for e in sorted(explained, key=lambda e: e["rank"]):
+        lines.append(f"{e['rank']:>4}. {e['category']:<22} score {e['score']:8.3f} = baseline {e['baseline']:.3f}"
+                     " + …")
+        for c in e["contributions"]:
+            value = f"(value {c['value']:.3g})" if c["value"] is not None else ""
+            lines.append(f"        {c['contribution']:+8.3f}  {c['feature']:<34} {value}")
+    return lines
+
+
+def _part(m: dict) -> str:
+    return f"{m['mrr']:>7.3f} ({m['n']})" if m["n"] else f"{'–':>7} (0)"
+
+
+def format_transfer(result: dict) -> str:
+    """A human table of :func:`~scenesuggest.evaluation.transfer.evaluate_transfer`'s result."""
+    walk = result["crosswalk"]
+    types = "room types inferred without the object" if result["scene_type"] == "inferred" else \
+        "room types as the corpus gives them"
+    lines = [f"trained on {result['train']}, asked on {result['test']}: {result['queries']} queries "
+             f"({result['unmapped_queries']} of unmapped categories left out, {result['skipped']} skipped), "
+             f"seed {result['seed']}, {types}",
+             f"categories mapped: {walk['mapped_categories']} of {walk['categories']} (by rule: "
+             + ", ".join(f"{k} {v}" for k, v in sorted(walk["by_rule"].items(), key=lambda kv: -kv[1])) + ")",
+             "unmapped queries: " + (", ".join(f"{c} {n}" for c, n in list(result["unmapped_by_category"].items())[:12])
+                                     or "none"), "",
+             f"{'engine':<12}{'MRR':>7}{'top-1':>7}{'top-5':>7}{'folded ≤45°':>13}{'known parents':>16}"
+             f"{'unknown parents':>18}  MRR − {result['engine']} [95% CI]"]
+    for name, block in result["engines"].items():
+        full, diff = block["modes"]["full"], block.get("vs_first")
+        lines.append(f"{name:<12}{full['mrr']:>7.3f}{full['top1']:>7.3f}{full['top5']:>7.3f}"
+                     f"{100 * full['orient_folded_within_45']:>12.1f}%{_part(block['known_parents']):>16}"
+                     f"{_part(block['unknown_parents']):>18}"
+                     + (f"  {diff['mrr_difference']:+.3f} [{diff['low']:+.3f}, {diff['high']:+.3f}]" if diff else ""))
+    if any("like_for_like" in b for b in result["engines"].values()):
+        lines += ["", f"{'like for like':<12}{'in-corpus':>11}{'reweighted':>12}{'here':>8}{'kept':>8}"]
+        for name, block in result["engines"].items():
+            m = block["like_for_like"]
+            lines.append(f"{name:<12}{m['in_corpus_mrr']:>11.3f}{m['reweighted_in_corpus_mrr']:>12.3f}"
+                         f"{m['cross_corpus_mrr']:>8.3f}{100 * m['kept']:>7.1f}%")
+    for name, misses in result.get("explained_misses", {}).items():
+        lines += ["", f"the {name} engine's worst misses"]
+        for miss in misses:
+            others = ", ".join(f"{e} {r:g}" if r is not None else f"{e} –" for e, r in miss["ranks"].items()
+                               if e != name)
+            lines += ["", f"{miss['category']} ({miss['as_named_there']} there) on {miss['parent']} "
+                          f"{miss['parent_id']!r} in {miss['scene']} ({miss['scene_type']}): rank "
+                          f"{miss['ranks'][name]:g}" + (f" ({others})" if others else "")]
+            lines += explanation_lines(miss["explanation"])
     return "\n".join(lines)

@@ -1,0 +1,167 @@
+"""Trained on one corpus, asked on another: whether an engine's figures hold up on scenes from elsewhere.
+
+Every engine is trained on all of ``train`` and asked every held-out query of ``test`` (one per support edge, as
+:mod:`scenesuggest.evaluation.evaluate` asks them), with the test scene's categories mapped into the training
+corpus's (:mod:`scenesuggest.corpora.crosswalk`). A query whose category is unmapped is no query: it is counted
+(``unmapped_queries``, by category) and left out. Reported per engine: MRR, top-1, top-5 and orientation, over all
+queries and split by whether the query's parent is one the training corpus knows (``known_parents``: mapped, or the
+room) or not (``unknown_parents``: an unmapped or unlabelled parent), each engine after the first with the paired
+bootstrap interval of its MRR difference from the first (resampling the test corpus's scene groups).
+
+Like for like (``like_for_like``): each engine's in-corpus MRR per category (grouped k-fold on ``train``) weighted
+by the mix of the cross-corpus queries' categories is what the engine would score on those queries if they were as
+easy as its own corpus's; ``kept`` is the cross-corpus MRR over the same queries divided by it (1: nothing lost).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Callable, Iterable
+
+import numpy as np
+
+from ..assets.symmetry import corpus_periods
+from ..corpora.corpus import Corpus
+from ..corpora.crosswalk import Crosswalk, crosswalk
+from ..corpora.folds import grouped_folds, similar_groups
+from ..corpora.wordnet import WordNet, wordnet
+from ..engines import EngineSpec
+from ..errors import SceneSuggestError
+from ..learning.priors import Priors
+from ..scenes.scene import ROOM
+from ..suggestion.held_out import DEFAULT_SCENE_TYPE, check_scene_type, held_out_queries
+from ..suggestion.suggest import Engine, EngineOptions
+from ..suggestion.suggestable import suggestable
+from .evaluate import (
+    EngineRun,
+    check_evaluable,
+    engine_figures,
+    fitted_engine,
+    measure_query,
+    paired_difference,
+    ranks_by_category,
+    run_folds,
+    summary,
+)
+
+#: How many suggestions an explained miss lists beside the true category.
+EXPLAINED_TOP = 3
+
+
+def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | None = None, seed: int = 0,
+                      resamples: int = 1000, scene_type: str = DEFAULT_SCENE_TYPE, folds: int = 5,
+                      like_for_like: bool = True, explain: int = 0, wn: WordNet | None = None,
+                      progress: Callable[[Iterable, str], Iterable] | None = None) -> dict:
+    """Train every engine of ``engines`` (default: the paper's) on ``train``, ask them ``test``'s queries; the
+    JSON-ready summary (see the module). ``explain``: for each engine that explains itself, its ``explain`` worst
+    misses (the largest ranks of a category it knows), with why."""
+    check_scene_type(scene_type)
+    progress = progress or (lambda items, label="": items)
+    specs = list(engines or [EngineSpec("paper", {"name": "paper"}, EngineOptions())])
+    if len({s.name for s in specs}) != len(specs):
+        raise SceneSuggestError("each engine may be named once", field="engine")
+    check_evaluable(specs)
+    walk = crosswalk(test, train, wn or wordnet())
+    periods = corpus_periods([*train.models.values(), *test.models.values()], progress)
+    priors = Priors.fit(train.scenes, train.taxonomy)
+    paper = Engine(priors, specs[0].config if specs[0].name == "paper" else EngineOptions())
+    paper_rule = paper.with_options(orientation="paper")
+    fitted = {s.name: fitted_engine(s, priors, train.scenes, train, seed, periods, progress) for s in specs}
+    asked = Corpus(test.source, [], test.models, train.taxonomy)  # test models, training vocabulary
+    runs = {s.name: EngineRun() for s in specs}
+    scene_groups = similar_groups(test.scenes)
+    groups, categories, known_parent, queries = [], [], [], []
+    unmapped, skipped = Counter(), 0
+    for i, scene in enumerate(progress(test.scenes, "scenes")):
+        relabelled = walk.relabel(scene)
+        for query, o in held_out_queries(relabelled, train.taxonomy, scene_type):
+            if o.category in walk.unmapped:
+                unmapped[o.category] += 1
+                continue
+            try:
+                paper.score(query)
+            except SceneSuggestError:  # a contact far from its parent's box: bad data, not a query
+                skipped += 1
+                continue
+            groups.append(scene_groups[i])
+            categories.append(o.category)
+            parent = relabelled.objects[o.parent].category
+            known_parent.append(parent == ROOM or (parent in priors.categories and suggestable(parent)))
+            queries.append((scene.id, query, o, scene.objects[o.id].category))
+            for s in specs:
+                measure_query(runs[s.name], fitted[s.name], paper_rule, query, relabelled, o, asked, periods, False)
+    known = np.array(known_parent, dtype=bool)
+    result = {
+        "train": train.source, "test": test.source, "seed": seed, "scene_type": scene_type, "queries": len(groups),
+        "skipped": skipped, "unmapped_queries": sum(unmapped.values()),
+        "unmapped_by_category": dict(unmapped.most_common()), "known_parent_queries": int(known.sum()),
+        "crosswalk": walk.to_dict(), "engine": specs[0].name,
+        "engines": _blocks(runs, specs, groups, known, resamples, seed),
+    }
+    if like_for_like:
+        _add_like_for_like(result, train, specs, runs, categories, folds, seed, scene_type, periods, progress)
+    if explain:
+        result["explained_misses"] = _misses(fitted, runs, queries, walk, explain)
+    return result
+
+
+def _blocks(runs: dict[str, EngineRun], specs: list[EngineSpec], groups: list[int], known: np.ndarray,
+            resamples: int, seed: int) -> dict[str, dict]:
+    first = specs[0].name
+    out = {}
+    for s in specs:
+        ranks = runs[s.name].ranks
+        block = {**engine_figures(ranks, runs[s.name].records), "version": s.kind.version}
+        for part, mask in (("known_parents", known), ("unknown_parents", ~known)):
+            block[part] = summary([r for r, k in zip(ranks, mask, strict=True) if k])
+        if s.name != first:
+            base = runs[first].ranks
+            block["vs_first"] = {"engine": first, **paired_difference(base, ranks, groups, resamples, seed)}
+            if known.any():
+                pick = np.flatnonzero(known)
+                block["known_parents"]["vs_first"] = {
+                    "engine": first, **paired_difference([base[k] for k in pick], [ranks[k] for k in pick],
+                                                         [groups[k] for k in pick], resamples, seed)}
+        out[s.name] = block
+    return out
+
+
+def _add_like_for_like(result: dict, train: Corpus, specs: list[EngineSpec], runs: dict[str, EngineRun],
+                       categories: list[str], folds: int, seed: int, scene_type: str, periods, progress) -> None:
+    """Each engine's in-corpus MRR per category on ``train`` (grouped folds), weighted by the cross-corpus queries'
+    categories, beside its cross-corpus MRR on the same queries (see the module)."""
+    groups = similar_groups(train.scenes)
+    home = run_folds(train, grouped_folds(groups, folds, seed), specs[0].config if specs[0].name == "paper" else
+                     EngineOptions(), periods, progress, specs=specs, groups=groups, seed=seed, scene_type=scene_type)
+    for s in specs:
+        by = {c: summary(r)["mrr"] for c, r in ranks_by_category(home, s.name).items()}
+        ranks = runs[s.name].ranks
+        pick = [k for k, c in enumerate(categories) if c in by]
+        expected = float(np.mean([by[categories[k]] for k in pick])) if pick else 0.0
+        observed = summary([ranks[k] for k in pick])["mrr"] if pick else 0.0
+        result["engines"][s.name]["like_for_like"] = {
+            "in_corpus_mrr": summary(home.engines[s.name].ranks)["mrr"], "in_corpus_queries": len(home.groups),
+            "folds": folds, "queries": len(pick), "reweighted_in_corpus_mrr": expected,
+            "cross_corpus_mrr": observed, "kept": observed / expected if expected else 0.0}
+
+
+def _misses(fitted: dict, runs: dict[str, EngineRun], queries: list, walk: Crosswalk, n: int) -> dict[str, list]:
+    """Per engine that explains itself: its ``n`` worst ranks of a category it knows, each with every engine's rank
+    and the engine's explanation of its top suggestions and of the true category."""
+    out = {}
+    for name, engine in fitted.items():
+        if not hasattr(engine, "explain"):
+            continue
+        ranks = runs[name].ranks
+        order = sorted((k for k, r in enumerate(ranks) if math.isfinite(r)), key=lambda k: (-ranks[k], k))[:n]
+        rows = []
+        for k in order:
+            scene_id, query, o, original = queries[k]
+            parent = query.scene.objects[query.parent_id]
+            rows.append({"scene": scene_id, "object": o.id, "category": o.category, "as_named_there": original,
+                         "parent": parent.category, "parent_id": parent.id, "scene_type": query.scene_type,
+                         "ranks": {e: runs[e].ranks[k] if math.isfinite(runs[e].ranks[k]) else None for e in runs},
+                         "explanation": engine.explain(query, "full", EXPLAINED_TOP, [o.category])})
+        out[name] = rows
+    return out

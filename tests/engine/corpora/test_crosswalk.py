@@ -1,0 +1,110 @@
+"""WordNet read from Debian's files, and categories mapped between Stanford and AI2-THOR through it."""
+
+from pathlib import Path
+
+import pytest
+from conftest import require_wordnet
+
+from scenesuggest.corpora.crosswalk import DECISIONS, crosswalk, words
+from scenesuggest.corpora.wordnet import PHYSICAL_ENTITY, WordNet, synset_id
+from scenesuggest.errors import SceneSuggestError
+from scenesuggest.scenes.scene import ROOM, UNKNOWN
+from scenesuggest.suggestion.suggestable import suggestable
+
+CHAIR, ARMCHAIR = "n03001627", "n02738535"
+
+
+@pytest.fixture(scope="module")
+def wn():
+    return require_wordnet()
+
+
+def test_synset_ids_take_shapenetsem_spelling_and_refuse_anything_else():
+    assert synset_id("n3001627") == CHAIR == synset_id(CHAIR)
+    for bad in ("3001627", "v03001627", "n", "n0300x627", "n123456789", ""):
+        with pytest.raises(SceneSuggestError, match="not a WordNet noun synset"):
+            synset_id(bad)
+
+
+def test_wordnet_reads_senses_lemmas_and_hypernyms(wn):
+    assert wn.senses("chair")[0] == CHAIR and wn.senses("Chairs")[0] == CHAIR
+    assert wn.senses("garbage can") == wn.senses("garbage_can") and wn.senses("no_such_thing_here") == ()
+    chair = wn.synset("n3001627")
+    assert chair.lemmas == ("chair",) and "seat for one person" in chair.gloss
+    assert dict(wn.ancestors(ARMCHAIR))[CHAIR] == 1
+    assert wn.is_thing(CHAIR) and wn.depth(CHAIR) > wn.depth(PHYSICAL_ENTITY)
+    cabinet = wn.senses("cabinet")
+    assert wn.is_thing(cabinet[0]) and not wn.is_thing(cabinet[1])  # furniture; the ministers
+    assert not any(wn.is_thing(s) for s in wn.senses("idea"))
+    with pytest.raises(SceneSuggestError, match="no WordNet noun synset"):
+        wn.synset("n00000002")
+
+
+def test_missing_wordnet_names_what_to_install(tmp_path: Path):
+    with pytest.raises(SceneSuggestError, match="apt-get install wordnet-base"):
+        WordNet(tmp_path)
+
+
+def test_words_of_category_names():
+    assert words("GarbageCan") == ["garbage", "can"] and words("TVStand") == ["tv", "stand"]
+    assert words("4Shelves") == ["shelves"] and words("saucebottle") == ["saucebottle"]
+
+
+@pytest.fixture(scope="module")
+def ai2thor_into_stanford(ai2thor, stanford, wn):
+    return crosswalk(ai2thor, stanford, wn)
+
+
+@pytest.fixture(scope="module")
+def stanford_into_ai2thor(ai2thor, stanford, wn):
+    return crosswalk(stanford, ai2thor, wn)
+
+
+def test_ai2thor_types_map_into_stanford_categories(ai2thor_into_stanford, stanford):
+    walk = ai2thor_into_stanford
+    known = {o.category for s in stanford.scenes for o in s}
+    expected = {"Chair": ("Chair", "name"), "GarbageCan": ("TrashBin", "synset"), "Sofa": ("Couch", "synset"),
+                "ArmChair": ("Chair", "hypernym"), "Television": ("TV", "synset"), "CD": ("CompactDisk", "decided"),
+                "Drawer": (None, "unmapped"), "Window": (None, "decided")}
+    for name, (target, via) in expected.items():
+        assert (walk.matches[name].category, walk.matches[name].via) == (target, via), name
+    assert stanford.taxonomy.parent(walk.category("Bed")) == "Bed"  # Stanford has only kinds of bed
+    for name, match in walk.matches.items():
+        assert match.category is None or (match.category in known and suggestable(match.category)), name
+    assert walk.category(ROOM) == ROOM and ROOM not in walk.matches
+    d = walk.to_dict()
+    assert d["mapped_categories"] + d["unmapped_categories"] == d["categories"] == len(walk.matches)
+    assert d["unmapped_instances"] == sum(walk.counts[c] for c in walk.unmapped) > 0
+    assert sum(d["by_rule"].values()) == d["categories"]
+
+
+def test_stanford_categories_map_into_ai2thor_types(stanford_into_ai2thor, ai2thor):
+    walk = stanford_into_ai2thor
+    assert walk.category("TrashBin") == "GarbageCan" and walk.category("OfficeChair") == "Chair"
+    assert walk.category("Keyboard") is None  # AI2-THOR has no keyboards
+    assert UNKNOWN not in walk.matches  # a placeholder is never mapped
+    types = {o.category for s in ai2thor.scenes for o in s}
+    assert all(m.category in types for m in walk.matches.values() if m.category is not None)
+
+
+def test_every_decision_names_categories_that_exist(stanford, ai2thor):
+    """A decision about a category one corpus no longer has, or into one the other lacks, is stale."""
+    vocabulary = {"stanford": {o.category for s in stanford.scenes for o in s},
+                  "ai2thor": {o.category for s in ai2thor.scenes for o in s}}
+    for (kind, name), (target, reason) in DECISIONS.items():
+        other = "ai2thor" if kind == "stanford" else "stanford"
+        assert name in vocabulary[kind], (kind, name)
+        assert target is None or target in vocabulary[other], (kind, name, target)
+        assert reason
+
+
+def test_relabelled_scenes_speak_the_training_vocabulary(ai2thor_into_stanford, ai2thor, stanford):
+    walk = ai2thor_into_stanford
+    known = {o.category for s in stanford.scenes for o in s}
+    scene = ai2thor.scenes[0]
+    relabelled = walk.relabel(scene)
+    assert list(relabelled.objects) == list(scene.objects) and scene.objects != relabelled.objects
+    for key, o in relabelled.objects.items():
+        original = scene.objects[key].category
+        assert o.category in known or original in walk.unmapped, original
+        assert (o.transform == scene.objects[key].transform).all() and o.parent == scene.objects[key].parent
