@@ -65,7 +65,9 @@ def test_ai2thor_types_map_into_stanford_categories(ai2thor_into_stanford, stanf
     known = {o.category for s in stanford.scenes for o in s}
     expected = {"Chair": ("Chair", "name"), "GarbageCan": ("TrashBin", "synset"), "Sofa": ("Couch", "synset"),
                 "ArmChair": ("Chair", "hypernym"), "Television": ("TV", "synset"), "CD": ("CompactDisk", "decided"),
-                "Drawer": (None, "unmapped"), "Window": (None, "decided")}
+                "Drawer": (None, "decided"), "Window": (None, "decided"), "StoveKnob": (None, "unmapped"),
+                "Spoon": ("Utensils", "parent"),  # a parent maps by its name or synset only:
+                "BaseballBat": (None, "unmapped")}  # "sports equipment" would find shoes
     for name, (target, via) in expected.items():
         assert (walk.matches[name].category, walk.matches[name].via) == (target, via), name
     assert stanford.taxonomy.parent(walk.category("Bed")) == "Bed"  # Stanford has only kinds of bed

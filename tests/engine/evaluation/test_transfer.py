@@ -1,0 +1,117 @@
+"""Trained on one corpus, asked on another (``evaluate --train --test``): the queries, the ranks, like for like."""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import require_wordnet
+
+from scenesuggest.corpora.corpus import Corpus
+from scenesuggest.corpora.crosswalk import crosswalk
+from scenesuggest.engines import configure
+from scenesuggest.evaluation.evaluate import rank_of, summary
+from scenesuggest.evaluation.formatting import format_transfer
+from scenesuggest.evaluation.transfer import evaluate_transfer
+from scenesuggest.learning.priors import Priors
+from scenesuggest.suggestion.held_out import held_out_queries
+from scenesuggest.suggestion.suggest import Engine, EngineOptions
+
+
+@pytest.fixture(scope="module")
+def small(stanford, ai2thor):
+    """40 Stanford scenes to train on, 12 AI2-THOR rooms (of every kind) to ask."""
+    require_wordnet()
+    train = Corpus(stanford.source, stanford.scenes[:40], stanford.models, stanford.taxonomy)
+    test = Corpus(ai2thor.source, ai2thor.scenes[::17], ai2thor.models, ai2thor.taxonomy)
+    return train, test
+
+
+@pytest.fixture(scope="module")
+def result(small):
+    train, test = small
+    specs = [configure({"name": n}) for n in ("paper", "frequency")]
+    return evaluate_transfer(train, test, specs, folds=2, explain=2, resamples=200)
+
+
+def test_every_mapped_query_is_asked_and_ranked_as_the_engine_ranks_it(small, result):
+    train, test = small
+    walk = crosswalk(test, train, require_wordnet())
+    engine = Engine(Priors.fit(train.scenes, train.taxonomy), EngineOptions())
+    ranks, unmapped = [], 0
+    for scene in test.scenes:
+        for query, o in held_out_queries(walk.relabel(scene), train.taxonomy, "inferred"):
+            if o.category in walk.unmapped:
+                unmapped += 1
+                continue
+            ranks.append(rank_of(engine.score(query).total, engine.index.get(o.category), engine.suggestable))
+    assert result["skipped"] == 0 and result["queries"] == len(ranks) > 100
+    assert result["unmapped_queries"] == unmapped == sum(result["unmapped_by_category"].values()) > 0
+    assert set(result["unmapped_by_category"]) <= walk.unmapped
+    paper = result["engines"]["paper"]
+    assert paper["modes"]["full"]["mrr"] == pytest.approx(summary(ranks)["mrr"])
+    assert paper["known_parents"]["n"] + paper["unknown_parents"]["n"] == len(ranks)
+    assert result["crosswalk"]["mapped_categories"] == len(walk.matches) - len(walk.unmapped)
+
+
+def test_engines_are_compared_on_the_same_queries_and_like_for_like(result):
+    frequency = result["engines"]["frequency"]
+    paper = result["engines"]["paper"]
+    diff = frequency["vs_first"]
+    assert diff["queries"] == result["queries"] and diff["groups"] >= 1
+    assert diff["mrr_difference"] == pytest.approx(frequency["modes"]["full"]["mrr"] - paper["modes"]["full"]["mrr"])
+    assert diff["low"] <= diff["mrr_difference"] <= diff["high"]
+    for block in (paper, frequency):
+        lfl = block["like_for_like"]
+        assert 0 < lfl["queries"] <= result["queries"] and lfl["folds"] == 2
+        assert 0 < lfl["reweighted_in_corpus_mrr"] <= 1 and 0 < lfl["in_corpus_mrr"] <= 1
+        assert lfl["kept"] == pytest.approx(lfl["cross_corpus_mrr"] / lfl["reweighted_in_corpus_mrr"])
+    assert paper["modes"]["full"]["orient_n"] > 0
+
+
+def test_worst_misses_are_explained(result):
+    misses = result["explained_misses"]
+    assert set(misses) == {"paper", "frequency"}
+    for name, rows in misses.items():
+        assert len(rows) == 2 and rows[0]["ranks"][name] >= rows[1]["ranks"][name] > 1
+        for row in rows:
+            assert row["category"] in {e["category"] for e in row["explanation"]}
+            assert all(math.isfinite(r) for r in row["ranks"].values() if r is not None)
+    rows = misses["paper"]
+    text = format_transfer(result)
+    assert "worst misses" in text and rows[0]["category"] in text and "like for like" in text
+    json.dumps(result, allow_nan=False)  # no Infinity in what --json prints
+
+
+def test_a_parent_the_training_corpus_never_saw_is_unknown(small):
+    """A Stanford scene asked of an AI2-THOR engine: an object on an unlabelled model (Unknown) is on an unknown
+    parent, and an Unknown object is never a query."""
+    train, test = small
+    into = Corpus(train.source, train.scenes[:12], train.models, train.taxonomy)
+    result = evaluate_transfer(test, into, [configure({"name": "paper"})], like_for_like=False, resamples=50)
+    assert "Unknown" not in result["unmapped_by_category"]
+    paper = result["engines"]["paper"]
+    assert paper["unknown_parents"]["n"] > 0 and paper["known_parents"]["n"] > 0
+    assert result["known_parent_queries"] == paper["known_parents"]["n"]
+    assert np.isclose(paper["modes"]["full"]["n"], result["queries"])
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "scenesuggest.cli", "evaluate", *args], capture_output=True,
+                          text=True)
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["--train", "ai2thor"], "--train and --test go together"),
+    (["--test", "ai2thor"], "--train and --test go together"),
+    (["ai2thor", "--train", "ai2thor", "--test", "ai2thor"], "give SOURCE or --train and --test, not both"),
+    (["ai2thor", "--explain", "3"], "--explain is of the misses of --train/--test"),
+    (["--train", "ai2thor", "--test", "ai2thor", "--ablations"], "--ablations and --by-category"),
+    (["--train", "nowhere:x", "--test", "ai2thor"], "unknown corpus source 'nowhere:x'"),
+    ([], "name the corpus to evaluate"),
+])
+def test_cli_refuses_what_does_not_go_together(args, said):
+    done = run_cli(*args)
+    assert done.returncode != 0 and said in done.stderr and "Traceback" not in done.stderr
