@@ -340,9 +340,11 @@ def evaluate_cmd(source: str | None, train_source: str | None, test_source: str 
 
 def _transfer(train_source: str, test_source: str, specs, folds: int, seed: int, resamples: int, scene_type: str,
               like_for_like: bool, explain: int, meshes: str | None, as_json: bool) -> None:
+    from .corpora.wordnet import wordnet
     from .evaluation.formatting import format_transfer
     from .evaluation.transfer import evaluate_transfer
 
+    wordnet()  # before the corpora load: say at once that WordNet is missing
     train, test = _load(train_source, meshes), _load(test_source, meshes)
     if like_for_like and len(train.scenes) < folds:
         raise SceneSuggestError(f"{len(train.scenes)} scenes cannot make {folds} folds", field="folds")

@@ -4,9 +4,11 @@ Each category of the corpus asked (``test``) is given the category of the traini
 the same kind of thing, by the first rule that finds one (its ``via``):
 
 1. ``name`` — the same name, ignoring case and anything but letters and digits (Stanford ``TV`` and a ``Tv``);
-2. ``synset`` — the same WordNet noun synset. A category's synsets are the majority synset of its models where its
-   corpus labels them (ShapeNetSem's ``wnsynset``, :attr:`ModelInfo.synset`) and the most frequent sense of its
-   name that is a physical thing (``GarbageCan`` → garbage_can.n.01, which Stanford's ``TrashBin`` models carry);
+2. ``synset`` — the same WordNet 3.0 noun synset. A category's synsets are the majority synset of its models where
+   its corpus names them by WordNet lemmas (Stanford's: ShapeNetSem's ``wnlemmas``, kept as a model's
+   ``description``; the synset is the sense of the first lemma that holds them all — ShapeNetSem's own ``wnsynset``
+   counts in WordNet 3.1) and the most frequent sense of its name that is a physical thing (``GarbageCan`` →
+   garbage_can.n.01, whose lemmas Stanford's ``TrashBin`` models carry);
 3. ``hypernym`` — a training category whose synset is a hypernym of one of the category's, at most
    :data:`MAX_HYPERNYM_DISTANCE` links up, the nearest first (``ArmChair`` → chair.n.01 → ``Chair``);
 4. ``head`` — rules 1–3 and 5 on the last word of a compound name (``SideTable`` → table);
@@ -18,7 +20,8 @@ the same kind of thing, by the first rule that finds one (its ``via``):
 Where a rule finds several training categories, the one with the most instances is taken. What no rule maps is
 *unmapped*: its queries are counted and left out of the figures, and its objects keep their own name, which the
 trained engine has never seen (a parent it knows nothing of). :data:`DECISIONS` overrides the rules where they go
-wrong, each with its reason; the room shell is always the room shell and a placeholder is never mapped.
+wrong, for one pair of corpora, each with its reason (a decided parent stops the walk up the taxonomy); the room shell
+is always the room shell and a placeholder is never mapped.
 """
 
 from __future__ import annotations
@@ -27,79 +30,90 @@ import re
 from collections import Counter
 from dataclasses import dataclass, replace
 
-from ..errors import SceneSuggestError
-from ..scenes.scene import ROOM, Scene
-from ..suggestion.suggestable import suggestable
+from ..library.search import split_camel
+from ..scenes.scene import PLACEHOLDERS, ROOM, Scene
 from .corpus import Corpus
-from .wordnet import WordNet, synset_id
+from .wordnet import WordNet
 
 #: Hypernym links a ``hypernym`` match may climb (2: armchair → chair; more reaches "seat", "furniture").
 MAX_HYPERNYM_DISTANCE = 2
-#: A ``hypernym`` match must name something at least this many links below WordNet's root (chair: 9; the
-#: "framework" or "structure" some unlabelled Stanford models are named after: 6).
+#: A ``hypernym`` match must name something at least this many links below WordNet's root (chair: 9; box: 7;
+#: "instrumentality" or "container": 5 and 6).
 MIN_DEPTH = 7
-#: (test corpus kind, category) → the training category (None: unmapped) and why; the rules are wrong there.
-DECISIONS: dict[tuple[str, str], tuple[str | None, str]] = {
-    # AI2-THOR asked of an engine trained on Stanford
-    ("ai2thor", "Window"): (None, "Stanford's rooms have no windows (the hypernym finds 'Framework', a lemma)"),
-    ("ai2thor", "CD"): ("CompactDisk", "WordNet's first physical 'cd' is cadmium"),
-    ("ai2thor", "CreditCard"): (None, "no cards in Stanford's scenes (the head noun finds 'Paper')"),
-    ("ai2thor", "KeyChain"): ("Key", "a ring of keys (the head noun finds a chain)"),
-    ("ai2thor", "HandTowelHolder"): (None, "Stanford's 'Holder' holds pens"),
-    ("ai2thor", "TowelHolder"): (None, "Stanford's 'Holder' holds pens"),
-    ("ai2thor", "ToiletPaperHanger"): (None, "Stanford's 'Hanger' is a coat hanger"),
-    ("ai2thor", "ShowerHead"): (None, "Stanford's 'Head' is a human head"),
-    ("ai2thor", "ShowerGlass"): (None, "a shower's glass wall (the head noun finds a drinking glass)"),
-    ("ai2thor", "LaundryHamper"): ("Basket", "a hamper is a basket (WordNet's first 'hamper' is a fetter)"),
-    ("ai2thor", "BathtubBasin"): ("Bathtub", "the basin of a bathtub (the head noun finds a washbasin)"),
-    ("ai2thor", "Newspaper"): ("Magazine", "printed pages folded on a table (the parent finds blank paper)"),
-    ("ai2thor", "Egg"): ("FoodItem", "Stanford's food is 'FoodItem' (the parent finds 'Food', one instance)"),
-    ("ai2thor", "Lettuce"): ("FoodItem", "Stanford's food is 'FoodItem' (the parent finds 'Food', one instance)"),
-    ("ai2thor", "Potato"): ("FoodItem", "Stanford's food is 'FoodItem' (the parent finds 'Food', one instance)"),
-    ("ai2thor", "Tomato"): ("FoodItem", "Stanford's food is 'FoodItem' (the parent finds 'Food', one instance)"),
-    ("ai2thor", "DishSponge"): (None, "no sponges in Stanford's scenes (the parent finds 'Utensils')"),
-    ("ai2thor", "SaltShaker"): ("PepperMill", "a seasoning dispenser (the parent finds 'Utensils')"),
-    ("ai2thor", "PepperShaker"): ("PepperMill", "a seasoning dispenser (the parent finds 'Utensils')"),
-    ("ai2thor", "PaperTowelRoll"): ("PaperTowel", "the same roll (the parent finds 'Utensils')"),
-    ("ai2thor", "AluminumFoil"): (None, "no foil in Stanford's scenes (the parent finds 'Utensils')"),
-    ("ai2thor", "ShelvingUnit"): ("4Shelves", "a stand of shelves (the head noun finds a chain)"),
-    ("ai2thor", "CoffeeMachine"): ("CoffeeMaker", "the same machine (the head noun finds a stapler)"),
-    ("ai2thor", "WateringCan"): (None, "no watering cans in Stanford's scenes (the head noun finds a soda can)"),
-    ("ai2thor", "TeddyBear"): ("Toy", "a toy (the head noun finds a bear)"),
-    ("ai2thor", "VacuumCleaner"): ("Vacuum", "the same machine (the head noun finds shampoo)"),
-    ("ai2thor", "DogBed"): (None, "no pets' beds in Stanford's scenes (the head noun finds a bed)"),
-    ("ai2thor", "HousePlant"): ("PottedPlant", "a plant in a pot, as Stanford names it 60 times ('Plant': 5)"),
-    ("ai2thor", "SideTable"): ("EndTable", "a small table beside a bed or a sofa (the head noun finds 'Table': 6)"),
-    ("ai2thor", "Drawer"): (None, "Stanford's drawers are part of their furniture (the parent finds a cabinet)"),
-    ("ai2thor", "CounterTop"): ("Counter", "a kitchen counter (the parent finds 'Table': 6)"),
-    ("ai2thor", "SinkBasin"): ("Sink", "the basin of a sink (the head noun finds 'Basin': 2)"),
-    # Stanford asked of an engine trained on AI2-THOR
-    ("stanford", "Cadmium"): ("CD", "ShapeNetSem's synset for these compact discs is cadmium's"),
-    ("stanford", "CompactDisk"): ("CD", "the same disc"),
-    ("stanford", "MediaDiscs"): ("CD", "discs of media"),
-    ("stanford", "Videodisk"): ("CD", "a disc of video"),
-    ("stanford", "Cabling"): (None, "cables (the taxonomy's parent is a phone)"),
-    ("stanford", "Cake"): (None, "no cake in AI2-THOR (the taxonomy's parent is a plate of food)"),
-    ("stanford", "Picture"): ("Painting", "AI2-THOR's framed pictures on walls are its paintings"),
-    ("stanford", "WallArt"): ("Painting", "AI2-THOR's framed pictures on walls are its paintings"),
-    ("stanford", "Glass"): ("Cup", "a drinking glass; AI2-THOR's drinking vessels are cups and mugs"),
-    ("stanford", "DresserWithMirror"): ("Dresser", "a dresser first (the head noun finds the mirror)"),
-    ("stanford", "Nightstand"): ("SideTable", "AI2-THOR's nightstands are side tables"),
-    ("stanford", "EndTable"): ("SideTable", "an end table is a side table"),
-    ("stanford", "Counter"): ("CounterTop", "a kitchen counter"),
-    ("stanford", "FileFolder"): (None, "no folders in AI2-THOR (the head noun finds a book)"),
-    ("stanford", "Lamp"): ("DeskLamp", "a lamp on a table (the narrower rule finds a candle)"),
-    ("stanford", "TableLamp"): ("DeskLamp", "a lamp on a table (the head noun finds a candle)"),
-    ("stanford", "WallLamp"): (None, "no wall lamps in AI2-THOR (the head noun finds a candle)"),
-    ("stanford", "CeilingLamp"): (None, "no ceiling lamps in AI2-THOR (the head noun finds a candle)"),
-    ("stanford", "WallClock"): (None, "no wall clocks in AI2-THOR (the head noun finds an alarm clock)"),
-    ("stanford", "Framework"): (None, "a lemma of unlabelled models, not a kind of thing"),
-    ("stanford", "NobleMetal"): (None, "a lemma of unlabelled models, not a kind of thing"),
-    ("stanford", "KitchenAppliance"): (None, "any appliance (the head noun finds a stove burner)"),
-    ("stanford", "AuxiliaryStorage"): (None, "a computer's storage (the head noun finds a drawer)"),
-    ("stanford", "DrinkingUtensil"): ("Cup", "something to drink from (the head noun finds a fork)"),
-    ("stanford", "Food"): (None, "any food (the narrower rule finds an apple)"),
-}
+#: Corpora by the kind of their source (``stanford:DIR`` → stanford).
+STANFORD, AI2THOR = "stanford", "ai2thor"
+#: (the asked corpus's kind, the training corpus's kind) → {category: (the training category, None: unmapped; why)}
+#: where the rules are wrong.
+DECISIONS: dict[tuple[str, str], dict[str, tuple[str | None, str]]] = {(AI2THOR, STANFORD): {
+    "Window": (None, "Stanford's rooms have no windows (the hypernym finds 'Framework', a lemma)"),
+    "CD": ("CompactDisk", "WordNet's first physical 'cd' is cadmium"),
+    "CreditCard": (None, "no cards in Stanford's scenes (the head noun finds 'Paper')"),
+    "KeyChain": ("Key", "a ring of keys (the head noun finds a chain)"),
+    "HandTowelHolder": (None, "Stanford's 'Holder' holds pens"),
+    "TowelHolder": (None, "Stanford's 'Holder' holds pens"),
+    "ToiletPaperHanger": (None, "Stanford's 'Hanger' is a coat hanger"),
+    "ShowerHead": (None, "Stanford's 'Head' is a human head"),
+    "ShowerGlass": (None, "a shower's glass wall (the head noun finds a drinking glass)"),
+    "LaundryHamper": ("Basket", "a hamper is a basket (WordNet's first 'hamper' is a fetter)"),
+    "BathtubBasin": ("Bathtub", "the basin of a bathtub (the head noun finds a washbasin)"),
+    "Newspaper": ("Magazine", "printed pages folded on a table (the parent finds blank paper)"),
+    "Egg": ("FoodItem", "Stanford's food is 'FoodItem' (the parent finds 'Food', one instance)"),
+    "Lettuce": ("FoodItem", "Stanford's food is 'FoodItem' (the parent finds 'Food', one instance)"),
+    "Potato": ("FoodItem", "Stanford's food is 'FoodItem' (the parent finds 'Food', one instance)"),
+    "Tomato": ("FoodItem", "Stanford's food is 'FoodItem' (the parent finds 'Food', one instance)"),
+    "DishSponge": (None, "no sponges in Stanford's scenes (the parent finds 'Utensils')"),
+    "SaltShaker": ("PepperMill", "a seasoning dispenser (the parent finds 'Utensils')"),
+    "PepperShaker": ("PepperMill", "a seasoning dispenser (the parent finds 'Utensils')"),
+    "PaperTowelRoll": ("PaperTowel", "the same roll (the parent finds 'Utensils')"),
+    "AluminumFoil": (None, "no foil in Stanford's scenes (the parent finds 'Utensils')"),
+    "ShelvingUnit": ("4Shelves", "a stand of shelves (the head noun finds a chain)"),
+    "CoffeeMachine": ("CoffeeMaker", "the same machine (the head noun finds a stapler)"),
+    "WateringCan": (None, "no watering cans in Stanford's scenes (the head noun finds a soda can)"),
+    "TeddyBear": ("Toy", "a toy (the head noun finds a bear)"),
+    "VacuumCleaner": ("Vacuum", "the same machine (the head noun finds shampoo)"),
+    "DogBed": (None, "no pets' beds in Stanford's scenes (the head noun finds a bed)"),
+    "HousePlant": ("PottedPlant", "a plant in a pot, as Stanford names it 60 times ('Plant': 5)"),
+    "SideTable": ("EndTable", "a small table beside a bed or a sofa (the head noun finds 'Table': 6)"),
+    "Drawer": (None, "Stanford's drawers are part of their furniture (the parent finds a cabinet)"),
+    "CounterTop": ("Counter", "a kitchen counter (the parent finds 'Table': 6)"),
+    "SinkBasin": ("Sink", "the basin of a sink (the head noun finds 'Basin': 2)"),
+}, (STANFORD, AI2THOR): {
+    "Cadmium": ("CD", "ShapeNetSem's synset for these compact discs is cadmium's"),
+    "CompactDisk": ("CD", "the same disc"),
+    "MediaDiscs": ("CD", "discs of media"),
+    "Videodisk": ("CD", "a disc of video"),
+    "Cabling": (None, "cables (the taxonomy's parent is a phone)"),
+    "Cake": (None, "no cake in AI2-THOR (the taxonomy's parent is a plate of food)"),
+    "Picture": ("Painting", "AI2-THOR's framed pictures on walls are its paintings"),
+    "WallArt": ("Painting", "AI2-THOR's framed pictures on walls are its paintings"),
+    "Glass": ("Cup", "a drinking glass; AI2-THOR's drinking vessels are cups and mugs"),
+    "DresserWithMirror": ("Dresser", "a dresser first (the head noun finds the mirror)"),
+    "Nightstand": ("SideTable", "AI2-THOR's nightstands are side tables"),
+    "EndTable": ("SideTable", "an end table is a side table"),
+    "Counter": ("CounterTop", "a kitchen counter"),
+    "FileFolder": (None, "no folders in AI2-THOR (the head noun finds a book)"),
+    "Lamp": ("DeskLamp", "a lamp on a table (the narrower rule finds a candle)"),
+    "TableLamp": ("DeskLamp", "a lamp on a table (the head noun finds a candle)"),
+    "WallLamp": (None, "no wall lamps in AI2-THOR (the head noun finds a candle)"),
+    "CeilingLamp": (None, "no ceiling lamps in AI2-THOR (the head noun finds a candle)"),
+    "WallClock": (None, "no wall clocks in AI2-THOR (the head noun finds an alarm clock)"),
+    "Framework": (None, "a lemma of unlabelled models, not a kind of thing"),
+    "NobleMetal": (None, "a lemma of unlabelled models, not a kind of thing"),
+    "KitchenAppliance": (None, "any appliance (the head noun finds a stove burner)"),
+    "AuxiliaryStorage": (None, "a computer's storage (the head noun finds a drawer)"),
+    "DrinkingUtensil": ("Cup", "something to drink from (the head noun finds a fork)"),
+    "Food": (None, "any food (the narrower rule finds an apple)"),
+    "ToyFigure": (None, "action figures on desks; AI2-THOR's one toy is a teddy bear"),
+    "Airplane": (None, "a model plane; AI2-THOR's one toy is a teddy bear"),
+    "SpaceShip": (None, "a model ship; AI2-THOR's one toy is a teddy bear"),
+    "Car": (None, "a model car; AI2-THOR's one toy is a teddy bear"),
+    "Elephant": (None, "a figure of an animal; AI2-THOR's one toy is a teddy bear"),
+    "Horse": (None, "a figure of an animal; AI2-THOR's one toy is a teddy bear"),
+    "Ipod": ("CellPhone", "a handheld device (its models' lemmas find an apple)"),
+    "DecorativeAccessory": (None, "any ornament (its models' lemmas find a plate)"),
+    "Board": (None, "a board (its models' lemmas find a dining table)"),
+    "CoatRack": (None, "no coat racks in AI2-THOR (the parent finds a shelf)"),
+}}
 
 
 @dataclass(frozen=True)
@@ -160,7 +174,7 @@ def normalised(name: str) -> str:
 def words(name: str) -> list[str]:
     """The words of a category name: ``GarbageCan`` → garbage, can; ``TVStand`` → tv, stand; ``4Shelves`` →
     shelves."""
-    return [w.lower() for w in re.findall(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+", name)]
+    return [w.lower() for w in re.findall(r"[a-z]+", split_camel(name), flags=re.IGNORECASE)]
 
 
 def _kind(corpus: Corpus) -> str:
@@ -173,14 +187,11 @@ class _Concepts:
     def __init__(self, corpus: Corpus, wn: WordNet):
         self.wn = wn
         votes: dict[str, Counter] = {}
-        for m in corpus.models.values():
-            if m.synset:
-                try:
-                    sid = synset_id(m.synset)
-                    wn.synset(sid)
-                except SceneSuggestError:  # a label WordNet does not hold: the name still speaks
-                    continue
-                votes.setdefault(m.category, Counter())[sid] += 1
+        if _kind(corpus) == STANFORD:  # a model's description lists its WordNet lemmas (ShapeNetSem's wnlemmas)
+            for m in corpus.models.values():
+                sid = self.lemmas_sense([w.strip() for w in m.description.split(",") if w.strip()])
+                if sid is not None:
+                    votes.setdefault(m.category, Counter())[sid] += 1
         self.taxonomy = corpus.taxonomy
         self.counts = Counter(o.category for s in corpus.scenes for o in s)
         self.of: dict[str, list[str]] = {}
@@ -188,6 +199,14 @@ class _Concepts:
             found = [votes[c].most_common(1)[0][0]] if c in votes else []
             found += [s for s in self.named(c) if s not in found]
             self.of[c] = found
+
+    def lemmas_sense(self, lemmas: list[str]) -> str | None:
+        """The sense of the first of ``lemmas`` whose synset holds them all (None: there is none)."""
+        wanted = {"_".join(w.lower().split()) for w in lemmas}
+        for sid in self.wn.senses(lemmas[0]) if lemmas else ():
+            if wanted <= set(self.wn.synset(sid).lemmas):
+                return sid
+        return None
 
     def named(self, name: str) -> list[str]:
         """The most frequent sense of ``name`` (its words joined, or run together) that is a physical thing."""
@@ -205,12 +224,12 @@ def _most(candidates: set[str], counts: Counter) -> str:
 
 def _by_rules(name: str, synsets: list[str], train: _Concepts, wn: WordNet, strict: bool = False) -> Match | None:
     """Rules 1–3 and 5 for a category called ``name`` with ``synsets`` (``strict``: 1–2 only)."""
-    by_name = {c for c in train.counts if normalised(c) == normalised(name) and suggestable(c)}
+    by_name = {c for c in train.counts if normalised(c) == normalised(name) and c not in PLACEHOLDERS}
     if by_name:
         return Match(_most(by_name, train.counts), "name")
     holders: dict[str, set[str]] = {}
     for c, sids in train.of.items():
-        if suggestable(c) and c != ROOM:
+        if c not in PLACEHOLDERS and c != ROOM:
             for sid in sids:
                 holders.setdefault(sid, set()).add(c)
     for sid in synsets:
@@ -228,8 +247,8 @@ def _by_rules(name: str, synsets: list[str], train: _Concepts, wn: WordNet, stri
     if best is not None:
         return Match(_most(holders[best[1]], train.counts), "hypernym", best[1])
     narrower = {c for sid, cs in holders.items() if set(wn.synset(sid).hypernyms) & set(synsets) for c in cs}
-    narrower |= {c for c in train.counts if suggestable(c) and
-                 any(normalised(a) == normalised(name) for a in train.taxonomy.ancestors(c))}
+    narrower |= {c for c in train.counts if c not in PLACEHOLDERS and
+                 normalised(train.taxonomy.parent(c) or "") == normalised(name)}
     if narrower:
         return Match(_most(narrower, train.counts), "narrower")
     return None
@@ -238,7 +257,10 @@ def _by_rules(name: str, synsets: list[str], train: _Concepts, wn: WordNet, stri
 def crosswalk(test: Corpus, train: Corpus, wn: WordNet) -> Crosswalk:
     """Map every category of ``test`` into ``train``'s (see the module)."""
     mine, theirs = _Concepts(test, wn), _Concepts(train, wn)
-    kind = _kind(test)
+    pair = (_kind(test), _kind(train))
+    decided = {name: (target, why) if target is None or target in theirs.counts else
+               (None, f"{why}; but the training scenes have no {target}")
+               for name, (target, why) in DECISIONS.get(pair, {}).items()}
 
     def direct(name: str, synsets: list[str]) -> Match | None:
         found = _by_rules(name, synsets, theirs, wn)
@@ -251,19 +273,21 @@ def crosswalk(test: Corpus, train: Corpus, wn: WordNet) -> Crosswalk:
 
     matches: dict[str, Match] = {}
     for c in sorted(mine.counts):
-        if c == ROOM or not suggestable(c):
+        if c in PLACEHOLDERS:
             continue
-        if (kind, c) in DECISIONS:
-            target, reason = DECISIONS[(kind, c)]
+        if c in decided:
+            target, reason = decided[c]
             matches[c] = Match(target, "decided", reason)
             continue
         found = direct(c, mine.of[c])
         if found is None:
             for parent in test.taxonomy.ancestors(c):
-                decided = DECISIONS.get((kind, parent))
-                up = Match(decided[0], "decided") if decided else _by_rules(parent, mine.named(parent), theirs, wn,
-                                                                            strict=True)
-                if up is not None and up.category is not None:
+                if parent in decided:  # decided: mapped or not, the walk ends here
+                    target = decided[parent][0]
+                    found = Match(target, "parent", parent) if target is not None else None
+                    break
+                up = _by_rules(parent, mine.named(parent), theirs, wn, strict=True)
+                if up is not None:
                     found = Match(up.category, "parent", parent)
                     break
         matches[c] = found or Match(None, "unmapped")

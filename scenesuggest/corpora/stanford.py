@@ -157,7 +157,7 @@ def _model_infos(model_ids, raw_scenes, meta, names, tags, paths, mesh_dir) -> d
             description=", ".join(m.wnlemmas) if m else "",
             up=tuple(float(v) for v in up), front=tuple(float(v) for v in front), unit=float(unit),
             raw_bbox=(tuple(float(v) for v in lo), tuple(float(v) for v in hi)),
-            size_source=source, mesh=str(mesh) if mesh else None, synset=m.wnsynset if m else "",
+            size_source=source, mesh=str(mesh) if mesh else None,
         )
     return models
 

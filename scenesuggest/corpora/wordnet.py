@@ -1,12 +1,14 @@
 """WordNet 3.0 nouns, read from the database files of Debian's ``wordnet-base`` (``/usr/share/wordnet``).
 
-Only what naming a category needs: the noun senses of a lemma (most frequent first), a sense's lemmas and its
-hypernyms. The files are read in the documented database format (``wndb(5)``: ``index.noun`` lists a lemma's
+Only what naming a category needs: the noun senses of a lemma (most frequent first; a plural found through WordNet's
+exceptions and its suffix rules, as its own ``morphy`` does), a sense's lemmas and its hypernyms.
+The files are read in the documented database format (``wndb(5)``: ``index.noun`` lists a lemma's
 synset offsets, ``data.noun`` holds each synset at the byte offset that names it); nltk's reader cannot be used on
 them because it also requires the ``lexnames`` file, which ``wordnet-base`` does not ship.
 
-A synset is named by ShapeNetSem's spelling of it, ``n`` and its offset (``n03001627`` — ShapeNetSem drops the
-leading zero: ``n3001627``; :func:`synset_id` accepts both).
+A synset is named ``n`` and its offset in WordNet 3.0 (``n03001627``; :func:`synset_id` also takes it without the
+leading zero). ShapeNetSem's ``wnsynset`` spells its ids so but counts in WordNet 3.1 (its chairs say ``n3005231``),
+so its models are matched through their lemmas instead (:mod:`scenesuggest.corpora.crosswalk`).
 """
 
 from __future__ import annotations
@@ -20,8 +22,13 @@ from ..errors import SceneSuggestError
 
 #: Where Debian's wordnet-base puts the database; ``SCENESUGGEST_WORDNET`` names another folder.
 DEFAULT_DIR = "/usr/share/wordnet"
-#: physical_entity.n.01: a sense is a thing (not an act, a group, a writing…) when this is among its hypernyms.
+#: physical_entity.n.01: a sense is a thing (not an act, a group, a feeling…) when this is among its hypernyms.
 PHYSICAL_ENTITY = "n00001930"
+#: entity.n.01, the root of the nouns.
+ROOT = "n00001740"
+#: WordNet's suffix rules for nouns, in its order (after the exceptions of ``noun.exc``).
+PLURAL_SUFFIXES = (("s", ""), ("ses", "s"), ("xes", "x"), ("zes", "z"), ("ches", "ch"), ("shes", "sh"),
+                   ("men", "man"), ("ies", "y"))
 
 
 @dataclass(frozen=True)
@@ -52,12 +59,25 @@ class WordNet:
                                     file=str(self.directory))
         self._senses: dict[str, tuple[str, ...]] = {}
         with index.open(encoding="utf-8") as f:
-            for line in f:
+            for number, line in enumerate(f, start=1):
                 if line.startswith(" "):  # the licence
                     continue
                 fields = line.split()
-                count = int(fields[2])
-                self._senses[fields[0]] = tuple("n" + o for o in fields[len(fields) - count:])
+                try:
+                    count = int(fields[2])
+                    offsets = fields[len(fields) - count:]
+                    if not count or not all(o.isdigit() for o in offsets):
+                        raise ValueError
+                except (IndexError, ValueError):
+                    raise SceneSuggestError("not a WordNet index line", file=str(index), line=number) from None
+                self._senses[fields[0]] = tuple("n" + o for o in offsets)
+        self._exceptions: dict[str, str] = {}
+        exc = self.directory / "noun.exc"
+        if exc.is_file():
+            for line in exc.read_text(encoding="utf-8").splitlines():
+                inflected, *bases = line.split()
+                if bases:
+                    self._exceptions.setdefault(inflected, bases[0])
         self._data = data.read_bytes()
         self._synsets: dict[str, Synset] = {}
 
@@ -68,8 +88,10 @@ class WordNet:
         found = self._senses.get(word)
         if found:
             return found
-        for suffix, base in (("ies", "y"), ("es", ""), ("s", "")):
-            if word.endswith(suffix) and len(word) > len(suffix) + 2:
+        if word in self._exceptions:
+            return self._senses.get(self._exceptions[word], ())
+        for suffix, base in PLURAL_SUFFIXES:
+            if word.endswith(suffix) and len(word) > len(suffix):
                 found = self._senses.get(word[: -len(suffix)] + base)
                 if found:
                     return found
@@ -83,17 +105,23 @@ class WordNet:
             return cached
         start = int(sid[1:])
         end = self._data.find(b"\n", start)
-        line = self._data[start:end].decode("utf-8") if 0 <= start < len(self._data) else ""
-        if not line.startswith(sid[1:]):
+        end = len(self._data) if end < 0 else end
+        starts_line = 0 < start < len(self._data) and self._data[start - 1:start] == b"\n"
+        line = self._data[start:end].decode("utf-8", errors="replace") if starts_line else ""
+        if not line.startswith(sid[1:] + " "):
             raise SceneSuggestError(f"no WordNet noun synset {sid}", field="wnsynset")
         head, _, gloss = line.partition(" | ")
         fields = head.split()
-        words = int(fields[3], 16)
-        lemmas = tuple(fields[4 + 2 * k].lower() for k in range(words))
-        at = 4 + 2 * words
-        pointers = int(fields[at])
-        hypernyms = tuple("n" + fields[at + 2 + 4 * k] for k in range(pointers)
-                          if fields[at + 1 + 4 * k] in ("@", "@i") and fields[at + 3 + 4 * k] == "n")
+        try:
+            words = int(fields[3], 16)
+            lemmas = tuple(fields[4 + 2 * k].lower() for k in range(words))
+            at = 4 + 2 * words
+            pointers = int(fields[at])
+            hypernyms = tuple("n" + fields[at + 2 + 4 * k] for k in range(pointers)
+                              if fields[at + 1 + 4 * k] in ("@", "@i") and fields[at + 3 + 4 * k] == "n")
+        except (IndexError, ValueError):
+            raise SceneSuggestError(f"not a WordNet synset line at offset {start}",
+                                    file=str(self.directory / "data.noun")) from None
         out = Synset(sid, lemmas, hypernyms, gloss.strip())
         self._synsets[sid] = out
         return out
@@ -114,8 +142,8 @@ class WordNet:
         return out
 
     def depth(self, sid: str) -> int:
-        """The longest chain of hypernyms from ``sid`` up to WordNet's root (entity.n.01: 0)."""
-        return max((d for _, d in self.ancestors(sid)), default=0)
+        """The fewest hypernym links from ``sid`` up to WordNet's root, entity.n.01 (the root: 0)."""
+        return dict(self.ancestors(sid)).get(ROOT, 0)
 
     def is_thing(self, sid: str) -> bool:
         """Whether ``sid`` names a physical thing (physical_entity.n.01 is among its hypernyms)."""

@@ -11,6 +11,11 @@ bootstrap interval of its MRR difference from the first (resampling the test cor
 Like for like (``like_for_like``): each engine's in-corpus MRR per category (grouped k-fold on ``train``) weighted
 by the mix of the cross-corpus queries' categories is what the engine would score on those queries if they were as
 easy as its own corpus's; ``kept`` is the cross-corpus MRR over the same queries divided by it (1: nothing lost).
+The in-corpus engines train on (k−1)/k of ``train`` and the cross-corpus ones on all of it, so ``kept`` leans high.
+
+Nothing of ``test`` reaches training: the two corpora must differ (by source and by scene ids), and the symmetry
+periods the learned engine trains with are measured on ``train``'s models alone (``test``'s measure its queries'
+orientation, looked up under their own categories).
 """
 
 from __future__ import annotations
@@ -62,10 +67,12 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
     if len({s.name for s in specs}) != len(specs):
         raise SceneSuggestError("each engine may be named once", field="engine")
     check_evaluable(specs)
+    check_apart(train, test)
     walk = crosswalk(test, train, wn or wordnet())
-    periods = corpus_periods([*train.models.values(), *test.models.values()], progress)
+    periods = corpus_periods(train.models.values(), progress)
+    asked_periods = _AskedPeriods(corpus_periods(test.models.values(), progress), test)
     priors = Priors.fit(train.scenes, train.taxonomy)
-    paper = Engine(priors, specs[0].config if specs[0].name == "paper" else EngineOptions())
+    paper = Engine(priors, _paper_options(specs))
     paper_rule = paper.with_options(orientation="paper")
     fitted = {s.name: fitted_engine(s, priors, train.scenes, train, seed, periods, progress) for s in specs}
     asked = Corpus(test.source, [], test.models, train.taxonomy)  # test models, training vocabulary
@@ -76,8 +83,9 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
     for i, scene in enumerate(progress(test.scenes, "scenes")):
         relabelled = walk.relabel(scene)
         for query, o in held_out_queries(relabelled, train.taxonomy, scene_type):
-            if o.category in walk.unmapped:
-                unmapped[o.category] += 1
+            original = scene.objects[o.id].category
+            if walk.category(original) is None:
+                unmapped[original] += 1
                 continue
             try:
                 paper.score(query)
@@ -87,10 +95,15 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
             groups.append(scene_groups[i])
             categories.append(o.category)
             parent = relabelled.objects[o.parent].category
-            known_parent.append(parent == ROOM or (parent in priors.categories and suggestable(parent)))
-            queries.append((scene.id, query, o, scene.objects[o.id].category))
+            known_parent.append(parent == ROOM or (parent in paper.index and suggestable(parent)))
+            if explain:
+                queries.append((scene.id, query, o, original))
             for s in specs:
-                measure_query(runs[s.name], fitted[s.name], paper_rule, query, relabelled, o, asked, periods, False)
+                measure_query(runs[s.name], fitted[s.name], paper_rule, query, relabelled, o, asked, asked_periods,
+                              False)
+    if not groups:
+        raise SceneSuggestError(f"no held-out query of {test.source} maps into {train.source}'s categories",
+                                field="test")
     known = np.array(known_parent, dtype=bool)
     result = {
         "train": train.source, "test": test.source, "seed": seed, "scene_type": scene_type, "queries": len(groups),
@@ -104,6 +117,33 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
     if explain:
         result["explained_misses"] = _misses(fitted, runs, queries, walk, explain)
     return result
+
+
+def check_apart(train: Corpus, test: Corpus) -> None:
+    """Refuse to call figures held out when the two corpora are one (the same source, or scenes of the same id)."""
+    if train.source == test.source:
+        raise SceneSuggestError(f"--train and --test are the same corpus ({train.source}): its figures would not be "
+                                "held out (evaluate SOURCE runs k-fold on one corpus)", field="test")
+    shared = {s.id for s in train.scenes} & {s.id for s in test.scenes}
+    if shared:
+        raise SceneSuggestError(f"{len(shared)} scenes of {test.source} are also in {train.source} (e.g. "
+                                f"{sorted(shared)[0]!r}): its figures would not be held out", field="test")
+
+
+def _paper_options(specs: list[EngineSpec]) -> EngineOptions:
+    """The options of the paper engine the queries are checked and the baselines scored with."""
+    return specs[0].config if specs[0].name == "paper" else EngineOptions()
+
+
+class _AskedPeriods:
+    """The asked corpus's symmetry periods, looked up under a model's own category (not the one it is mapped to)."""
+
+    def __init__(self, periods, corpus: Corpus):
+        self.periods, self.models = periods, corpus.models
+
+    def of(self, model_id: str, category: str, footprint=None):
+        model = self.models.get(model_id)
+        return self.periods.of(model_id, model.category if model else category, footprint)
 
 
 def _blocks(runs: dict[str, EngineRun], specs: list[EngineSpec], groups: list[int], known: np.ndarray,
@@ -132,18 +172,20 @@ def _add_like_for_like(result: dict, train: Corpus, specs: list[EngineSpec], run
     """Each engine's in-corpus MRR per category on ``train`` (grouped folds), weighted by the cross-corpus queries'
     categories, beside its cross-corpus MRR on the same queries (see the module)."""
     groups = similar_groups(train.scenes)
-    home = run_folds(train, grouped_folds(groups, folds, seed), specs[0].config if specs[0].name == "paper" else
-                     EngineOptions(), periods, progress, specs=specs, groups=groups, seed=seed, scene_type=scene_type)
+    home = run_folds(train, grouped_folds(groups, folds, seed), _paper_options(specs), periods, progress,
+                     rankings=False, specs=specs, groups=groups, seed=seed, scene_type=scene_type)
     for s in specs:
         by = {c: summary(r)["mrr"] for c, r in ranks_by_category(home, s.name).items()}
         ranks = runs[s.name].ranks
         pick = [k for k, c in enumerate(categories) if c in by]
         expected = float(np.mean([by[categories[k]] for k in pick])) if pick else 0.0
         observed = summary([ranks[k] for k in pick])["mrr"] if pick else 0.0
+        mix = Counter(categories[k] for k in pick)
         result["engines"][s.name]["like_for_like"] = {
             "in_corpus_mrr": summary(home.engines[s.name].ranks)["mrr"], "in_corpus_queries": len(home.groups),
             "folds": folds, "queries": len(pick), "reweighted_in_corpus_mrr": expected,
-            "cross_corpus_mrr": observed, "kept": observed / expected if expected else 0.0}
+            "cross_corpus_mrr": observed, "kept": observed / expected if expected else 0.0,
+            "by_category": {c: {"in_corpus_mrr": by[c], "queries": n} for c, n in mix.most_common()}}
 
 
 def _misses(fitted: dict, runs: dict[str, EngineRun], queries: list, walk: Crosswalk, n: int) -> dict[str, list]:

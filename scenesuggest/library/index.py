@@ -27,9 +27,6 @@ class ModelInfo:
     """One model. ``size`` is its canonical bbox extent in metres; ``raw_bbox`` the bbox of the source
     mesh in raw model units ((min xyz), (max xyz)); ``unit`` converts raw units to metres.
 
-    ``synset`` is the WordNet noun synset the source labels it with, when it does (it maps categories between
-    corpora, :mod:`scenesuggest.corpora.crosswalk`).
-
     ``size_source`` says where the size came from: ``mesh`` (measured), ``metadata`` (ShapeNetSem
     aligned dimensions placed by the scene contacts), ``procedural`` or ``guess``.
     """
@@ -48,7 +45,6 @@ class ModelInfo:
     mesh: str | None = None
     asset: str | None = None
     thumbnail: str | None = None
-    synset: str = ""  # the WordNet noun synset its source names (ShapeNetSem's ``wnsynset``, "n3001627"); "": none
 
     @property
     def size(self) -> tuple[float, float, float]:

@@ -23,6 +23,8 @@ SURFACE_TYPES = tuple(f"{d}_{s}" for d in SURFACE_DIRECTIONS for s in SURFACE_SI
 ROOM = "Room"
 #: The category of a model no label names (a corpus's bookkeeping, not a thing anyone places).
 UNKNOWN = "Unknown"
+#: Categories no one can want: a corpus's bookkeeping (never suggested, never mapped between corpora).
+PLACEHOLDERS = frozenset({ROOM, UNKNOWN})
 
 
 @dataclass

@@ -13,10 +13,9 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from ..scenes.scene import ROOM, UNKNOWN
+from ..scenes.scene import PLACEHOLDERS
 
-#: Categories no one can want: a corpus's bookkeeping.
-PLACEHOLDERS = frozenset({ROOM, UNKNOWN})
+__all__ = ["PLACEHOLDERS", "suggestable", "suggestable_mask"]
 
 
 def suggestable(category: str) -> bool:
