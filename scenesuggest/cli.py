@@ -320,22 +320,28 @@ def evaluate_cmd(source: str | None, train_source: str | None, test_source: str 
     if train_source is not None:
         if source is not None:
             raise SceneSuggestError("give SOURCE or --train and --test, not both", field="source")
-        if ablations or by_category:
-            raise SceneSuggestError("--ablations and --by-category are of one corpus's folds, not --train/--test",
-                                    field="train")
+        if ablations or by_category or _given("group_similar"):
+            raise SceneSuggestError("--ablations, --by-category and --group-similar are of one corpus's folds, not "
+                                    "--train/--test", field="train")
         _transfer(train_source, test_source, specs, folds, seed, resamples, scene_type, like_for_like, explain,
                   meshes, as_json)
         return
     if source is None:
         raise SceneSuggestError("name the corpus to evaluate (SOURCE), or --train and --test", field="source")
-    if explain:
-        raise SceneSuggestError("--explain is of the misses of --train/--test", field="explain")
+    if explain or _given("like_for_like"):
+        raise SceneSuggestError("--explain and --like-for-like are of --train/--test", field="explain")
     c = _load(source, meshes)
     if len(c.scenes) < folds:
         raise SceneSuggestError(f"{len(c.scenes)} scenes cannot make {folds} folds", field="folds")
     result = evaluate(c, folds=folds, seed=seed, progress=progress, group_similar=group_similar,
                       ablations=ablations, engines=specs, resamples=resamples, scene_type=scene_type)
     emit(result, as_json, format_evaluation(result, by_category=by_category))
+
+
+def _given(parameter: str) -> bool:
+    """Whether the command line gave ``parameter`` (not its default)."""
+    source = click.get_current_context().get_parameter_source(parameter)
+    return source is not None and source.name == "COMMANDLINE"
 
 
 def _transfer(train_source: str, test_source: str, specs, folds: int, seed: int, resamples: int, scene_type: str,

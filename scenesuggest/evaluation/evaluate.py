@@ -65,7 +65,8 @@ ABLATIONS = {
 POSES = ("full", "paper", "canonical")
 TOLERANCES_DEG = (15, 45)
 
-__all__ = ["evaluate", "folds_of", "rank_of", "summary", "orientation_summary", "paired_difference"]
+__all__ = ["evaluate", "folds_of", "rank_of", "summary", "orientation_summary", "paired_difference", "run_folds",
+           "measure_query", "fitted_engine", "engine_figures", "ranks_by_category", "check_evaluable"]
 
 
 def rank_of(scores: np.ndarray, index: int | None, among: np.ndarray | None = None) -> float:
