@@ -328,7 +328,7 @@ def evaluate_cmd(source: str | None, train_source: str | None, test_source: str 
         return
     if source is None:
         raise SceneSuggestError("name the corpus to evaluate (SOURCE), or --train and --test", field="source")
-    if explain or _given("like_for_like"):
+    if _given("explain") or _given("like_for_like"):
         raise SceneSuggestError("--explain and --like-for-like are of --train/--test", field="explain")
     c = _load(source, meshes)
     if len(c.scenes) < folds:
@@ -339,8 +339,11 @@ def evaluate_cmd(source: str | None, train_source: str | None, test_source: str 
 
 
 def _given(parameter: str) -> bool:
-    """Whether the command line gave ``parameter`` (not its default)."""
-    source = click.get_current_context().get_parameter_source(parameter)
+    """Whether the command line gave ``parameter`` (even at its default value)."""
+    ctx = click.get_current_context()
+    if parameter not in ctx.params:
+        raise RuntimeError(f"the command has no parameter {parameter!r}")
+    source = ctx.get_parameter_source(parameter)
     return source is not None and source.name == "COMMANDLINE"
 
 

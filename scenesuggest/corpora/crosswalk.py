@@ -11,17 +11,17 @@ the same kind of thing, by the first rule that finds one (its ``via``):
    garbage_can.n.01, whose lemmas Stanford's ``TrashBin`` models carry);
 3. ``hypernym`` — a training category whose synset is a hypernym of one of the category's, at most
    :data:`MAX_HYPERNYM_DISTANCE` links up, the nearest first (``ArmChair`` → chair.n.01 → ``Chair``);
-4. ``head`` — rules 1–3 and 5 on the last word of a compound name (``SideTable`` → table);
-5. ``narrower`` — the most common training category one WordNet link or one taxonomy link below the category
+4. ``narrower`` — the most common training category one WordNet link or one taxonomy link below the category
    (AI2-THOR's ``Bed`` → Stanford's ``SingleBed``, filed under ``Bed``);
+5. ``head`` — rules 1–4 on the last word of a compound name (``SideTable`` → table);
 6. ``parent`` — the category's taxonomy parents in its own corpus, nearest first, by a decision or rules 1–2 only
    (Stanford's ``Barstool`` → ``Stool``; a looser match of a parent as broad as "sports equipment" finds shoes).
 
 Where a rule finds several training categories, the one with the most instances is taken. What no rule maps is
-*unmapped*: its queries are counted and left out of the figures, and its objects keep their own name, which the
-trained engine has never seen (a parent it knows nothing of). :data:`DECISIONS` overrides the rules where they go
-wrong, for one pair of corpora, each with its reason (a decided parent stops the walk up the taxonomy); the room shell
-is always the room shell and a placeholder is never mapped.
+*unmapped*: its queries are counted and left out of the figures, and its objects are named ``unmapped:`` and their
+own name, which the trained engine has never seen (a parent it knows nothing of). :data:`DECISIONS` overrides the
+rules where they go wrong, for one pair of corpora, each with its reason (a decided parent stops the walk up the
+taxonomy); the room shell is always the room shell and a placeholder is never mapped.
 """
 
 from __future__ import annotations
@@ -42,6 +42,8 @@ MAX_HYPERNYM_DISTANCE = 2
 MIN_DEPTH = 7
 #: Corpora by the kind of their source (``stanford:DIR`` → stanford).
 STANFORD, AI2THOR = "stanford", "ai2thor"
+#: What an unmapped object is called once relabelled (before its own name).
+UNMAPPED = "unmapped:"
 #: (the asked corpus's kind, the training corpus's kind) → {category: (the training category, None: unmapped; why)}
 #: where the rules are wrong.
 DECISIONS: dict[tuple[str, str], dict[str, tuple[str | None, str]]] = {(AI2THOR, STANFORD): {
@@ -147,12 +149,15 @@ class Crosswalk:
         return {c for c, m in self.matches.items() if m.category is None}
 
     def relabel(self, scene: Scene) -> Scene:
-        """``scene`` with every object's category in the training corpus's vocabulary; an unmapped one keeps its
-        own name (and a placeholder stays a placeholder)."""
+        """``scene`` with every object's category in the training corpus's vocabulary; an unmapped one is named
+        ``unmapped:`` and its own name, which no training corpus has (a placeholder stays a placeholder)."""
         objects = {}
         for key, o in scene.objects.items():
+            if o.category in PLACEHOLDERS - {ROOM}:
+                objects[key] = o
+                continue
             mapped = self.category(o.category)
-            objects[key] = replace(o, category=mapped) if mapped is not None else o
+            objects[key] = replace(o, category=mapped if mapped is not None else UNMAPPED + o.category)
         return replace(scene, objects=objects)
 
     def to_dict(self) -> dict:
@@ -223,7 +228,7 @@ def _most(candidates: set[str], counts: Counter) -> str:
 
 
 def _by_rules(name: str, synsets: list[str], train: _Concepts, wn: WordNet, strict: bool = False) -> Match | None:
-    """Rules 1–3 and 5 for a category called ``name`` with ``synsets`` (``strict``: 1–2 only)."""
+    """Rules 1–4 for a category called ``name`` with ``synsets`` (``strict``: 1–2 only)."""
     by_name = {c for c in train.counts if normalised(c) == normalised(name) and c not in PLACEHOLDERS}
     if by_name:
         return Match(_most(by_name, train.counts), "name")
@@ -286,7 +291,7 @@ def crosswalk(test: Corpus, train: Corpus, wn: WordNet) -> Crosswalk:
                     target = decided[parent][0]
                     found = Match(target, "parent", parent) if target is not None else None
                     break
-                up = _by_rules(parent, mine.named(parent), theirs, wn, strict=True)
+                up = _by_rules(parent, mine.of.get(parent) or mine.named(parent), theirs, wn, strict=True)
                 if up is not None:
                     found = Match(up.category, "parent", parent)
                     break

@@ -71,31 +71,25 @@ class WordNet:
                 except (IndexError, ValueError):
                     raise SceneSuggestError("not a WordNet index line", file=str(index), line=number) from None
                 self._senses[fields[0]] = tuple("n" + o for o in offsets)
-        self._exceptions: dict[str, str] = {}
+        self._exceptions: dict[str, list[str]] = {}
         exc = self.directory / "noun.exc"
         if exc.is_file():
             for line in exc.read_text(encoding="utf-8").splitlines():
                 inflected, *bases = line.split()
-                if bases:
-                    self._exceptions.setdefault(inflected, bases[0])
+                self._exceptions.setdefault(inflected, []).extend(bases)
         self._data = data.read_bytes()
         self._synsets: dict[str, Synset] = {}
 
     def senses(self, lemma: str) -> tuple[str, ...]:
-        """The noun synsets of ``lemma`` (any case; words joined by ``_`` or spaces), most frequent first; a plural
-        also finds its singular (``curtains`` → ``curtain``)."""
+        """The noun synsets of ``lemma`` (any case; words joined by ``_`` or spaces), most frequent first, then those
+        of its base forms (``curtains`` → ``curtain``; ``glasses`` → spectacles, then glass): the word itself, the
+        exceptions of ``noun.exc``, then every suffix rule that gives a lemma, each synset once."""
         word = "_".join(lemma.lower().split())
-        found = self._senses.get(word)
-        if found:
-            return found
-        if word in self._exceptions:
-            return self._senses.get(self._exceptions[word], ())
-        for suffix, base in PLURAL_SUFFIXES:
-            if word.endswith(suffix) and len(word) > len(suffix):
-                found = self._senses.get(word[: -len(suffix)] + base)
-                if found:
-                    return found
-        return ()
+        forms = [word, *self._exceptions.get(word, [])]
+        forms += [word[: -len(suffix)] + base for suffix, base in PLURAL_SUFFIXES
+                  if word.endswith(suffix) and len(word) > len(suffix)]
+        found = [sid for form in forms for sid in self._senses.get(form, ())]
+        return tuple(dict.fromkeys(found))
 
     def synset(self, sid: str) -> Synset:
         """The synset ``sid`` (``n03001627`` or ShapeNetSem's ``n3001627``)."""

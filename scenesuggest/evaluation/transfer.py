@@ -143,7 +143,7 @@ class _AskedPeriods:
 
     def of(self, model_id: str, category: str, footprint=None):
         model = self.models.get(model_id)
-        return self.periods.of(model_id, model.category if model else category, footprint)
+        return self.periods.of(model_id, model.category if model else "", footprint)
 
 
 def _blocks(runs: dict[str, EngineRun], specs: list[EngineSpec], groups: list[int], known: np.ndarray,

@@ -134,6 +134,9 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
     (["ai2thor", "--train", "ai2thor", "--test", "ai2thor"], "give SOURCE or --train and --test, not both"),
     (["ai2thor", "--explain", "3"], "--explain and --like-for-like are of --train/--test"),
     (["ai2thor", "--no-like-for-like"], "--explain and --like-for-like are of --train/--test"),
+    (["ai2thor", "--like-for-like"], "--explain and --like-for-like are of --train/--test"),  # even at its default
+    (["ai2thor", "--explain", "0"], "--explain and --like-for-like are of --train/--test"),
+    (["--train", "ai2thor", "--test", "ai2thor", "--group-similar"], "--ablations, --by-category and"),
     (["--train", "ai2thor", "--test", "ai2thor", "--ablations"], "--ablations, --by-category and --group-similar"),
     (["--train", "ai2thor", "--test", "ai2thor", "--no-group-similar"], "--ablations, --by-category and"),
     (["--train", "nowhere:x", "--test", "ai2thor"], "unknown corpus source 'nowhere:x'"),
