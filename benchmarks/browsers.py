@@ -254,15 +254,40 @@ class WebKitDriver(Driver):
         service = webdriver.WebKitGTKService(executable_path=WEBKIT_DRIVER, env=display.env if display else None)
         self._d = webdriver.WebKitGTK(options=options, service=service)
         self._d.set_script_timeout(600)  # an evaluated promise may take minutes (a benchmark's orbit)
-        self._d.set_window_size(*viewport)  # the window's size: its page is as much smaller as its frame takes
-        inner = self._d.execute_script("return [window.innerWidth, window.innerHeight]")
-        self._d.set_window_size(2 * viewport[0] - inner[0], 2 * viewport[1] - inner[1])
-        inner = self._d.execute_script("return [window.innerWidth, window.innerHeight]")
-        if tuple(inner) != tuple(viewport):
+        inner = self._fit_page(viewport)
+        if inner != tuple(viewport):
             self._d.quit()
             raise RuntimeError(f"webkit: a page of {viewport[0]}×{viewport[1]} was asked for, the window gives "
                                f"{inner[0]}×{inner[1]} (is the display large enough?)")
         self.version = self._d.capabilities.get("browserVersion", "")
+
+    def _inner(self) -> tuple[int, int]:
+        return tuple(self._d.execute_script("return [window.innerWidth, window.innerHeight]"))
+
+    def _fit_page(self, viewport: tuple[int, int], attempts: int = 4) -> tuple[int, int]:
+        """Size the window so that its page is ``viewport`` (the window is as much larger as its frame takes). Under
+        X the page follows a resize a moment later, so after each resize the page's size is read until it holds
+        still before the frame is measured again. Returns the page's size at the end."""
+        size = tuple(viewport)
+        inner = self._inner()
+        for _ in range(attempts):
+            self._d.set_window_size(*size)
+            inner = self._settled()
+            if inner == tuple(viewport):
+                break
+            size = (size[0] + viewport[0] - inner[0], size[1] + viewport[1] - inner[1])
+        return inner
+
+    def _settled(self, still: int = 4, wait_s: float = 3.0) -> tuple[int, int]:
+        """The page's size once ``still`` reads 50 ms apart agree (or after ``wait_s``)."""
+        deadline = time.monotonic() + wait_s
+        last, same = self._inner(), 1
+        while same < still and time.monotonic() < deadline:
+            time.sleep(0.05)
+            now = self._inner()
+            same = same + 1 if now == last else 1
+            last = now
+        return last
 
     def goto(self, url): self._d.get(url)
     def reload(self): self._d.refresh()
