@@ -204,6 +204,14 @@ class _Concepts:
             found = [votes[c].most_common(1)[0][0]] if c in votes else []
             found += [s for s in self.named(c) if s not in found]
             self.of[c] = found
+        # what rules 1 and 2 look up, once: the categories by their normalised name and by each of their synsets
+        self.by_name: dict[str, set[str]] = {}
+        self.holders: dict[str, set[str]] = {}
+        for c, sids in self.of.items():
+            if c not in PLACEHOLDERS:
+                self.by_name.setdefault(normalised(c), set()).add(c)
+                for sid in sids:
+                    self.holders.setdefault(sid, set()).add(c)
 
     def lemmas_sense(self, lemmas: list[str]) -> str | None:
         """The sense of the first of ``lemmas`` whose synset holds them all (None: there is none)."""
@@ -229,14 +237,10 @@ def _most(candidates: set[str], counts: Counter) -> str:
 
 def _by_rules(name: str, synsets: list[str], train: _Concepts, wn: WordNet, strict: bool = False) -> Match | None:
     """Rules 1–4 for a category called ``name`` with ``synsets`` (``strict``: 1–2 only)."""
-    by_name = {c for c in train.counts if normalised(c) == normalised(name) and c not in PLACEHOLDERS}
+    by_name = train.by_name.get(normalised(name))
     if by_name:
         return Match(_most(by_name, train.counts), "name")
-    holders: dict[str, set[str]] = {}
-    for c, sids in train.of.items():
-        if c not in PLACEHOLDERS and c != ROOM:
-            for sid in sids:
-                holders.setdefault(sid, set()).add(c)
+    holders = train.holders
     for sid in synsets:
         if sid in holders:
             return Match(_most(holders[sid], train.counts), "synset", sid)

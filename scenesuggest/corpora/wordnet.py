@@ -79,6 +79,7 @@ class WordNet:
                 self._exceptions.setdefault(inflected, []).extend(bases)
         self._data = data.read_bytes()
         self._synsets: dict[str, Synset] = {}
+        self._ancestors: dict[str, list[tuple[str, int]]] = {}
 
     def senses(self, lemma: str) -> tuple[str, ...]:
         """The noun synsets of ``lemma`` (any case; words joined by ``_`` or spaces), most frequent first, then those
@@ -122,7 +123,13 @@ class WordNet:
 
     def ancestors(self, sid: str) -> list[tuple[str, int]]:
         """Every hypernym of ``sid`` with its distance (1: a direct hypernym), nearest first, each once."""
-        out, seen, frontier, depth = [], {synset_id(sid)}, [synset_id(sid)], 0
+        sid = synset_id(sid)
+        if sid not in self._ancestors:
+            self._ancestors[sid] = self._walk_up(sid)
+        return self._ancestors[sid]
+
+    def _walk_up(self, sid: str) -> list[tuple[str, int]]:
+        out, seen, frontier, depth = [], {sid}, [sid], 0
         while frontier:
             depth += 1
             nxt = []

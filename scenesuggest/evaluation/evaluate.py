@@ -66,7 +66,7 @@ POSES = ("full", "paper", "canonical")
 TOLERANCES_DEG = (15, 45)
 
 __all__ = ["evaluate", "folds_of", "rank_of", "summary", "orientation_summary", "paired_difference", "run_folds",
-           "measure_query", "fitted_engine", "engine_figures", "ranks_by_category", "check_evaluable"]
+           "measure_query", "fitted_engine", "engine_figures", "ranks_by_category", "check_evaluable", "checked_specs"]
 
 
 def rank_of(scores: np.ndarray, index: int | None, among: np.ndarray | None = None) -> float:
@@ -165,6 +165,16 @@ def check_evaluable(specs: list[EngineSpec]) -> None:
         if not (spec.kind.trainable or hasattr(spec.kind, "from_priors")):
             raise SceneSuggestError(f"the {spec.name!r} engine is not trained by this project, so it cannot be "
                                     "evaluated on held-out folds", field="engine")
+
+
+def checked_specs(engines: list[EngineSpec] | None, options: EngineOptions) -> list[EngineSpec]:
+    """The engines to evaluate (default: the paper's with ``options``), each named once, each one this project
+    trains (:func:`check_evaluable`)."""
+    specs = list(engines or [EngineSpec("paper", {"name": "paper"}, options)])
+    if len({s.name for s in specs}) != len(specs):
+        raise SceneSuggestError("each engine may be named once", field="engine")
+    check_evaluable(specs)
+    return specs
 
 
 def fitted_engine(spec: EngineSpec, priors: Priors, train: list[Scene], corpus: Corpus, seed: int,
@@ -436,10 +446,7 @@ def evaluate(corpus: Corpus, folds: int = 5, seed: int = 0, options: EngineOptio
     check_scene_type(scene_type)
     progress = progress or (lambda items, label="": items)
     options = options or EngineOptions()
-    specs = list(engines or [EngineSpec("paper", {"name": "paper"}, options)])
-    if len({s.name for s in specs}) != len(specs):
-        raise SceneSuggestError("each engine may be named once", field="engine")
-    check_evaluable(specs)
+    specs = checked_specs(engines, options)
     if periods is None:
         periods = corpus_periods(corpus.models.values(), progress)
     groups = similar_groups(corpus.scenes) if group_similar else list(range(len(corpus.scenes)))

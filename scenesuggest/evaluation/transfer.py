@@ -28,7 +28,7 @@ import numpy as np
 
 from ..assets.symmetry import corpus_periods
 from ..corpora.corpus import Corpus
-from ..corpora.crosswalk import Crosswalk, crosswalk
+from ..corpora.crosswalk import crosswalk
 from ..corpora.folds import grouped_folds, similar_groups
 from ..corpora.wordnet import WordNet, wordnet
 from ..engines import EngineSpec
@@ -40,7 +40,7 @@ from ..suggestion.suggest import Engine, EngineOptions
 from ..suggestion.suggestable import suggestable
 from .evaluate import (
     EngineRun,
-    check_evaluable,
+    checked_specs,
     engine_figures,
     fitted_engine,
     measure_query,
@@ -63,10 +63,7 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
     misses (the largest ranks of a category it knows), with why."""
     check_scene_type(scene_type)
     progress = progress or (lambda items, label="": items)
-    specs = list(engines or [EngineSpec("paper", {"name": "paper"}, EngineOptions())])
-    if len({s.name for s in specs}) != len(specs):
-        raise SceneSuggestError("each engine may be named once", field="engine")
-    check_evaluable(specs)
+    specs = checked_specs(engines, EngineOptions())
     check_apart(train, test)
     walk = crosswalk(test, train, wn or wordnet())
     periods = corpus_periods(train.models.values(), progress)
@@ -88,7 +85,7 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
                 unmapped[original] += 1
                 continue
             try:
-                paper.score(query)
+                paper.prepare(query)
             except SceneSuggestError:  # a contact far from its parent's box: bad data, not a query
                 skipped += 1
                 continue
@@ -115,7 +112,7 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
     if like_for_like:
         _add_like_for_like(result, train, specs, runs, categories, folds, seed, scene_type, periods, progress)
     if explain:
-        result["explained_misses"] = _misses(fitted, runs, queries, walk, explain)
+        result["explained_misses"] = _misses(fitted, runs, queries, explain)
     return result
 
 
@@ -188,7 +185,7 @@ def _add_like_for_like(result: dict, train: Corpus, specs: list[EngineSpec], run
             "by_category": {c: {"in_corpus_mrr": by[c], "queries": n} for c, n in mix.most_common()}}
 
 
-def _misses(fitted: dict, runs: dict[str, EngineRun], queries: list, walk: Crosswalk, n: int) -> dict[str, list]:
+def _misses(fitted: dict, runs: dict[str, EngineRun], queries: list, n: int) -> dict[str, list]:
     """Per engine that explains itself: its ``n`` worst ranks of a category it knows, each with every engine's rank
     and the engine's explanation of its top suggestions and of the true category."""
     out = {}

@@ -7,7 +7,7 @@ canonical model frame (bbox bottom centred at the origin, +Z front) to the world
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -112,7 +112,7 @@ class Scene:
         """A copy of the scene with ``object_id`` and everything it supports removed."""
         gone = {object_id} | {o.id for o in self.descendants(object_id)}
         kept = {k: v for k, v in self.objects.items() if k not in gone}
-        return Scene(self.id, self.scene_type, kept, self.source, self.walls, self.type_from_objects)
+        return replace(self, objects=kept)
 
     def validate(self, file: str | None = None, lines: dict[str, int] | None = None) -> None:
         """Check the support tree: every parent exists, no object supports itself, no cycles.
