@@ -20,8 +20,13 @@ def load_corpus(source: str, *, meshes: str | Path | None = None, progress: Prog
 
         return load_ai2thor(progress=progress)
     if kind in ("stanford", "json") and arg:
-        if not Path(arg).is_dir():
-            raise SceneSuggestError(f"no such folder: {arg}", field="source")
+        try:
+            folder = Path(arg).is_dir()
+        except (OSError, ValueError):  # a name too long for the file system, a NUL
+            folder = False
+        if not folder:
+            shown = arg if arg.isprintable() and len(arg) <= 200 else repr(arg[:200]) + ("…" if len(arg) > 200 else "")
+            raise SceneSuggestError(f"no such folder: {shown}", field="source")
         if kind == "stanford":
             from .stanford import load_stanford
 

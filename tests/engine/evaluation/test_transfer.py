@@ -140,6 +140,9 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
     (["--train", "ai2thor", "--test", "ai2thor", "--ablations"], "--ablations, --by-category and --group-similar"),
     (["--train", "ai2thor", "--test", "ai2thor", "--no-group-similar"], "--ablations, --by-category and"),
     (["--train", "nowhere:x", "--test", "ai2thor"], "unknown corpus source 'nowhere:x'"),
+    (["--train", "json:" + "x" * 5000, "--test", "ai2thor"], "no such folder: 'xxxx"),  # too long a name
+    (["--train", "json:a\x01b", "--test", "ai2thor"], "no such folder: 'a\\x01b'"),  # shown, not printed raw
+    (["--train", "ai2thor", "--test", "ai2thor", "--explain", "-1"], "-1 is not in the range x>=0"),
     (["--train", "ai2thor", "--test", "ai2thor", "--no-like-for-like"], "the same corpus (ai2thor)"),
     ([], "name the corpus to evaluate"),
 ])
