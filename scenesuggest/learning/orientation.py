@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from scipy.optimize import minimize
 
 from ..scenes.frames import FACES
@@ -54,7 +55,8 @@ SWITCH_TOLERANCE = math.radians(45.0)
 
 def smooth(counts: np.ndarray) -> np.ndarray:
     """The (1, 2, 1)/4 circular kernel along the last axis."""
-    return (np.roll(counts, 1, axis=-1) + 2 * counts + np.roll(counts, -1, axis=-1)) / 4
+    wrapped = np.concatenate([counts[..., -1:], counts, counts[..., :1]], axis=-1)
+    return (wrapped[..., :-2] + 2 * counts + wrapped[..., 2:]) / 4
 
 
 def log_density(counts: np.ndarray) -> np.ndarray:
@@ -68,13 +70,16 @@ def turned(values: np.ndarray, angle) -> np.ndarray:
     """``values`` over relative bins (…, BINS) re-indexed to absolute headings: out[h] = values[h − angle],
     linearly interpolated between bins; ``angle`` (radians) broadcasts over the leading axes."""
     values = np.asarray(values, dtype=float)
-    shift = np.broadcast_to(np.asarray(angle, dtype=float) / BIN, values.shape[:-1])
+    rows = values.reshape(-1, BINS)
+    shift = np.broadcast_to(np.asarray(angle, dtype=float) / BIN, values.shape[:-1]).reshape(-1)
     s0 = np.floor(shift)
-    frac = (shift - s0)[..., None]
-    idx = (np.arange(BINS) - s0[..., None]).astype(np.int64)
-    a = np.take_along_axis(values, idx % BINS, axis=-1)
-    b = np.take_along_axis(values, (idx - 1) % BINS, axis=-1)
-    return (1 - frac) * a + frac * b
+    frac = (shift - s0)[:, None]
+    # out[h] = values[(h − s0) mod BINS]: a window of BINS bins, starting at (−s0) mod BINS, of the bins twice over
+    start = (-s0.astype(np.int64)) % BINS
+    windows = sliding_window_view(np.concatenate([rows, rows], axis=1), BINS, axis=1)
+    every = np.arange(len(rows))
+    a, b = windows[every, start], windows[every, (start - 1) % BINS]
+    return ((1 - frac) * a + frac * b).reshape(values.shape)
 
 
 def heading_bin(angle) -> np.ndarray:

@@ -67,8 +67,9 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         rows.append(has)
     seg, kind, angle, row = (np.concatenate(a) if a else np.zeros(0, np.int64) for a in (segs, kinds, angles, rows))
     if len(seg):
-        counts = np.where((seg % 2 == 0)[:, None], p.seg_theta_n[seg // 2], p.seg_phi_n[seg // 2])
-        mean = mean_by(row * len(KINDS) + kind, turned(log_density(counts), angle), m * len(KINDS))
+        distinct, each = np.unique(seg, return_inverse=True)  # siblings of one category share their segments
+        counts = np.where((distinct % 2 == 0)[:, None], p.seg_theta_n[distinct // 2], p.seg_phi_n[distinct // 2])
+        mean = mean_by(row * len(KINDS) + kind, turned(log_density(counts)[each], angle), m * len(KINDS))
         out[:, 1:] = mean.reshape(m, len(KINDS), BINS)[:, 1:]
     return out
 

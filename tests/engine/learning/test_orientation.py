@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from scenesuggest.learning.orientation import BINS, KINDS, decide, fit_weights, heading_bin, log_density, turned
+from scenesuggest.learning.orientation import BINS, KINDS, decide, fit_weights, heading_bin, log_density, smooth, turned
 
 
 def test_log_density_is_a_smoothed_distribution_that_little_data_barely_moves():
@@ -26,6 +26,24 @@ def test_turned_reindexes_to_absolute_headings_with_interpolation():
     rows = turned(np.vstack([values, values]), np.radians([0, 10]))
     assert rows[0, 7] == 7 and rows[1, 7] == 6
 
+
+
+def test_turned_and_smooth_agree_with_their_definitions_bin_by_bin():
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=(4, 3, BINS))
+    angles = rng.uniform(-20.0, 20.0, size=(4, 3))  # radians: negative and several turns
+    out = turned(values, angles)
+    assert out.shape == values.shape
+    for i, j in np.ndindex(4, 3):
+        shift = angles[i, j] / math.radians(360 / BINS)
+        whole, frac = math.floor(shift), shift - math.floor(shift)
+        for h in range(BINS):
+            expected = (1 - frac) * values[i, j, (h - whole) % BINS] + frac * values[i, j, (h - whole - 1) % BINS]
+            assert out[i, j, h] == pytest.approx(expected, abs=1e-12)
+    assert np.array_equal(turned(values[0, 0], angles[0, 0]), out[0, 0])  # one row as it is within many
+    counts = rng.integers(0, 9, size=(5, BINS)).astype(float)
+    kernel = (np.roll(counts, 1, axis=1) + 2 * counts + np.roll(counts, -1, axis=1)) / 4
+    assert np.allclose(smooth(counts), kernel) and np.allclose(smooth(counts[0]), kernel[0])
 
 def test_the_canonical_heading_is_kept_unless_another_heading_stands_out():
     flat = np.zeros((1, BINS))
