@@ -152,11 +152,16 @@ def format_transfer(result: dict) -> str:
                      f"{_part(block['unknown_parents']):>18}"
                      + (f"  {diff['mrr_difference']:+.3f} [{diff['low']:+.3f}, {diff['high']:+.3f}]" if diff else ""))
     if any("like_for_like" in b for b in result["engines"].values()):
-        lines += ["", f"{'like for like':<12}{'in-corpus':>11}{'reweighted':>12}{'here':>8}{'kept':>8}"]
+        lines += ["", f"{'like for like':<12}{'in-corpus':>11}{'reweighted':>12}{'here':>8}{'kept':>8}"
+                      f"{'ceiling':>10}{'kept there':>12}{'of ceiling':>12}"]
         for name, block in result["engines"].items():
             m = block["like_for_like"]
+            top = m["asked_corpus"]
             lines.append(f"{name:<12}{m['in_corpus_mrr']:>11.3f}{m['reweighted_in_corpus_mrr']:>12.3f}"
-                         f"{m['cross_corpus_mrr']:>8.3f}{100 * m['kept']:>7.1f}%")
+                         f"{m['cross_corpus_mrr']:>8.3f}{100 * m['kept']:>7.1f}%{top['reweighted_mrr']:>10.3f}"
+                         f"{100 * top['kept']:>11.1f}%{100 * top['of_ceiling']:>11.1f}%")
+        lines.append("(ceiling: the engine trained by grouped folds on the asked corpus itself, in the training "
+                     "corpus's categories; kept there: the ceiling over the reweighted in-corpus MRR)")
     for name, misses in result.get("explained_misses", {}).items():
         lines += ["", f"the {name} engine's worst misses"]
         for miss in misses:

@@ -12,6 +12,11 @@ Like for like (``like_for_like``): each engine's in-corpus MRR per category (gro
 by the mix of the cross-corpus queries' categories is what the engine would score on those queries if they were as
 easy as its own corpus's; ``kept`` is the cross-corpus MRR over the same queries divided by it (1: nothing lost).
 The in-corpus engines train on (k−1)/k of ``train`` and the cross-corpus ones on all of it, so ``kept`` leans high.
+Beside it, the ceiling (``asked_corpus``): the same engine trained and asked by grouped k-fold on ``test`` itself,
+its categories mapped into ``train``'s vocabulary as the cross-corpus queries are, weighted by the same mix — what
+an engine that had seen scenes like the asked ones would score on them. When ``kept`` at that ceiling is far below
+1, the asked corpus is harder than the training corpus category by category, and no training on ``train`` is
+expected to reach ``kept`` 1; ``of_ceiling`` is the cross-corpus MRR as a share of the ceiling's.
 
 Nothing of ``test`` reaches training: the two corpora must differ (by source and by scene ids), and the symmetry
 periods the learned engine trains with are measured on ``train``'s models alone (``test``'s measure its queries'
@@ -110,7 +115,10 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
         "engines": _blocks(runs, specs, groups, known, resamples, seed),
     }
     if like_for_like:
-        _add_like_for_like(result, train, specs, runs, categories, folds, seed, scene_type, periods, progress)
+        asked_home = _asked_in_corpus(test, walk, train.taxonomy, specs, folds, seed, scene_type, asked_periods,
+                                      scene_groups, progress)
+        _add_like_for_like(result, train, specs, runs, categories, folds, seed, scene_type, periods, asked_home,
+                           progress)
     if explain:
         result["explained_misses"] = _misses(fitted, runs, queries, explain)
     return result
@@ -164,25 +172,40 @@ def _blocks(runs: dict[str, EngineRun], specs: list[EngineSpec], groups: list[in
     return out
 
 
+def _asked_in_corpus(test: Corpus, walk, taxonomy, specs: list[EngineSpec], folds: int, seed: int,
+                     scene_type: str, periods, groups: list[int], progress):
+    """Every engine trained and asked by grouped folds on ``test``, relabelled into the training vocabulary."""
+    relabelled = Corpus(test.source, [walk.relabel(scene) for scene in test.scenes], test.models, taxonomy)
+    return run_folds(relabelled, grouped_folds(groups, folds, seed), _paper_options(specs), periods, progress,
+                     rankings=False, specs=specs, groups=groups, seed=seed, scene_type=scene_type)
+
+
 def _add_like_for_like(result: dict, train: Corpus, specs: list[EngineSpec], runs: dict[str, EngineRun],
-                       categories: list[str], folds: int, seed: int, scene_type: str, periods, progress) -> None:
+                       categories: list[str], folds: int, seed: int, scene_type: str, periods, asked_home,
+                       progress) -> None:
     """Each engine's in-corpus MRR per category on ``train`` (grouped folds), weighted by the cross-corpus queries'
-    categories, beside its cross-corpus MRR on the same queries (see the module)."""
+    categories, beside its cross-corpus MRR on the same queries, and the same weighting of its in-corpus MRR on
+    the asked corpus (``asked_home``, the ceiling; see the module)."""
     groups = similar_groups(train.scenes)
     home = run_folds(train, grouped_folds(groups, folds, seed), _paper_options(specs), periods, progress,
                      rankings=False, specs=specs, groups=groups, seed=seed, scene_type=scene_type)
     for s in specs:
         by = {c: summary(r)["mrr"] for c, r in ranks_by_category(home, s.name).items()}
+        there = {c: summary(r)["mrr"] for c, r in ranks_by_category(asked_home, s.name).items()}
         ranks = runs[s.name].ranks
-        pick = [k for k, c in enumerate(categories) if c in by]
+        pick = [k for k, c in enumerate(categories) if c in by and c in there]
         expected = float(np.mean([by[categories[k]] for k in pick])) if pick else 0.0
+        ceiling = float(np.mean([there[categories[k]] for k in pick])) if pick else 0.0
         observed = summary([ranks[k] for k in pick])["mrr"] if pick else 0.0
         mix = Counter(categories[k] for k in pick)
         result["engines"][s.name]["like_for_like"] = {
             "in_corpus_mrr": summary(home.engines[s.name].ranks)["mrr"], "in_corpus_queries": len(home.groups),
             "folds": folds, "queries": len(pick), "reweighted_in_corpus_mrr": expected,
             "cross_corpus_mrr": observed, "kept": observed / expected if expected else 0.0,
-            "by_category": {c: {"in_corpus_mrr": by[c], "queries": n} for c, n in mix.most_common()}}
+            "asked_corpus": {"reweighted_mrr": ceiling, "kept": ceiling / expected if expected else 0.0,
+                             "of_ceiling": observed / ceiling if ceiling else 0.0},
+            "by_category": {c: {"in_corpus_mrr": by[c], "asked_corpus_mrr": there[c], "queries": n}
+                            for c, n in mix.most_common()}}
 
 
 def _misses(fitted: dict, runs: dict[str, EngineRun], queries: list, n: int) -> dict[str, list]:
