@@ -322,7 +322,9 @@ class Engine:
         inv_bw = np.concatenate([r.inv_bandwidth for r in resolved])
         weight = np.concatenate([r.weight for r in resolved])
         owner = np.concatenate([r.owner for r in resolved])
-        q = (((delta[which] - xy) * inv_bw) ** 2).sum(axis=1)
+        scaled = (delta[which] - xy) * inv_bw
+        scaled *= scaled
+        q = scaled[:, 0] + scaled[:, 1]  # the squared scaled distance (a sum over a 2-wide axis is slower)
         out = np.bincount(which * n + owner, weights=weight * np.exp(-0.5 * q), minlength=len(refs) * n)
         return list(out.reshape(len(refs), n) * self.share)
 

@@ -146,6 +146,10 @@ class ContextStats:
         self.base_scene = np.log((self.scenes + COUNT_PRIOR) / (max(float(self.type_totals.sum()), 0.0) + 1.0))
         self.base_parent = np.log((self.parents + COUNT_PRIOR) / (float(self.parents.sum()) + 1.0))
         self.base_instance = np.log((self.instances + COUNT_PRIOR) / (float(self.instances.sum()) + 1.0))
+        # what every click reads the same: each descriptor's instances per candidate, the base rates' pseudo-counts
+        self._hist_totals = self.hist.sum(axis=2)
+        self._prior = {key: COUNT_PRIOR * np.exp(base) for key, base in
+                       (("scene", self.base_scene), ("parent", self.base_parent), ("near", self.base_instance))}
 
     @classmethod
     def fit(cls, scenes: list[Scene], names: list[str], scene_types: list[str] | None = None) -> ContextStats:
@@ -203,7 +207,7 @@ class ContextStats:
             b = int(np.searchsorted(EDGES[name], d[name]))
             h = self.hist[k]
             out[f"likely_{name}"] = np.log((h[:, b] + HIST_PRIOR * self.global_hist[k, b] + 1e-3)
-                                           / (h.sum(axis=1) + HIST_PRIOR))
+                                           / (self._hist_totals[k] + HIST_PRIOR))
         in_scene = np.array([self.index[o.category] for o in known], dtype=np.int64)
         on_parent = in_scene[np.array([o.parent == parent.id for o in known], dtype=bool)] if known else in_scene
         near = _near(in_scene, everything.distances(point)[is_known])
@@ -212,7 +216,7 @@ class ContextStats:
                 ("parent", np.unique(on_parent), self.parent_pairs, self.parents, self.base_parent),
                 ("near", near, self.near_pairs, self.near, self.base_instance)):
             if len(present):
-                given = np.log((pairs[present] + COUNT_PRIOR * np.exp(base)) / (counts[present, None] + COUNT_PRIOR))
+                given = np.log((pairs[present] + self._prior[key]) / (counts[present, None] + COUNT_PRIOR))
                 out[f"given_{key}_max"], out[f"given_{key}_mean"] = given.max(axis=0), given.mean(axis=0)
             else:  # nothing to condition on: the scene's base rate; an empty parent or nothing near: NOTHING
                 out[f"given_{key}_max"] = out[f"given_{key}_mean"] = base if key == "scene" else np.full(n, NOTHING)
