@@ -6,10 +6,11 @@ is asked at its contact point), like the offline evaluation. A query is what the
 every category ranked, the best TOP placed and oriented (``p*_ms``); ``p95_all_placed_ms`` places every category.
 The naive scorer computes the same: every category's score, and the orientation of the same TOP.
 The top level is the paper's engine; ``engines`` has every engine asked (``--engine``, default paper, frequency and
-learned: trained on the corpus, its training time and file size beside) the same queries in the same way, and
-``http`` the overhead of the http engine over a local external engine — the paper engine served by ``scenesuggest
-engine serve`` in a process of its own on loopback: per query, the http engine's time minus the time the external
-engine says (Server-Timing) it took from reading the query to writing its answer.
+learned: trained on the corpus, its training time and file size beside) the same queries in the same way, with
+``models`` for the learned engine: the milliseconds of each query spent in its LightGBM models. ``http`` is the
+overhead of the http engine over a local external engine — the paper engine served by ``scenesuggest engine serve``
+in a process of its own on loopback: per query, the http engine's time minus the time the external engine says
+(Server-Timing) it took from reading the query to writing its answer.
 Budgets (2 cores): p95 ≤ 5 ms per engine, http overhead p95 ≤ 3 ms, training ≤ 30 s (paper) and ≤ 120 s
 (learned), priors file ≤ 50 MB, speed-up ≥ 20×.
 Usage: .venv/bin/python benchmarks/bench_suggest.py [--data ../shared/data] [--queries 600] [--naive 25]
@@ -188,12 +189,37 @@ def time_engine(name: str, corpus, priors, queries, tmp: Path) -> dict:
         engine = kind.load(kind.configure({"file": info["out"]}), LoadContext(tmp / "priors.npz"))
         out["load_s"] = round(time.perf_counter() - t, 3)
     engine.suggest(queries[0], "full", top=TOP)
-    latencies = []
+    inside = _timed_models(engine)
+    latencies, models_ms = [], []
     for q in queries:
+        inside[0] = 0.0
         t = time.perf_counter()
         engine.suggest(q, "full", top=TOP)
         latencies.append((time.perf_counter() - t) * 1000)
+        models_ms.append(inside[0])
+    if any(models_ms):  # the time inside the engine's trained models (LightGBM's predict), per query
+        out["models"] = {k: v for k, v in percentiles(models_ms).items() if k in ("p50_ms", "p95_ms")}
     return {**percentiles(latencies), **out}
+
+
+def _timed_models(engine) -> list[float]:
+    """Wrap the predict of each LightGBM model the engine holds (the learned engine's ranker and frame classifier)
+    so that the milliseconds spent in them add up in the returned one-element list."""
+    total = [0.0]
+    for name in ("ranker", "frames"):
+        model = getattr(engine, name, None)
+        if model is None or not hasattr(model, "predict"):
+            continue
+
+        def timed(*args, _predict=model.predict, **kwargs):
+            t = time.perf_counter()
+            try:
+                return _predict(*args, **kwargs)
+            finally:
+                total[0] += (time.perf_counter() - t) * 1000
+
+        model.predict = timed
+    return total
 
 
 def http_overhead(priors, queries) -> dict:
