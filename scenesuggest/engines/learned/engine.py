@@ -138,11 +138,17 @@ class LearnedEngine(Engine):
     def frame_headings(self, scores: Scores, idx: np.ndarray, face_index: np.ndarray | None = None
                        ) -> tuple[list[str], np.ndarray, np.ndarray]:
         """(the frame chosen for each of candidates ``idx``, its heading (radians), every frame's heading
-        (len(idx), len(FRAMES)))."""
+        (len(idx), len(FRAMES))); where every frame proposes the same heading, the first (``product``) is chosen
+        without asking the classifier."""
         idx = np.asarray(idx, dtype=np.int64)
         face_index = self.face_indices(scores.prepared, "full", idx) if face_index is None else face_index
         proposed, rows = frame_proposals(self, scores, idx, face_index)
-        trust = self.frames.predict(rows.reshape(-1, rows.shape[-1]), num_threads=1).reshape(len(idx), len(FRAMES))
+        # where every frame proposes one heading, any choice gives it: the classifier is asked about the others
+        asked = np.flatnonzero((proposed != proposed[:, :1]).any(axis=1))
+        trust = np.zeros((len(idx), len(FRAMES)))
+        if len(asked):
+            trust[asked] = self.frames.predict(rows[asked].reshape(-1, rows.shape[-1]),
+                                               num_threads=1).reshape(len(asked), len(FRAMES))
         best = np.argmax(trust, axis=1)
         return [FRAMES[k] for k in best], proposed[np.arange(len(idx)), best], proposed
 

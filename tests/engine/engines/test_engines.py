@@ -95,6 +95,26 @@ def test_the_frequency_engine_ranks_by_how_often_a_category_occurs(corpus, tmp_p
     assert [s.category for s in engine.suggest(synthetic_query(scene, desk), "basic")] == by_rate
 
 
+
+def test_the_learned_engine_turns_each_suggestion_as_its_frame_classifier_trusts_most(corpus, learned_file):
+    """Every candidate's heading is that of the frame with the classifier's highest trust, the classifier asked
+    about every frame (the engine leaves out the candidates whose frames all propose one heading)."""
+    from scenesuggest.engines.learned.features import frame_proposals
+
+    engine = LearnedEngine.load(learned_file)
+    scene = corpus.scenes[0]
+    every = np.arange(len(engine.candidates))
+    agreeing = 0
+    for parent in (scene.objects["room"], next(o for o in scene if o.category == "Desk")):
+        scores = engine.score(synthetic_query(scene, parent))
+        faces = engine.face_indices(scores.prepared, "full", every)
+        proposed, rows = frame_proposals(engine, scores, every, faces)
+        trust = engine.frames.predict(rows.reshape(-1, rows.shape[-1])).reshape(proposed.shape)
+        expected = proposed[every, np.argmax(trust, axis=1)]
+        assert np.array_equal(engine.frame_headings(scores, every, faces)[1], expected)
+        agreeing += int((proposed == proposed[:, :1]).all(axis=1).sum())
+    assert 0 < agreeing < 2 * len(every)  # both kinds of candidate were asked about
+
 def test_the_learned_engine_is_deterministic_and_its_file_byte_stable(corpus, learned_file, tmp_path):
     again = learned_training.fit(corpus.scenes, corpus.taxonomy, seed=0).save(tmp_path / "again.npz")
     assert again.read_bytes() == learned_file.read_bytes()
