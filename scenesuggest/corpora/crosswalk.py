@@ -115,6 +115,11 @@ DECISIONS: dict[tuple[str, str], dict[str, tuple[str | None, str]]] = {(AI2THOR,
     "DecorativeAccessory": (None, "any ornament (its models' lemmas find a plate)"),
     "Board": (None, "a board (its models' lemmas find a dining table)"),
     "CoatRack": (None, "no coat racks in AI2-THOR (the parent finds a shelf)"),
+    "CoffeeMaker": ("CoffeeMachine", "the same machine (as the other way round)"),
+    "PepperMill": ("PepperShaker", "a seasoning dispenser (as the other way round)"),
+    "Magazine": ("Newspaper", "printed pages folded on a table (as the other way round)"),
+    "Key": ("KeyChain", "keys on a ring (as the other way round)"),
+    "PaperTowel": ("PaperTowelRoll", "the same roll (the head noun finds a cloth towel)"),
 }}
 
 
