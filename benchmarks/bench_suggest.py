@@ -7,7 +7,7 @@ every category ranked, the best TOP placed and oriented (``p*_ms``); ``p95_all_p
 The naive scorer computes the same: every category's score, and the orientation of the same TOP.
 The top level is the paper's engine; ``engines`` has every engine asked (``--engine``, default paper, frequency and
 learned: trained on the corpus, its training time and file size beside) the same queries in the same way, with
-``models`` for the learned engine: the milliseconds of each query spent in its LightGBM models. ``http`` is the
+``lightgbm`` for the learned engine: the milliseconds of each query spent in its LightGBM models. ``http`` is the
 overhead of the http engine over a local external engine — the paper engine served by ``scenesuggest engine serve``
 in a process of its own on loopback: per query, the http engine's time minus the time the external engine says
 (Server-Timing) it took from reading the query to writing its answer.
@@ -198,7 +198,7 @@ def time_engine(name: str, corpus, priors, queries, tmp: Path) -> dict:
         latencies.append((time.perf_counter() - t) * 1000)
         models_ms.append(inside[0])
     if any(models_ms):  # the time inside the engine's trained models (LightGBM's predict), per query
-        out["models"] = {k: v for k, v in percentiles(models_ms).items() if k in ("p50_ms", "p95_ms")}
+        out["lightgbm"] = {k: v for k, v in percentiles(models_ms).items() if k in ("p50_ms", "p95_ms")}
     return {**percentiles(latencies), **out}
 
 

@@ -31,7 +31,7 @@ from collections import Counter
 from dataclasses import dataclass, replace
 
 from ..library.search import split_camel
-from ..scenes.scene import PLACEHOLDERS, ROOM, Scene
+from ..scenes.scene import PLACEHOLDERS, ROOM, UNKNOWN, Scene
 from .corpus import Corpus
 from .wordnet import WordNet
 
@@ -153,16 +153,19 @@ class Crosswalk:
     def unmapped(self) -> set[str]:
         return {c for c, m in self.matches.items() if m.category is None}
 
-    def relabel(self, scene: Scene) -> Scene:
+    def relabel(self, scene: Scene, unmapped_unknown: bool = False) -> Scene:
         """``scene`` with every object's category in the training corpus's vocabulary; an unmapped one is named
-        ``unmapped:`` and its own name, which no training corpus has (a placeholder stays a placeholder)."""
+        ``unmapped:`` and its own name, which no training corpus has — or, ``unmapped_unknown``, ``Unknown``: a
+        placeholder, never suggested nor asked for (a placeholder stays a placeholder)."""
         objects = {}
         for key, o in scene.objects.items():
             if o.category in PLACEHOLDERS - {ROOM}:
                 objects[key] = o
                 continue
             mapped = self.category(o.category)
-            objects[key] = replace(o, category=mapped if mapped is not None else UNMAPPED + o.category)
+            if mapped is None:
+                mapped = UNKNOWN if unmapped_unknown else UNMAPPED + o.category
+            objects[key] = replace(o, category=mapped)
         return replace(scene, objects=objects)
 
     def to_dict(self) -> dict:

@@ -156,10 +156,10 @@ def format_transfer(result: dict) -> str:
                       f"{'ceiling':>10}{'kept there':>12}{'of ceiling':>12}"]
         for name, block in result["engines"].items():
             m = block["like_for_like"]
-            top = m["asked_corpus"]
+            ceiling = m["asked_corpus"]
             lines.append(f"{name:<12}{m['in_corpus_mrr']:>11.3f}{m['reweighted_in_corpus_mrr']:>12.3f}"
-                         f"{m['cross_corpus_mrr']:>8.3f}{100 * m['kept']:>7.1f}%{top['reweighted_mrr']:>10.3f}"
-                         f"{100 * top['kept']:>11.1f}%{100 * top['of_ceiling']:>11.1f}%")
+                         f"{m['cross_corpus_mrr']:>8.3f}{100 * m['kept']:>7.1f}%{ceiling['reweighted_mrr']:>10.3f}"
+                         f"{100 * ceiling['kept']:>11.1f}%{100 * ceiling['of_ceiling']:>11.1f}%")
         lines.append("(ceiling: the engine trained by grouped folds on the asked corpus itself, in the training "
                      "corpus's categories; kept there: the ceiling over the reweighted in-corpus MRR)")
     for name, misses in result.get("explained_misses", {}).items():

@@ -13,14 +13,18 @@ by the mix of the cross-corpus queries' categories is what the engine would scor
 easy as its own corpus's; ``kept`` is the cross-corpus MRR over the same queries divided by it (1: nothing lost).
 The in-corpus engines train on (k−1)/k of ``train`` and the cross-corpus ones on all of it, so ``kept`` leans high.
 Beside it, the ceiling (``asked_corpus``): the same engine trained and asked by grouped k-fold on ``test`` itself,
-its categories mapped into ``train``'s vocabulary as the cross-corpus queries are, weighted by the same mix — what
-an engine that had seen scenes like the asked ones would score on them. When ``kept`` at that ceiling is far below
-1, the asked corpus is harder than the training corpus category by category, and no training on ``train`` is
-expected to reach ``kept`` 1; ``of_ceiling`` is the cross-corpus MRR as a share of the ceiling's.
+its categories mapped into ``train``'s vocabulary as the cross-corpus queries are (an unmapped object is ``Unknown``
+there: context, never suggested nor asked for, so that every figure ranks among ``train``'s categories), weighted
+by the same mix — what an engine that had seen scenes like the asked ones would score on them. ``kept`` at that
+ceiling far below 1 says the asked corpus is harder than the training corpus category by category, which no
+training on ``train`` is expected to overcome; ``of_ceiling`` is the cross-corpus MRR as a share of the ceiling's.
+The ceiling is no bound (an engine may beat it, ``of_ceiling`` > 1), and its engines train on (k−1)/k of ``test``,
+so it leans low.
 
-Nothing of ``test`` reaches training: the two corpora must differ (by source and by scene ids), and the symmetry
-periods the learned engine trains with are measured on ``train``'s models alone (``test``'s measure its queries'
-orientation, looked up under their own categories).
+Nothing of ``test`` reaches the cross-corpus engines' training: the two corpora must differ (by source and by scene
+ids), and the symmetry periods the learned engine trains with are measured on ``train``'s models alone (``test``'s
+measure its queries' orientation, looked up under their own categories). The ceiling's engines alone train on
+``test`` (its other folds), by design.
 """
 
 from __future__ import annotations
@@ -33,18 +37,20 @@ import numpy as np
 
 from ..assets.symmetry import corpus_periods
 from ..corpora.corpus import Corpus
-from ..corpora.crosswalk import crosswalk
+from ..corpora.crosswalk import Crosswalk, crosswalk
 from ..corpora.folds import grouped_folds, similar_groups
 from ..corpora.wordnet import WordNet, wordnet
 from ..engines import EngineSpec
 from ..errors import SceneSuggestError
 from ..learning.priors import Priors
 from ..scenes.scene import ROOM
+from ..scenes.taxonomy import Taxonomy
 from ..suggestion.held_out import DEFAULT_SCENE_TYPE, check_scene_type, held_out_queries
 from ..suggestion.suggest import Engine, EngineOptions
 from ..suggestion.suggestable import suggestable
 from .evaluate import (
     EngineRun,
+    Run,
     checked_specs,
     engine_figures,
     fitted_engine,
@@ -70,6 +76,9 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
     progress = progress or (lambda items, label="": items)
     specs = checked_specs(engines, EngineOptions())
     check_apart(train, test)
+    if like_for_like:
+        for corpus in (train, test):
+            check_foldable(corpus, folds)
     walk = crosswalk(test, train, wn or wordnet())
     periods = corpus_periods(train.models.values(), progress)
     asked_periods = _AskedPeriods(corpus_periods(test.models.values(), progress), test)
@@ -135,6 +144,16 @@ def check_apart(train: Corpus, test: Corpus) -> None:
                                 f"{sorted(shared)[0]!r}): its figures would not be held out", field="test")
 
 
+def check_foldable(corpus: Corpus, folds: int) -> None:
+    """Refuse like for like when ``corpus`` has fewer groups of near-copies than ``folds`` (a fold would be empty,
+    and its engines would train on every scene for no query)."""
+    groups = len(set(similar_groups(corpus.scenes)))
+    if groups < folds:
+        raise SceneSuggestError(f"{corpus.source} has {groups} group(s) of similar scenes, fewer than the {folds} "
+                                "folds like for like runs on it (give --folds a smaller number, or "
+                                "--no-like-for-like)", field="folds")
+
+
 def _paper_options(specs: list[EngineSpec]) -> EngineOptions:
     """The options of the paper engine the queries are checked and the baselines scored with."""
     return specs[0].config if specs[0].name == "paper" else EngineOptions()
@@ -172,10 +191,12 @@ def _blocks(runs: dict[str, EngineRun], specs: list[EngineSpec], groups: list[in
     return out
 
 
-def _asked_in_corpus(test: Corpus, walk, taxonomy, specs: list[EngineSpec], folds: int, seed: int,
-                     scene_type: str, periods, groups: list[int], progress):
-    """Every engine trained and asked by grouped folds on ``test``, relabelled into the training vocabulary."""
-    relabelled = Corpus(test.source, [walk.relabel(scene) for scene in test.scenes], test.models, taxonomy)
+def _asked_in_corpus(test: Corpus, walk: Crosswalk, taxonomy: Taxonomy, specs: list[EngineSpec], folds: int,
+                     seed: int, scene_type: str, periods: _AskedPeriods, groups: list[int], progress) -> Run:
+    """Every engine trained and asked by grouped folds on ``test``, relabelled into the training vocabulary (an
+    unmapped object ``Unknown``)."""
+    relabelled = Corpus(test.source, [walk.relabel(scene, unmapped_unknown=True) for scene in test.scenes],
+                        test.models, taxonomy)
     return run_folds(relabelled, grouped_folds(groups, folds, seed), _paper_options(specs), periods, progress,
                      rankings=False, specs=specs, groups=groups, seed=seed, scene_type=scene_type)
 
@@ -193,18 +214,23 @@ def _add_like_for_like(result: dict, train: Corpus, specs: list[EngineSpec], run
         by = {c: summary(r)["mrr"] for c, r in ranks_by_category(home, s.name).items()}
         there = {c: summary(r)["mrr"] for c, r in ranks_by_category(asked_home, s.name).items()}
         ranks = runs[s.name].ranks
-        pick = [k for k, c in enumerate(categories) if c in by and c in there]
+        pick = [k for k, c in enumerate(categories) if c in by]
         expected = float(np.mean([by[categories[k]] for k in pick])) if pick else 0.0
-        ceiling = float(np.mean([there[categories[k]] for k in pick])) if pick else 0.0
         observed = summary([ranks[k] for k in pick])["mrr"] if pick else 0.0
+        # every asked category is asked in the ceiling's folds too, unless all its queries there were bad data
+        topped = [k for k in pick if categories[k] in there]
+        ceiling = float(np.mean([there[categories[k]] for k in topped])) if topped else 0.0
+        below = summary([ranks[k] for k in topped])["mrr"] if topped else 0.0
         mix = Counter(categories[k] for k in pick)
         result["engines"][s.name]["like_for_like"] = {
             "in_corpus_mrr": summary(home.engines[s.name].ranks)["mrr"], "in_corpus_queries": len(home.groups),
             "folds": folds, "queries": len(pick), "reweighted_in_corpus_mrr": expected,
             "cross_corpus_mrr": observed, "kept": observed / expected if expected else 0.0,
-            "asked_corpus": {"reweighted_mrr": ceiling, "kept": ceiling / expected if expected else 0.0,
-                             "of_ceiling": observed / ceiling if ceiling else 0.0},
-            "by_category": {c: {"in_corpus_mrr": by[c], "asked_corpus_mrr": there[c], "queries": n}
+            "asked_corpus": {"mrr": summary(asked_home.engines[s.name].ranks)["mrr"],
+                             "asked_queries": len(asked_home.groups), "queries": len(topped),
+                             "reweighted_mrr": ceiling, "kept": ceiling / expected if expected else 0.0,
+                             "of_ceiling": below / ceiling if ceiling else 0.0},
+            "by_category": {c: {"in_corpus_mrr": by[c], "asked_corpus_mrr": there.get(c), "queries": n}
                             for c, n in mix.most_common()}}
 
 

@@ -145,8 +145,8 @@ class LearnedEngine(Engine):
         proposed, rows = frame_proposals(self, scores, idx, face_index)
         # where every frame proposes one heading, any choice gives it: the classifier is asked about the others
         asked = np.flatnonzero((proposed != proposed[:, :1]).any(axis=1))
-        trust = np.zeros((len(idx), len(FRAMES)))
-        if len(asked):
+        trust = np.zeros((len(idx), len(FRAMES)))  # without a classifier: the product of the evidence
+        if len(asked) and self.frames is not None:
             trust[asked] = self.frames.predict(rows[asked].reshape(-1, rows.shape[-1]),
                                                num_threads=1).reshape(len(asked), len(FRAMES))
         best = np.argmax(trust, axis=1)

@@ -95,7 +95,6 @@ def test_the_frequency_engine_ranks_by_how_often_a_category_occurs(corpus, tmp_p
     assert [s.category for s in engine.suggest(synthetic_query(scene, desk), "basic")] == by_rate
 
 
-
 def test_the_learned_engine_turns_each_suggestion_as_its_frame_classifier_trusts_most(corpus, learned_file):
     """Every candidate's heading is that of the frame with the classifier's highest trust, the classifier asked
     about every frame (the engine leaves out the candidates whose frames all propose one heading)."""
@@ -114,6 +113,7 @@ def test_the_learned_engine_turns_each_suggestion_as_its_frame_classifier_trusts
         assert np.array_equal(engine.frame_headings(scores, every, faces)[1], expected)
         agreeing += int((proposed == proposed[:, :1]).all(axis=1).sum())
     assert 0 < agreeing < 2 * len(every)  # both kinds of candidate were asked about
+
 
 def test_the_learned_engine_is_deterministic_and_its_file_byte_stable(corpus, learned_file, tmp_path):
     again = learned_training.fit(corpus.scenes, corpus.taxonomy, seed=0).save(tmp_path / "again.npz")

@@ -88,12 +88,15 @@ def test_the_ceiling_is_the_asked_corpus_in_the_training_vocabulary_by_its_own_f
 
     train, test = small
     walk = crosswalk(test, train, require_wordnet())
-    scenes = [walk.relabel(s) for s in test.scenes]
+    scenes = [walk.relabel(s, unmapped_unknown=True) for s in test.scenes]
     groups = similar_groups(test.scenes)
+    vocabulary = {o.category for s in train.scenes for o in s}
     by_category: dict[str, list[float]] = {}
     for held in grouped_folds(groups, 2, 0):
         engine = Engine(Priors.fit([s for i, s in enumerate(scenes) if i not in set(held)], train.taxonomy),
                         EngineOptions())
+        ranked = {n for n, ok in zip(engine.names, engine.suggestable, strict=True) if ok}
+        assert ranked and ranked <= vocabulary  # ranked among the training corpus's categories, no unmapped one
         for i in held:
             for query, o in held_out_queries(scenes[i], train.taxonomy, "inferred"):
                 ranks = by_category.setdefault(o.category, [])
@@ -101,7 +104,17 @@ def test_the_ceiling_is_the_asked_corpus_in_the_training_vocabulary_by_its_own_f
     mix = result["engines"]["paper"]["like_for_like"]["by_category"]
     for category, row in mix.items():
         assert row["asked_corpus_mrr"] == pytest.approx(summary(by_category[category])["mrr"])
-    assert not any(c.startswith("unmapped:") for c in mix)  # an unmapped category is never in the mix
+    ceiling = result["engines"]["paper"]["like_for_like"]["asked_corpus"]
+    assert ceiling["asked_queries"] == sum(len(r) for r in by_category.values())  # no unmapped query is asked
+
+
+def test_like_for_like_needs_a_fold_of_each_corpus(small):
+    train, test = small
+    one = Corpus(test.source, test.scenes[:1], test.models, test.taxonomy)
+    with pytest.raises(SceneSuggestError, match="ai2thor has 1 group.* fewer than the 2 folds") as info:
+        evaluate_transfer(train, one, [configure({"name": "paper"})], folds=2, resamples=50)
+    assert info.value.field == "folds"
+    assert evaluate_transfer(train, one, [configure({"name": "paper"})], like_for_like=False, resamples=50)["queries"]
 
 
 def test_worst_misses_are_explained(result):

@@ -27,7 +27,6 @@ def test_turned_reindexes_to_absolute_headings_with_interpolation():
     assert rows[0, 7] == 7 and rows[1, 7] == 6
 
 
-
 def test_turned_and_smooth_agree_with_their_definitions_bin_by_bin():
     rng = np.random.default_rng(3)
     values = rng.normal(size=(4, 3, BINS))
@@ -43,7 +42,8 @@ def test_turned_and_smooth_agree_with_their_definitions_bin_by_bin():
     assert np.array_equal(turned(values[0, 0], angles[0, 0]), out[0, 0])  # one row as it is within many
     counts = rng.integers(0, 9, size=(5, BINS)).astype(float)
     kernel = (np.roll(counts, 1, axis=1) + 2 * counts + np.roll(counts, -1, axis=1)) / 4
-    assert np.allclose(smooth(counts), kernel) and np.allclose(smooth(counts[0]), kernel[0])
+    assert np.array_equal(smooth(counts), kernel) and np.array_equal(smooth(counts[0]), kernel[0])
+
 
 def test_the_canonical_heading_is_kept_unless_another_heading_stands_out():
     flat = np.zeros((1, BINS))
