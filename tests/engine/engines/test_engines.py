@@ -113,6 +113,8 @@ def test_the_learned_engine_turns_each_suggestion_as_its_frame_classifier_trusts
         assert np.array_equal(engine.frame_headings(scores, every, faces)[1], expected)
         agreeing += int((proposed == proposed[:, :1]).all(axis=1).sum())
     assert 0 < agreeing < 2 * len(every)  # both kinds of candidate were asked about
+    plain = LearnedEngine(engine.priors, engine.stats, engine.ranker, None, engine.meta)  # no classifier: the product
+    assert np.array_equal(plain.frame_headings(scores, every, faces)[1], proposed[:, 0])
 
 
 def test_the_learned_engine_is_deterministic_and_its_file_byte_stable(corpus, learned_file, tmp_path):
