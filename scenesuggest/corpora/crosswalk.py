@@ -19,9 +19,10 @@ the same kind of thing, by the first rule that finds one (its ``via``):
 
 Where a rule finds several training categories, the one with the most instances is taken. What no rule maps is
 *unmapped*: its queries are counted and left out of the figures, and its objects are named ``unmapped:`` and their
-own name, which the trained engine has never seen (a parent it knows nothing of). :data:`DECISIONS` overrides the
-rules where they go wrong, for one pair of corpora, each with its reason (a decided parent stops the walk up the
-taxonomy); the room shell is always the room shell and a placeholder is never mapped.
+own name, which the trained engine has never seen (a parent it knows nothing of; or ``Unknown``, where the
+relabelled scenes are trained on). :data:`DECISIONS` overrides the rules where they go wrong, for one pair of
+corpora, each with its reason (a decided parent stops the walk up the taxonomy); the room shell is always the room
+shell and a placeholder is never mapped.
 """
 
 from __future__ import annotations

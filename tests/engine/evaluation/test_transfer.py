@@ -111,9 +111,13 @@ def test_the_ceiling_is_the_asked_corpus_in_the_training_vocabulary_by_its_own_f
 def test_like_for_like_needs_a_fold_of_each_corpus(small):
     train, test = small
     one = Corpus(test.source, test.scenes[:1], test.models, test.taxonomy)
-    with pytest.raises(SceneSuggestError, match="ai2thor has 1 group.* fewer than the 2 folds") as info:
+    with pytest.raises(SceneSuggestError, match=r"ai2thor has 1 group.* fewer than the 2 folds .*\(give "
+                                                r"--no-like-for-like\)") as info:
         evaluate_transfer(train, one, [configure({"name": "paper"})], folds=2, resamples=50)
     assert info.value.field == "folds"
+    few = Corpus(test.source, test.scenes[:3], test.models, test.taxonomy)
+    with pytest.raises(SceneSuggestError, match=r"\(give --folds [23] or fewer, or --no-like-for-like\)"):
+        evaluate_transfer(train, few, [configure({"name": "paper"})], folds=5, resamples=50)
     assert evaluate_transfer(train, one, [configure({"name": "paper"})], like_for_like=False, resamples=50)["queries"]
 
 
