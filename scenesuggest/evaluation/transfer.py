@@ -76,7 +76,8 @@ def evaluate_transfer(train: Corpus, test: Corpus, engines: list[EngineSpec] | N
     progress = progress or (lambda items, label="": items)
     specs = checked_specs(engines, EngineOptions())
     check_apart(train, test)
-    train_groups, scene_groups = similar_groups(train.scenes), similar_groups(test.scenes)
+    scene_groups = similar_groups(test.scenes)
+    train_groups = similar_groups(train.scenes) if like_for_like else []  # like for like's folds alone use them
     if like_for_like:
         check_foldable(train.source, train_groups, folds)
         check_foldable(test.source, scene_groups, folds)
@@ -210,18 +211,21 @@ def _add_like_for_like(result: dict, train: Corpus, groups: list[int], specs: li
     the asked corpus (``asked_home``, the ceiling; see the module)."""
     home = run_folds(train, grouped_folds(groups, folds, seed), _paper_options(specs), periods, progress,
                      rankings=False, specs=specs, groups=groups, seed=seed, scene_type=scene_type)
+    def weighted(mrr_of: dict[str, float], picked: list[int]) -> float:
+        """A per-category MRR weighted by the picked cross-corpus queries' categories."""
+        return float(np.mean([mrr_of[categories[k]] for k in picked])) if picked else 0.0
+
     for s in specs:
         by = {c: summary(r)["mrr"] for c, r in ranks_by_category(home, s.name).items()}
         there = {c: summary(r)["mrr"] for c, r in ranks_by_category(asked_home, s.name).items()}
         ranks = runs[s.name].ranks
         pick = [k for k, c in enumerate(categories) if c in by]
-        expected = float(np.mean([by[categories[k]] for k in pick])) if pick else 0.0
+        expected = weighted(by, pick)
         observed = summary([ranks[k] for k in pick])["mrr"] if pick else 0.0
         # the ceiling's folds ask the same queries (a contact too far from its parent is so in both runs); its
         # ratios are over the queries it asked, whatever happens
         topped = [k for k in pick if categories[k] in there]
-        ceiling = float(np.mean([there[categories[k]] for k in topped])) if topped else 0.0
-        base = float(np.mean([by[categories[k]] for k in topped])) if topped else 0.0
+        ceiling, base = weighted(there, topped), weighted(by, topped)
         below = summary([ranks[k] for k in topped])["mrr"] if topped else 0.0
         mix = Counter(categories[k] for k in pick)
         result["engines"][s.name]["like_for_like"] = {
