@@ -33,7 +33,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 from scipy.optimize import minimize
 
 from ..scenes.frames import FACES
@@ -66,6 +65,10 @@ def log_density(counts: np.ndarray) -> np.ndarray:
     return np.log((smooth(counts) + PSEUDO_COUNT / BINS) / (n + PSEUDO_COUNT))
 
 
+#: _ROTATIONS[s, h] = (h + s) mod BINS
+_ROTATIONS = (np.arange(BINS)[None, :] + np.arange(BINS)[:, None]) % BINS
+
+
 def turned(values: np.ndarray, angle) -> np.ndarray:
     """``values`` over relative bins (…, BINS) re-indexed to absolute headings: out[h] = values[h − angle],
     linearly interpolated between bins; ``angle`` (radians) broadcasts over the leading axes."""
@@ -74,12 +77,15 @@ def turned(values: np.ndarray, angle) -> np.ndarray:
     shift = np.broadcast_to(np.asarray(angle, dtype=float) / BIN, values.shape[:-1]).reshape(-1)
     s0 = np.floor(shift)
     frac = (shift - s0)[:, None]
-    # out[h] = values[(h − s0) mod BINS]: a window of BINS bins, starting at (−s0) mod BINS, of the bins twice over
-    start = (-s0.astype(np.int64)) % BINS
-    windows = sliding_window_view(np.concatenate([rows, rows], axis=1), BINS, axis=1)
-    every = np.arange(len(rows))
-    a, b = windows[every, start], windows[every, (start - 1) % BINS]
-    return ((1 - frac) * a + frac * b).reshape(values.shape)
+    # a[h] = values[(h − s0) mod BINS], b[h] = values[(h − s0 − 1) mod BINS] = a[h − 1]
+    at = _ROTATIONS[(-s0.astype(np.int64)) % BINS]
+    at += (np.arange(len(rows)) * BINS)[:, None]
+    a = rows.ravel()[at]
+    out = np.roll(a, 1, axis=1)
+    out *= frac
+    a *= 1 - frac
+    out += a
+    return out.reshape(values.shape)
 
 
 def heading_bin(angle) -> np.ndarray:

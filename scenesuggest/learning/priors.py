@@ -157,11 +157,21 @@ class Priors:
         self.seg_hist = peak_normalised(self.seg_theta_n)
         self._groups = {tuple(int(v) for v in key): g for g, key in enumerate(self.group_keys)}
         self._occ_starts = np.searchsorted(self.occ_key, np.arange(len(self.entities) * len(self.scene_types) + 1))
+        self._chains: dict[str, list[int]] = {}
         self._group_seg_starts = np.searchsorted(self.seg_group, np.arange(len(self.group_keys) + 1))
 
     # --- vocabulary and back-off -------------------------------------------------------------------------
     def entity_chain(self, category: str) -> list[int]:
-        """Entities from specific to general: the category, its subtree, then its ancestors' subtrees."""
+        """Entities from specific to general: the category, its subtree, then its ancestors' subtrees (memoised
+        for the categories the priors know, a bounded set; the list is shared, not to be changed)."""
+        chain = self._chains.get(category)
+        if chain is None:
+            chain = self._entity_chain(category)
+            if chain:
+                self._chains[category] = chain
+        return chain
+
+    def _entity_chain(self, category: str) -> list[int]:
         chain = []
         if category in self.entity_index:
             chain.append(self.entity_index[category])

@@ -68,8 +68,8 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
     seg, kind, angle, row = (np.concatenate(a) if a else np.zeros(0, np.int64) for a in (segs, kinds, angles, rows))
     if len(seg):
         distinct, each = np.unique(seg, return_inverse=True)  # siblings of one category share their segments
-        counts = np.where((distinct % 2 == 0)[:, None], p.seg_theta_n[distinct // 2], p.seg_phi_n[distinct // 2])
-        mean = mean_by(row * len(KINDS) + kind, turned(log_density(counts)[each], angle), m * len(KINDS))
+        density = engine.segment_log_density(distinct)[each]
+        mean = mean_by(row * len(KINDS) + kind, turned(density, angle), m * len(KINDS))
         out[:, 1:] = mean.reshape(m, len(KINDS), BINS)[:, 1:]
     return out
 
