@@ -3,8 +3,9 @@
 Grouped 5-fold Stanford (near-copies in one fold, as ``evaluate``), for each seed: in every fold, each engine is
 trained on a growing share of the training folds' scene groups (the same groups for every engine; a smaller share
 is a subset of a larger one) and asked every held-out query of the fold. Printed per engine and share: the mean
-number of training scenes, MRR, top-1, and the full-mode orientation folded within 45°, each as the median and
-range over the seeds. Beside them, in-sample (the engine trained on every scene and asked the same queries, each
+number of training scenes, MRR, top-1, and the full-mode orientation folded within 45° (and for the learned engine
+``frames_orient_folded_within_45``: its frame classifier's choice, what ``frames = true`` shows), each as the median
+and range over the seeds. Beside them, in-sample (the engine trained on every scene and asked the same queries, each
 object removed from its scene as always): how far the same machinery gets when the answers were in its training
 data — an upper bound the held-out figures approach only if more data helps.
 
@@ -106,9 +107,13 @@ def _in_sample(spec, corpus, periods) -> dict:
 
 def _figures(ranks: list[float], records: list[dict], training_scenes: int) -> dict:
     r = np.asarray(ranks, dtype=float)
-    folded = np.array([x["full_folded"] for x in records])
-    return {"training_scenes": training_scenes, "mrr": float(np.mean(1 / r)), "top1": float(np.mean(r <= 1)),
-            "orient_folded_within_45": float(np.mean(folded <= 45)) if len(folded) else 0.0, "queries": len(r)}
+    out = {"training_scenes": training_scenes, "mrr": float(np.mean(1 / r)), "top1": float(np.mean(r <= 1)),
+           "queries": len(r)}
+    for pose, key in (("full", "orient_folded_within_45"), ("frames", "frames_orient_folded_within_45")):
+        if pose == "full" or (records and f"{pose}_folded" in records[0]):
+            folded = np.array([x[f"{pose}_folded"] for x in records])
+            out[key] = float(np.mean(folded <= 45)) if len(folded) else 0.0
+    return out
 
 
 def _summary(share: float, runs: list[dict]) -> dict:
@@ -116,7 +121,9 @@ def _summary(share: float, runs: list[dict]) -> dict:
     per = len(runs) // 5
     seeds = [runs[5 * k: 5 * (k + 1)] for k in range(per)]
     out = {"share": share}
-    for key in ("training_scenes", "mrr", "top1", "orient_folded_within_45"):
+    for key in ("training_scenes", "mrr", "top1", "orient_folded_within_45", "frames_orient_folded_within_45"):
+        if key not in runs[0]:
+            continue
         values = [float(np.average([f[key] for f in s], weights=[f["queries"] for f in s])) for s in seeds]
         out[key] = {"median": float(np.median(values)), "low": float(min(values)), "high": float(max(values))}
     return out

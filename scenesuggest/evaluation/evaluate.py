@@ -62,7 +62,7 @@ ABLATIONS = {
 }
 #: Poses whose orientation is measured: the engine's full mode, full mode with the paper's orientation rule, and
 #: the canonical pose of basic mode.
-POSES = ("full", "paper", "canonical")
+POSES = ("full", "paper", "frames", "canonical")
 TOLERANCES_DEG = (15, 45)
 
 __all__ = ["evaluate", "folds_of", "rank_of", "summary", "orientation_summary", "paired_difference", "run_folds",
@@ -269,12 +269,17 @@ def measure_query(out: EngineRun, engine, paper_rule: Engine, query: ContextQuer
         faces, alphas, _ = paper_rule.choose_poses(scores, "full", [index])
         placed["paper"] = poses.placement(scores.prepared.point, scores.prepared.normal, faces[0],
                                           engine.size[index], float(alphas[0]))
+    learned = getattr(engine, "frames", None) is not None and scores is not None
+    if learned:  # the frame classifier's choice, whether or not the engine turns suggestions by it
+        index = engine.index[o.category]
+        faces, alphas, _ = engine.frame_poses(scores, [index])
+        placed["frames"] = poses.placement(scores.prepared.point, scores.prepared.normal, faces[0],
+                                           engine.size[index], float(alphas[0]))
     period, source = periods.of(o.model_id, o.category, tuple(o.scaled_size()[[0, 2]]))
     record = _orientation_record(placed, scene, o, corpus, period, source, query.normal)
-    if hasattr(engine, "frame_headings") and scores is not None:  # the ceiling of choosing a frame per query
+    if learned:  # the ceiling of choosing a frame per query
         from ..engines.learned.training import frame_errors
 
-        index = engine.index[o.category]
         _, _, proposed = engine.frame_headings(scores, np.array([index]))
         record["oracle_folded"] = float(min(frame_errors(engine, scores, index, o.transform, proposed[0], period)))
     out.records.append(record)
@@ -304,12 +309,14 @@ def _orientation(records: list[dict], pose: str) -> dict:
 
 def engine_figures(ranks: list[float], records: list[dict]) -> dict:
     """An engine's figures: ranking in both modes (the ranking does not depend on the mode), orientation of
-    its full mode with the canonical pose (and the paper's rule, the frame oracle where measured) beside."""
+    its full mode with the canonical pose (and the paper's rule, the frame classifier's choice and the frame
+    oracle where measured) beside."""
     full = summary(ranks)
     full.update(_orientation(records, "full"))
     full["canonical"] = _orientation(records, "canonical")
-    if records and "paper_folded" in records[0]:
-        full["paper"] = _orientation(records, "paper")
+    for pose in ("paper", "frames"):
+        if records and f"{pose}_folded" in records[0]:
+            full[pose] = _orientation(records, pose)
     oracle = [r["oracle_folded"] for r in records if "oracle_folded" in r]
     if oracle:
         full["frame_oracle"] = {"orient_folded_within_15": float(np.mean(np.array(oracle) <= 15)),

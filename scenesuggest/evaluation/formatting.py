@@ -1,6 +1,6 @@
 """The human tables of :func:`scenesuggest.evaluation.evaluate.evaluate`'s result: ranking against the baselines,
-orientation (with the paper's rule, the canonical pose and the frame oracle where measured), the engines side by side
-with the paired intervals of their MRR differences, and per category; and of
+orientation (with the paper's rule, the canonical pose, the frame classifier's choice and the frame oracle where
+measured), the engines side by side with the paired intervals of their MRR differences, and per category; and of
 :func:`scenesuggest.evaluation.transfer.evaluate_transfer`'s (:func:`format_transfer`)."""
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ def _ranking_rows(block: dict) -> list[str]:
 
 def _orientation_rows(full: dict) -> list[str]:
     lines = [f"{'orientation':<14}{'≤15°':>8}{'≤45°':>8}{'folded ≤15°':>13}{'≤45°':>8}{'median':>9}"]
-    rows = [("full", full), ("paper's rule", full.get("paper")), ("canonical", full["canonical"])]
+    rows = [("full", full), ("paper's rule", full.get("paper")), ("frame choice", full.get("frames")),
+            ("canonical", full["canonical"])]
     for name, m in [(n, m) for n, m in rows if m is not None]:
         lines.append(f"{name:<14}{100 * m['orient_within_15']:>7.1f}%{100 * m['orient_within_45']:>7.1f}%"
                      f"{100 * m['orient_folded_within_15']:>12.1f}%{100 * m['orient_folded_within_45']:>7.1f}%"
@@ -32,16 +33,18 @@ def _orientation_rows(full: dict) -> list[str]:
 
 def _engine_rows(result: dict) -> list[str]:
     """The engines side by side: ranking, orientation, query time and the paired difference from the first."""
-    lines = [f"{'engine':<12}{'MRR':>7}{'top-1':>7}{'top-5':>7}{'folded ≤45°':>13}{'canonical':>11}{'oracle':>8}"
+    lines = [f"{'engine':<12}{'MRR':>7}{'top-1':>7}{'top-5':>7}{'folded ≤45°':>13}{'canonical':>11}{'frames':>8}"
+             f"{'oracle':>8}"
              f"{'p50 ms':>8}{'p95 ms':>8}  MRR − {result['engine']} [95% CI]"]
     for name, block in result["engines"].items():
         full = block["modes"]["full"]
+        frames = full.get("frames", {}).get("orient_folded_within_45")
         oracle = full.get("frame_oracle", {}).get("orient_folded_within_45")
         diff = block.get("vs_first")
         lines.append(f"{name:<12}{full['mrr']:>7.3f}{full['top1']:>7.3f}{full['top5']:>7.3f}"
                      f"{100 * full['orient_folded_within_45']:>12.1f}%"
                      f"{100 * full['canonical']['orient_folded_within_45']:>10.1f}%"
-                     + (f"{100 * oracle:>7.1f}%" if oracle is not None else f"{'–':>8}")
+                     + "".join(f"{100 * m:>7.1f}%" if m is not None else f"{'–':>8}" for m in (frames, oracle))
                      + f"{block.get('query_p50_ms', math.nan):>8.2f}{block.get('query_p95_ms', math.nan):>8.2f}"
                      + (f"  {diff['mrr_difference']:+.3f} [{diff['low']:+.3f}, {diff['high']:+.3f}]" if diff else ""))
     return lines

@@ -6,12 +6,14 @@ ranker and the frame classifier out of fold, :mod:`.engine` answers queries and 
 
 Options of a study condition: ``file``, the trained file (relative to the study file; default: the study's priors
 file with ``.learned.npz`` for ``.npz``, which ``scenesuggest study prepare`` builds for the corpora the server
-prepares itself, and ``scenesuggest engine train learned SOURCE -o FILE`` for any).
+prepares itself, and ``scenesuggest engine train learned SOURCE -o FILE`` for any); ``frames`` (default false):
+turn each suggestion as the frame classifier chooses, not as the paper's engine does (see :mod:`.engine`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +21,17 @@ from ...errors import SceneSuggestError
 from ..protocol import EngineKind, LoadContext
 from .engine import LearnedEngine
 
-OPTIONS = ("file",)
+OPTIONS = ("file", "frames")
 SUFFIX = ".learned.npz"
+
+
+@dataclass(frozen=True)
+class LearnedConfig:
+    """A condition's learned engine: its file (None: beside the priors) and whether it turns suggestions by its
+    frame classifier."""
+
+    file: Path | None = None
+    frames: bool = False
 
 
 def default_file(priors: Path) -> Path:
@@ -35,24 +46,27 @@ class LearnedKind(EngineKind):
                "reference frame of each heading chosen per query")
     trainable = True
 
-    def configure(self, options: Mapping[str, Any], base: Path | None = None) -> Path | None:
+    def configure(self, options: Mapping[str, Any], base: Path | None = None) -> LearnedConfig:
         for key in options:
             if key not in OPTIONS:
                 raise SceneSuggestError(f"unknown key: this engine takes name, {', '.join(OPTIONS)}", field=key)
+        frames = options.get("frames", False)
+        if not isinstance(frames, bool):
+            raise SceneSuggestError(f"expected true or false, got {frames!r}", field="frames")
         file = options.get("file")
         if file is None:
-            return None
+            return LearnedConfig(None, frames)
         if not isinstance(file, str) or not file.strip():
             raise SceneSuggestError("expected the path of a learned engine's file", field="file")
-        return (base / file) if base is not None else Path(file)
+        return LearnedConfig((base / file) if base is not None else Path(file), frames)
 
-    def trained_file(self, config: Path | None, priors: Path) -> Path:
-        return config if config is not None else default_file(priors)
+    def trained_file(self, config: LearnedConfig, priors: Path) -> Path:
+        return config.file if config.file is not None else default_file(priors)
 
-    def load(self, config: Path | None, context: LoadContext) -> LearnedEngine:
-        return LearnedEngine.load(self.trained_file(config, context.priors))
+    def load(self, config: LearnedConfig, context: LoadContext) -> LearnedEngine:
+        return LearnedEngine.load(self.trained_file(config, context.priors), choose_frames=config.frames)
 
-    def problem(self, config: Path | None, priors: Path, current: bool = False) -> str | None:
+    def problem(self, config: LearnedConfig, priors: Path, current: bool = False) -> str | None:
         from .engine import code_digest
 
         path = self.trained_file(config, priors)
@@ -67,7 +81,8 @@ class LearnedKind(EngineKind):
     def fit(self, config, scenes, taxonomy, *, seed: int = 0, progress=None, periods=None) -> LearnedEngine:
         from .training import fit
 
-        return fit(scenes, taxonomy, seed=seed, periods=periods, progress=progress)
+        engine = fit(scenes, taxonomy, seed=seed, periods=periods, progress=progress)
+        return engine.choosing_frames(config is not None and config.frames)
 
     def train(self, config, scenes, taxonomy, out: Path, *, seed: int = 0, progress=None, periods=None) -> dict:
         engine = self.fit(config, scenes, taxonomy, seed=seed, progress=progress, periods=periods)
@@ -77,4 +92,4 @@ class LearnedKind(EngineKind):
 
 KIND = LearnedKind()
 
-__all__ = ["KIND", "LearnedEngine", "default_file"]
+__all__ = ["KIND", "LearnedConfig", "LearnedEngine", "default_file"]

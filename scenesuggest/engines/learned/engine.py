@@ -2,9 +2,12 @@
 
 A click is scored by the paper's engine (the priors in the file), its context counted (:mod:`.context`), and
 every candidate's ranking row (:func:`.features.ranking_features`) scored by the ranker, a LightGBM lambdarank
-model: the higher, the better. In ``full`` mode, each of the suggestions returned gets the heading of the
-reference frame the frame classifier trusts most for it (:func:`.features.frame_proposals`; ``basic`` keeps the
-canonical pose, as the paper's engine does). Attachment faces and placements are the paper engine's.
+model: the higher, the better. Headings are the paper engine's (in ``full`` mode the product of the orientation
+evidence, ``basic`` the canonical pose); with ``frames`` (a study condition's ``frames = true``) each suggestion in
+``full`` mode gets instead the heading of the reference frame the frame classifier trusts most for it
+(:func:`.features.frame_proposals`). Held out, the classifier gains about one point of orientation for about 1.7 ms
+of a query's p95 (ENGINE.md), so it is asked only when chosen. Attachment faces and placements are the paper
+engine's.
 
 The file is one ``.npz`` (written by :mod:`scenesuggest.npz`, so the same training gives the same bytes): the
 priors' arrays and metadata under ``priors.``, the context counts under ``context.``, the two models as text
@@ -73,16 +76,19 @@ class LearnedEngine(Engine):
         ``features.ORIENTATION``); None: the product of the evidence (the paper engine's ``full``).
     meta : dict
         The file's metadata.
+    choose_frames : bool
+        Whether ``full`` mode turns each suggestion as the frame classifier chooses (else as the paper's engine).
     """
 
     name = "learned"
 
     def __init__(self, priors: Priors, stats: ContextStats, ranker: lgb.Booster, frames: lgb.Booster | None,
-                 meta: dict, options: EngineOptions | None = None):
+                 meta: dict, options: EngineOptions | None = None, choose_frames: bool = False):
         super().__init__(priors, options)
         if list(stats.names) != list(self.names):
             raise SceneSuggestError("the context counts and the priors name different categories", field="context")
         self.stats, self.ranker, self.frames, self.meta = stats, ranker, frames, meta
+        self.choose_frames = choose_frames
 
     # --- ranking -------------------------------------------------------------------------------------------
     def score(self, query, allowed: np.ndarray | None = None) -> Scores:
@@ -125,12 +131,18 @@ class LearnedEngine(Engine):
     # --- orientation ---------------------------------------------------------------------------------------
     def choose_poses(self, scores: Scores, mode: str, idx: np.ndarray | None = None
                      ) -> tuple[list[str], np.ndarray, np.ndarray]:
-        """(face, α, heading) of candidates ``idx``: the paper engine's faces; in ``full`` mode the heading of the
-        frame the classifier trusts most for each (the product of the evidence when there is no classifier)."""
-        if mode != "full" or self.frames is None:
+        """(face, α, heading) of candidates ``idx``: the paper engine's, or with ``choose_frames`` in ``full``
+        mode :meth:`frame_poses`."""
+        if mode != "full" or self.frames is None or not self.choose_frames:
             return super().choose_poses(scores, mode, idx)
+        return self.frame_poses(scores, idx)
+
+    def frame_poses(self, scores: Scores, idx: np.ndarray | None = None) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """(face, α, heading) of candidates ``idx`` in ``full`` mode with the heading of the frame the classifier
+        trusts most for each (the product of the evidence when there is no classifier), whatever ``choose_frames``
+        says."""
         idx = np.arange(len(self.candidates)) if idx is None else np.asarray(idx, dtype=np.int64)
-        face_index = self.face_indices(scores.prepared, mode, idx)
+        face_index = self.face_indices(scores.prepared, "full", idx)
         zero = poses.zero_headings(scores.prepared.normal)[face_index]
         heading = self.frame_headings(scores, idx, face_index)[1]
         return [FACES[i] for i in face_index], heading - zero, heading
@@ -185,7 +197,11 @@ class LearnedEngine(Engine):
 
     def with_options(self, **changes) -> LearnedEngine:
         return LearnedEngine(self.priors, self.stats, self.ranker, self.frames, self.meta,
-                             replace(self.options, **changes))
+                             replace(self.options, **changes), self.choose_frames)
+
+    def choosing_frames(self, choose: bool) -> LearnedEngine:
+        """This engine, turning suggestions as its frame classifier chooses (``choose``) or as the paper's."""
+        return LearnedEngine(self.priors, self.stats, self.ranker, self.frames, self.meta, self.options, choose)
 
     # --- the file ------------------------------------------------------------------------------------------
     def payload(self) -> dict[str, np.ndarray]:
@@ -216,7 +232,8 @@ class LearnedEngine(Engine):
             raise SceneSuggestError(f"cannot read the learned engine: {e}", file=str(path)) from None
 
     @classmethod
-    def load(cls, path: str | Path, options: EngineOptions | None = None) -> LearnedEngine:
+    def load(cls, path: str | Path, options: EngineOptions | None = None, choose_frames: bool = False
+             ) -> LearnedEngine:
         """Read a learned engine's file; one that is not one, or of another version, is an error naming it."""
         path = Path(path)
         try:
@@ -235,7 +252,7 @@ class LearnedEngine(Engine):
         except (KeyError, TypeError, lgb.basic.LightGBMError, UnicodeDecodeError) as e:
             raise SceneSuggestError(f"the learned engine's file is incomplete or damaged ({type(e).__name__}: {e})",
                                     file=str(path), field="ranker") from None
-        return cls(priors, stats, ranker, frames, meta, options)
+        return cls(priors, stats, ranker, frames, meta, options, choose_frames)
 
 
 def _checked_meta(raw: np.ndarray | None, path: Path) -> dict:

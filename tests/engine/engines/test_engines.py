@@ -95,15 +95,20 @@ def test_the_frequency_engine_ranks_by_how_often_a_category_occurs(corpus, tmp_p
     assert [s.category for s in engine.suggest(synthetic_query(scene, desk), "basic")] == by_rate
 
 
-def test_the_learned_engine_turns_each_suggestion_as_its_frame_classifier_trusts_most(corpus, learned_file):
-    """Every candidate's heading is that of the frame with the classifier's highest trust, the classifier asked
-    about every frame (the engine leaves out the candidates whose frames all propose one heading)."""
+def test_with_frames_the_learned_engine_turns_each_suggestion_as_its_frame_classifier_trusts_most(
+        corpus, learned_file, tmp_path):
+    """With ``frames = true`` every candidate's heading in full mode is that of the frame with the classifier's
+    highest trust, the classifier asked about every frame (the engine leaves out the candidates whose frames all
+    propose one heading); by default the heading is the paper engine's (the product of the evidence)."""
     from scenesuggest.engines.learned.features import frame_proposals
 
-    engine = LearnedEngine.load(learned_file)
+    table = {"name": "learned", "file": str(learned_file)}
+    engine = engines.load(engines.configure({**table, "frames": True}), LoadContext(tmp_path / "priors.npz"))
+    default = engines.load(engines.configure(table), LoadContext(tmp_path / "priors.npz"))
+    assert engine.choose_frames and not default.choose_frames
     scene = corpus.scenes[0]
     every = np.arange(len(engine.candidates))
-    agreeing = 0
+    agreeing = differ = 0
     for parent in (scene.objects["room"], next(o for o in scene if o.category == "Desk")):
         scores = engine.score(synthetic_query(scene, parent))
         faces = engine.face_indices(scores.prepared, "full", every)
@@ -111,8 +116,19 @@ def test_the_learned_engine_turns_each_suggestion_as_its_frame_classifier_trusts
         trust = engine.frames.predict(rows.reshape(-1, rows.shape[-1])).reshape(proposed.shape)
         expected = proposed[every, np.argmax(trust, axis=1)]
         assert np.array_equal(engine.frame_headings(scores, every, faces)[1], expected)
+        assert np.array_equal(engine.choose_poses(scores, "full", every)[2], expected)
+        paper = Engine.choose_poses(engine, scores, "full", every)[2]
+        assert np.array_equal(default.choose_poses(scores, "full", every)[2], paper)
+        assert np.array_equal(engine.choose_poses(scores, "basic", every)[2], Engine.choose_poses(
+            engine, scores, "basic", every)[2])  # basic keeps the canonical pose either way
         agreeing += int((proposed == proposed[:, :1]).all(axis=1).sum())
+        differ += int((np.abs(expected - paper) > 1e-9).sum())
     assert 0 < agreeing < 2 * len(every)  # both kinds of candidate were asked about
+    assert differ  # the classifier's choice is not the paper's everywhere, so the two settings were told apart
+    for bad in ("yes", 1, None):
+        with pytest.raises(SceneSuggestError, match="expected true or false") as info:
+            engines.configure({**table, "frames": bad})
+        assert info.value.field == "frames"
     plain = LearnedEngine(engine.priors, engine.stats, engine.ranker, None, engine.meta)  # no classifier: the product
     assert np.array_equal(plain.frame_headings(scores, every, faces)[1], proposed[:, 0])
 

@@ -98,3 +98,26 @@ def test_evaluate_command(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "evaluate", f"json:{out}", "--folds", "20"],
                           capture_output=True, text=True)
     assert proc.returncode == 2 and "cannot make 20 folds" in proc.stderr
+
+
+def test_the_learned_engine_turns_as_the_papers_and_its_frame_classifiers_choice_is_reported_beside():
+    """By default the learned engine's headings are the paper engine's (the same records, query by query); its frame
+    classifier's choice is measured beside (``frames``), and is what ``frames = true`` turns by."""
+    from scenesuggest.engines import configure
+
+    corpus = synthetic.corpus()
+    specs = [configure({"name": "paper"}), configure({"name": "learned"}), configure({"name": "learned",
+                                                                                     "frames": True})]
+    result = evaluate(corpus, folds=4, seed=0, engines=specs[:2], group_similar=False)
+    paper, learned = (result["engines"][n]["modes"]["full"] for n in ("paper", "learned"))
+    for key in ("orient_folded_within_15", "orient_folded_within_45", "orient_median_deg"):
+        assert learned[key] == paper[key]
+    assert "frames" in learned and "frame_oracle" in learned and "frames" not in paper
+    rows = format_evaluation(result).splitlines()
+    header = next(r for r in rows if r.startswith("engine "))
+    row = next(r for r in rows if r.startswith("learned "))
+    column = header.index("frames") + len("frames")  # right-aligned under its header
+    assert row[column - 8:column] == f"{100 * learned['frames']['orient_folded_within_45']:>7.1f}%"
+    framed = evaluate(corpus, folds=4, seed=0, engines=[specs[2]], group_similar=False)["modes"]["full"]
+    assert framed["frames"] == learned["frames"] and framed["orient_folded_within_45"] == \
+        learned["frames"]["orient_folded_within_45"]
