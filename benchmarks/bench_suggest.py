@@ -7,10 +7,11 @@ every category ranked, the best TOP placed and oriented (``p*_ms``); ``p95_all_p
 The naive scorer computes the same: every category's score, and the orientation of the same TOP.
 The top level is the paper's engine; ``engines`` has every engine asked (``--engine``, default paper, frequency and
 learned: trained on the corpus, its training time and file size beside) the same queries in the same way, with
-``lightgbm`` for the learned engine: the milliseconds of each query spent in its LightGBM models. ``http`` is the
-overhead of the http engine over a local external engine — the paper engine served by ``scenesuggest engine serve``
-in a process of its own on loopback: per query, the http engine's time minus the time the external engine says
-(Server-Timing) it took from reading the query to writing its answer.
+``lightgbm`` for the learned engine: the milliseconds of each query spent in its LightGBM models, and ``frames``: the
+same file turning suggestions by its frame classifier (``frames = true``). ``http`` is the overhead of the http
+engine over a local external engine — the paper engine served by ``scenesuggest engine serve`` in a process of its
+own on loopback: per query, the http engine's time minus the time the external engine says (Server-Timing) it took
+from reading the query to writing its answer.
 Budgets (2 cores): p95 ≤ 5 ms per engine, http overhead p95 ≤ 3 ms, training ≤ 30 s (paper) and ≤ 120 s
 (learned), priors file ≤ 50 MB, speed-up ≥ 20×.
 Usage: .venv/bin/python benchmarks/bench_suggest.py [--data ../shared/data] [--queries 600] [--naive 25]
@@ -188,6 +189,15 @@ def time_engine(name: str, corpus, priors, queries, tmp: Path) -> dict:
         t = time.perf_counter()
         engine = kind.load(kind.configure({"file": info["out"]}), LoadContext(tmp / "priors.npz"))
         out["load_s"] = round(time.perf_counter() - t, 3)
+        if name == "learned":  # the same file, turning suggestions by its frame classifier
+            framed = kind.load(kind.configure({"file": info["out"], "frames": True}), LoadContext(tmp / "priors.npz"))
+            out["frames"] = _latencies(framed, queries)
+    return {**_latencies(engine, queries), **out}
+
+
+def _latencies(engine, queries) -> dict:
+    """The percentiles of the engine's time per query (after one to warm it), and of the time inside its LightGBM
+    models (``lightgbm``) where it has any."""
     engine.suggest(queries[0], "full", top=TOP)
     inside = _timed_models(engine)
     latencies, models_ms = [], []
@@ -197,9 +207,10 @@ def time_engine(name: str, corpus, priors, queries, tmp: Path) -> dict:
         engine.suggest(q, "full", top=TOP)
         latencies.append((time.perf_counter() - t) * 1000)
         models_ms.append(inside[0])
+    out = percentiles(latencies)
     if any(models_ms):  # the time inside the engine's trained models (LightGBM's predict), per query
         out["lightgbm"] = {k: v for k, v in percentiles(models_ms).items() if k in ("p50_ms", "p95_ms")}
-    return {**percentiles(latencies), **out}
+    return out
 
 
 def _timed_models(engine) -> list[float]:

@@ -59,6 +59,8 @@ def test_the_demo_study_is_valid():
      "conditions[2].engine.orientation", "one of learned, paper"),
     ('engine = { orientation = "learned" }', 'engine = { orientation = 5 }', "conditions[2].engine.orientation",
      "one of learned, paper"),
+    ('engine = { orientation = "learned" }', 'engine = { name = "learned", frames = "yes" }',
+     "conditions[2].engine.frames", "expected true or false"),
     ('no_consent = "DEMO-NOCONSENT"\n', '', "platform.codes.no_consent", "missing"),
     ('kind = "link"', 'kind = "link"\ncompletion_url = "https://x.org/done"', "platform.completion_url", "{code}"),
     ('kind = "link"', 'kind = "link"\ncompletion_url = "javascript:alert({code})"', "platform.completion_url",
