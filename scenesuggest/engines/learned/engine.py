@@ -5,9 +5,9 @@ every candidate's ranking row (:func:`.features.ranking_features`) scored by the
 model: the higher, the better. Headings are the paper engine's (in ``full`` mode the product of the orientation
 evidence, ``basic`` the canonical pose); with ``frames`` (a study condition's ``frames = true``) each suggestion in
 ``full`` mode gets instead the heading of the reference frame the frame classifier trusts most for it
-(:func:`.features.frame_proposals`). Held out, the classifier gains about one point of orientation for about 1.7 ms
-of a query's p95 (ENGINE.md), so it is asked only when chosen. Attachment faces and placements are the paper
-engine's.
+(:func:`.features.frame_proposals`). Held out, the classifier gains half a point to a point of orientation for about
+a third of a query's time (ENGINE.md), so it is asked only when chosen. Attachment faces and placements are the
+paper engine's.
 
 The file is one ``.npz`` (written by :mod:`scenesuggest.npz`, so the same training gives the same bytes): the
 priors' arrays and metadata under ``priors.``, the context counts under ``context.``, the two models as text
