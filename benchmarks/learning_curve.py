@@ -110,7 +110,7 @@ def _figures(ranks: list[float], records: list[dict], training_scenes: int) -> d
     out = {"training_scenes": training_scenes, "mrr": float(np.mean(1 / r)), "top1": float(np.mean(r <= 1)),
            "queries": len(r)}
     for pose, key in (("full", "orient_folded_within_45"), ("frames", "frames_orient_folded_within_45")):
-        if pose == "full" or (records and f"{pose}_folded" in records[0]):
+        if pose == "full" or (records and all(f"{pose}_folded" in x for x in records)):
             folded = np.array([x[f"{pose}_folded"] for x in records])
             out[key] = float(np.mean(folded <= 45)) if len(folded) else 0.0
     return out
@@ -122,7 +122,7 @@ def _summary(share: float, runs: list[dict]) -> dict:
     seeds = [runs[5 * k: 5 * (k + 1)] for k in range(per)]
     out = {"share": share}
     for key in ("training_scenes", "mrr", "top1", "orient_folded_within_45", "frames_orient_folded_within_45"):
-        if key not in runs[0]:
+        if not all(key in run for run in runs):
             continue
         values = [float(np.average([f[key] for f in s], weights=[f["queries"] for f in s])) for s in seeds]
         out[key] = {"median": float(np.median(values)), "low": float(min(values)), "high": float(max(values))}

@@ -200,8 +200,9 @@ def _triple(ctx, param, value):
     return numbers
 
 
-def _engine(name: str, trained: str, **paper_options):
-    """The engine ``name`` answering from ``trained`` (a priors file, or the learned engine's file)."""
+def _engine(name: str, trained: str, frames: bool = False, **paper_options):
+    """The engine ``name`` answering from ``trained`` (a priors file, or the learned engine's file); ``frames``: the
+    learned engine turning by its frame classifier."""
     from .engines import configure, load
     from .engines.protocol import LoadContext
 
@@ -212,8 +213,10 @@ def _engine(name: str, trained: str, **paper_options):
     if options and name != "paper":
         raise SceneSuggestError(f"--{next(iter(options)).replace('_', '-')} is an option of the paper engine",
                                 field="engine")
+    if frames and name != "learned":
+        raise SceneSuggestError("--frames is an option of the learned engine", field="engine")
     if name == "learned":
-        options = {"file": trained}
+        options = {"file": trained, "frames": frames}
     return load(configure({"name": name, **options}), LoadContext(Path(trained)))
 
 
@@ -232,19 +235,20 @@ def _engine(name: str, trained: str, **paper_options):
 @click.option("--infer-scene-type", is_flag=True, help="Infer the scene type from the objects present.")
 @click.option("--collision-aware", is_flag=True, help="Turn or penalise categories that do not fit (paper).")
 @click.option("--refine-anchor", is_flag=True, help="Move each placement to a nearby more typical spot (paper).")
+@click.option("--frames", is_flag=True, help="Turn each suggestion as the frame classifier chooses (learned).")
 @click.option("--explain", is_flag=True, help="Say why each category got its rank.")
 @click.option("--category", "explain_categories", multiple=True,
               help="With --explain: also explain this category wherever it ranks (repeatable).")
 @click.option("--json", "as_json", is_flag=True)
 def suggest_cmd(priors_file, engine_name, scene_file, parent_id, point, normal, mode, top, scene_type,
-                infer_scene_type, collision_aware, refine_anchor, explain, explain_categories, as_json) -> None:
+                infer_scene_type, collision_aware, refine_anchor, frames, explain, explain_categories, as_json) -> None:
     """Rank categories for a click on a surface, each with a placement (column-major 4×4)."""
     from .evaluation.formatting import explanation_lines
     from .scenes import scene_json
     from .suggestion.suggest import ContextQuery
 
-    engine = _engine(engine_name, priors_file, collision_aware=collision_aware, anchor_refinement=refine_anchor,
-                     infer_scene_type=infer_scene_type)
+    engine = _engine(engine_name, priors_file, frames, collision_aware=collision_aware,
+                     anchor_refinement=refine_anchor, infer_scene_type=infer_scene_type)
     query = ContextQuery(scene_json.load(scene_file), parent_id, point, normal, scene_type)
     found = engine.suggest(query, mode, top)
     data = {"mode": mode, **found.to_dict()}

@@ -110,6 +110,12 @@ def test_engine_train_cli(tmp_path):
     found = json.loads(run("suggest", "--engine", "learned", "--priors", str(out), "--scene", str(scene), "--parent",
                            desk["id"], "--point", f"{x},0.75,{z - 0.2}", "--normal", "0,1,0", "--json").stdout)
     assert found["engine"] == "learned" and found["suggestions"]
+    click = ["--scene", str(scene), "--parent", desk["id"], "--point", f"{x},0.75,{z - 0.2}", "--normal", "0,1,0"]
+    framed = json.loads(run("suggest", "--engine", "learned", "--frames", "--priors", str(out), *click,
+                            "--json").stdout)
+    assert [s["category"] for s in framed["suggestions"]] == [s["category"] for s in found["suggestions"]]
+    bad = run("suggest", "--engine", "paper", "--frames", "--priors", str(out), *click, check=False)
+    assert bad.returncode == 2 and "--frames is an option of the learned engine" in bad.stderr
     bad = run("engine", "train", "http", f"json:{corpus_dir}", "-o", str(tmp_path / "h.npz"), check=False)
     assert bad.returncode == 2 and "not trained by this project" in bad.stderr and not (tmp_path / "h.npz").exists()
     bad = run("engine", "train", "nope", f"json:{corpus_dir}", "-o", str(tmp_path / "n.npz"), check=False)

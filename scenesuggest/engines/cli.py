@@ -61,13 +61,16 @@ def train_cmd(name: str, source: str, out: str, seed: int, meshes: str | None, a
               help="The engine's trained file (priors for paper and frequency, the learned engine's file).")
 @click.option("--host", default="127.0.0.1", show_default=True)
 @click.option("--port", default=8100, show_default=True, type=click.IntRange(0, 65535))
-def serve_cmd(name: str, priors_file: str, host: str, port: int) -> None:
+@click.option("--frames", is_flag=True, help="Turn each suggestion as the frame classifier chooses (learned).")
+def serve_cmd(name: str, priors_file: str, host: str, port: int, frames: bool) -> None:
     """Serve the engine NAME over HTTP, as a study's 'http' engine asks (POST a query, JSON answer)."""
     from . import load
     from .protocol import LoadContext
     from .serve import make_server
 
-    spec = configure({"name": name, **({"file": priors_file} if name == "learned" else {})})
+    if frames and name != "learned":
+        raise SceneSuggestError("--frames is an option of the learned engine", field="frames")
+    spec = configure({"name": name, **({"file": priors_file, "frames": frames} if name == "learned" else {})})
     engine = load(spec, LoadContext(Path(priors_file)))
     server = make_server(engine, host, port)
     click.echo(f"serving the {name} engine on http://{host}:{server.server_address[1]}/ (Ctrl-C stops)", err=True)

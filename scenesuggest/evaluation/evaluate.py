@@ -60,8 +60,8 @@ ABLATIONS = {
     "fronts only (the paper's evidence)": {"orientation_kinds": ("parent_front", "sibling_front")},
     "all evidence, equal trust": {"orientation_trust": "equal"},
 }
-#: Poses whose orientation is measured: the engine's full mode, full mode with the paper's orientation rule, and
-#: the canonical pose of basic mode.
+#: Poses whose orientation is measured: the engine's full mode, full mode with the paper's orientation rule, the
+#: learned engine's frame classifier's choice, and the canonical pose of basic mode.
 POSES = ("full", "paper", "frames", "canonical")
 TOLERANCES_DEG = (15, 45)
 
@@ -269,17 +269,17 @@ def measure_query(out: EngineRun, engine, paper_rule: Engine, query: ContextQuer
         faces, alphas, _ = paper_rule.choose_poses(scores, "full", [index])
         placed["paper"] = poses.placement(scores.prepared.point, scores.prepared.normal, faces[0],
                                           engine.size[index], float(alphas[0]))
-    learned = getattr(engine, "frames", None) is not None and scores is not None
-    if learned:  # the frame classifier's choice, whether or not the engine turns suggestions by it
-        index = engine.index[o.category]
+    if hasattr(engine, "frame_poses") and getattr(engine, "frames", None) is not None and scores is not None:
+        index = engine.index[o.category]  # the frame classifier's choice, whether or not the engine turns by it
         faces, alphas, _ = engine.frame_poses(scores, [index])
         placed["frames"] = poses.placement(scores.prepared.point, scores.prepared.normal, faces[0],
                                            engine.size[index], float(alphas[0]))
     period, source = periods.of(o.model_id, o.category, tuple(o.scaled_size()[[0, 2]]))
     record = _orientation_record(placed, scene, o, corpus, period, source, query.normal)
-    if learned:  # the ceiling of choosing a frame per query
+    if hasattr(engine, "frame_headings") and scores is not None:  # the ceiling of choosing a frame per query
         from ..engines.learned.training import frame_errors
 
+        index = engine.index[o.category]
         _, _, proposed = engine.frame_headings(scores, np.array([index]))
         record["oracle_folded"] = float(min(frame_errors(engine, scores, index, o.transform, proposed[0], period)))
     out.records.append(record)

@@ -47,7 +47,7 @@ from ..scenes.scene import SURFACE_TYPES, Scene
 from ..scenes.taxonomy import MIN_OBSERVATIONS, Taxonomy
 from .counts import ANY, K_MAX, learn_counts, subtree
 from .observations import POOLED, RELATIONS
-from .orientation import BINS, KINDS, learn_orientation, smooth
+from .orientation import BINS, KINDS, learn_orientation, log_density, smooth
 
 FORMAT = "scenesuggest-priors"
 VERSION = 2
@@ -158,7 +158,27 @@ class Priors:
         self._groups = {tuple(int(v) for v in key): g for g, key in enumerate(self.group_keys)}
         self._occ_starts = np.searchsorted(self.occ_key, np.arange(len(self.entities) * len(self.scene_types) + 1))
         self._chains: dict[str, list[int]] = {}
+        # the kernel density's inputs in float64, made once (the engine gathers them per reference)
+        self.sample_xy = self.pair_xy.astype(float)
+        self.seg_inv_bandwidth = 1.0 / self.seg_bandwidth.astype(float)
+        self.seg_weight64 = self.seg_weight.astype(float)
+        # log_density of each segment's θ (row 2s) and φ (row 2s + 1) counts, filled as queries need them; the OS
+        # commits memory only for the pages of rows filled (about 14 rows a page)
+        self._log_density = np.empty((2 * len(self.seg_theta_n), BINS))
+        self._log_density_filled = np.zeros(2 * len(self.seg_theta_n), dtype=bool)
         self._group_seg_starts = np.searchsorted(self.seg_group, np.arange(len(self.group_keys) + 1))
+
+    def segment_log_density(self, rows: np.ndarray) -> np.ndarray:
+        """(len(rows), BINS) log-probabilities of the heading bins (:func:`~scenesuggest.learning.orientation.
+        log_density`) from the θ counts of segment s (row 2s) or its φ counts (row 2s + 1), a copy; each row is
+        computed once (pure, so threads that fill one row at once write the same values, and a row's flag is set
+        only after its values)."""
+        todo = rows[~self._log_density_filled[rows]]
+        if len(todo):
+            counts = np.where((todo % 2 == 0)[:, None], self.seg_theta_n[todo // 2], self.seg_phi_n[todo // 2])
+            self._log_density[todo] = log_density(counts)
+            self._log_density_filled[todo] = True
+        return self._log_density[rows]
 
     # --- vocabulary and back-off -------------------------------------------------------------------------
     def entity_chain(self, category: str) -> list[int]:

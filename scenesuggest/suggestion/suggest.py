@@ -40,7 +40,7 @@ import numpy as np
 
 from ..errors import SceneSuggestError
 from ..learning.observations import is_radial
-from ..learning.orientation import decide, log_density
+from ..learning.orientation import decide
 from ..learning.priors import ANY, BINS, FACES, K_MAX, Priors
 from ..scenes import frames, poses
 from ..scenes.scene import SURFACE_TYPES
@@ -226,10 +226,6 @@ class Engine:
         self.base_rate = own / max(total, 1.0)
         self.weights = p.orient_weights[self.candidates].astype(float)  # (n, surface types, kinds)
         self._cache: dict[tuple, Resolution] = {}
-        # log_density of each segment's θ (row 2s) and φ (row 2s + 1) counts, filled as queries need them: memory
-        # is taken only for the rows filled
-        self._log_density = np.empty((2 * len(p.seg_theta_n), BINS))
-        self._log_density_filled = np.zeros(2 * len(p.seg_theta_n), dtype=bool)
         self._categories: dict[str, tuple[str, ...]] | None = None
 
     @property
@@ -286,18 +282,6 @@ class Engine:
             k[self.priors.entity_chain(child.category)] += 1
         return dense[self.stat_entity, np.minimum(k[self.stat_entity], K_MAX)] * self.share
 
-    def segment_log_density(self, rows: np.ndarray) -> np.ndarray:
-        """(len(rows), BINS) log-probabilities of the heading bins (:func:`~scenesuggest.learning.orientation.
-        log_density`) from the θ counts of segment s (row 2s) or its φ counts (row 2s + 1); each row is computed
-        once (pure, so threads that fill one row at once write the same values)."""
-        todo = rows[~self._log_density_filled[rows]]
-        if len(todo):
-            p = self.priors
-            counts = np.where((todo % 2 == 0)[:, None], p.seg_theta_n[todo // 2], p.seg_phi_n[todo // 2])
-            self._log_density[todo] = log_density(counts)
-            self._log_density_filled[todo] = True
-        return self._log_density[rows]
-
     def resolve(self, ref_category: str, scene_type: str, relation: str, surface_type: str) -> Resolution:
         """One reference key resolved for every candidate: the KDE samples of their relative positions and their
         pair segments (memoised; pure)."""
@@ -313,8 +297,8 @@ class Engine:
         owner = np.repeat(has, counts)
         segs_rep = np.repeat(seg[has], counts)
         sample = np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
-        value = Resolution(p.pair_xy[sample].astype(float), 1.0 / p.seg_bandwidth[segs_rep].astype(float),
-                           p.seg_weight[segs_rep].astype(float) * trust[owner], owner, seg)
+        value = Resolution(p.sample_xy[sample], p.seg_inv_bandwidth[segs_rep], p.seg_weight64[segs_rep] * trust[owner],
+                           owner, seg)
         self._cache[key] = value
         return value
 

@@ -42,8 +42,8 @@ def default_file(priors: Path) -> Path:
 class LearnedKind(EngineKind):
     name = "learned"
     version = "1"
-    summary = ("learning to rank (LightGBM lambdarank) over the paper's factors and the scene's context; the "
-               "reference frame of each heading chosen per query")
+    summary = ("learning to rank (LightGBM lambdarank) over the paper's factors and the scene's context; with "
+               "frames = true, the reference frame of each heading chosen per query")
     trainable = True
 
     def configure(self, options: Mapping[str, Any], base: Path | None = None) -> LearnedConfig:

@@ -6,8 +6,8 @@ model: the higher, the better. Headings are the paper engine's (in ``full`` mode
 evidence, ``basic`` the canonical pose); with ``frames`` (a study condition's ``frames = true``) each suggestion in
 ``full`` mode gets instead the heading of the reference frame the frame classifier trusts most for it
 (:func:`.features.frame_proposals`). Held out, the classifier gains half a point to a point of orientation for about
-a third of a query's time (ENGINE.md), so it is asked only when chosen. Attachment faces and placements are the
-paper engine's.
+1.6 ms of a query's p95 (ENGINE.md), so it is asked only when chosen. Attachment faces and placements are the paper
+engine's.
 
 The file is one ``.npz`` (written by :mod:`scenesuggest.npz`, so the same training gives the same bytes): the
 priors' arrays and metadata under ``priors.``, the context counts under ``context.``, the two models as text
@@ -200,7 +200,13 @@ class LearnedEngine(Engine):
                              replace(self.options, **changes), self.choose_frames)
 
     def choosing_frames(self, choose: bool) -> LearnedEngine:
-        """This engine, turning suggestions as its frame classifier chooses (``choose``) or as the paper's."""
+        """This engine, turning suggestions as its frame classifier chooses (``choose``) or as the paper's; asking
+        for a classifier the file lacks (its corpus gave it nothing to choose between) is an error."""
+        if choose == self.choose_frames:
+            return self
+        if choose and self.frames is None:
+            raise SceneSuggestError("this learned engine has no frame classifier (its training scenes gave it no "
+                                    "choice of frames to learn): leave out frames = true", field="frames")
         return LearnedEngine(self.priors, self.stats, self.ranker, self.frames, self.meta, self.options, choose)
 
     # --- the file ------------------------------------------------------------------------------------------
@@ -252,7 +258,7 @@ class LearnedEngine(Engine):
         except (KeyError, TypeError, lgb.basic.LightGBMError, UnicodeDecodeError) as e:
             raise SceneSuggestError(f"the learned engine's file is incomplete or damaged ({type(e).__name__}: {e})",
                                     file=str(path), field="ranker") from None
-        return cls(priors, stats, ranker, frames, meta, options, choose_frames)
+        return cls(priors, stats, ranker, frames, meta, options).choosing_frames(choose_frames)
 
 
 def _checked_meta(raw: np.ndarray | None, path: Path) -> dict:

@@ -131,6 +131,9 @@ def test_with_frames_the_learned_engine_turns_each_suggestion_as_its_frame_class
         assert info.value.field == "frames"
     plain = LearnedEngine(engine.priors, engine.stats, engine.ranker, None, engine.meta)  # no classifier: the product
     assert np.array_equal(plain.frame_headings(scores, every, faces)[1], proposed[:, 0])
+    with pytest.raises(SceneSuggestError, match="no frame classifier") as info:
+        plain.choosing_frames(True)  # asked for a classifier it lacks: said, not ignored
+    assert info.value.field == "frames" and plain.choosing_frames(False) is plain
 
 
 def test_the_learned_engine_is_deterministic_and_its_file_byte_stable(corpus, learned_file, tmp_path):

@@ -207,3 +207,35 @@ def test_orientation_option_and_restricting_the_list(engine, study):
     only = engine.suggest(query, "full", top=2, only={"Speaker", "OfficeChair"})
     assert [s.category for s in only] == [c for c in learned if c in {"Speaker", "OfficeChair"}]
     assert [s.rank for s in only] == [1, 2]
+
+
+def test_heading_evidence_is_the_same_whatever_the_engine_was_asked_before(corpus):
+    """The log-densities kept per segment (Priors.segment_log_density) are those of their counts, returned as copies:
+    an engine that answered other clicks first gives every click's heading evidence bit for bit as a fresh one."""
+    from scenesuggest.learning.orientation import log_density
+    from scenesuggest.suggestion import headings
+
+    fresh = Engine(Priors.fit(corpus.scenes, corpus.taxonomy))
+    warmed = Engine(Priors.fit(corpus.scenes, corpus.taxonomy))
+    clicks = []
+    for scene in corpus.scenes[:6]:
+        desk, point = on_desk(scene, dx=0.1) if any(o.category == "Desk" for o in scene) else (None, None)
+        if desk is not None:
+            clicks.append(ContextQuery(scene, desk.id, point, (0, 1, 0)))
+        clicks.append(ContextQuery(scene, "room", (1.0, 0.0, 1.0), (0, 1, 0)))
+    for q in clicks[1:]:
+        warmed.suggest(q, "full", top=5)
+    every = np.arange(len(fresh.candidates))
+    for q in clicks:
+        a, b = fresh.score(q), warmed.score(q)
+        faces = fresh.face_indices(a.prepared, "full", every)
+        assert np.array_equal(headings.evidence(fresh, a.prepared, every, faces),
+                              headings.evidence(warmed, b.prepared, every, faces))
+    p = warmed.priors
+    rows = np.flatnonzero(p._log_density_filled)
+    assert len(rows) > 0
+    counts = np.where((rows % 2 == 0)[:, None], p.seg_theta_n[rows // 2], p.seg_phi_n[rows // 2])
+    kept = p.segment_log_density(rows)
+    assert np.array_equal(kept, log_density(counts))
+    kept[:] = 0.0  # a copy: the engine's own rows stay as they were
+    assert np.array_equal(p.segment_log_density(rows), log_density(counts))
