@@ -60,6 +60,11 @@ def ring(x: float, y: float, z: float, major: float, minor: float, rgb, axis=(0,
     return m, rgb
 
 
+#: A piece encloses a volume when its volume is more than this share of the sum of its faces' unsigned volume terms
+#: (the faces of a sheet folded back on itself cancel to rounding).
+VOLUME_TOLERANCE = 1e-9
+
+
 def turn(parts: list[Part], degrees: float) -> list[Part]:
     """Rotate parts about the vertical axis (the normalised box maps onto itself for multiples of 90°)."""
     r = frames.rotation_y(math.radians(degrees))
@@ -72,12 +77,23 @@ def turn(parts: list[Part], degrees: float) -> list[Part]:
 
 
 def closed_volume(mesh: trimesh.Trimesh) -> bool:
-    """True if every connected piece of ``mesh`` is watertight, consistently wound and faces outward, so a
-    viewer may cull its back faces (only its outside is ever seen)."""
+    """True if every connected piece of ``mesh`` (faces joined by shared edges) is watertight, consistently wound
+    and faces outward — encloses a volume above VOLUME_TOLERANCE of the sum of its faces' volume terms, not a sheet
+    folded back on itself, whose terms cancel — so a viewer may cull its back faces (only its outside is ever seen).
+    Watertightness and winding hold for every piece when they hold for the whole (both are per edge, and an edge is
+    in one piece); each piece's volume is summed from its faces, without making a mesh of it."""
     welded = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
-    pieces = welded.split(only_watertight=False, repair=False)  # never fill holes here
-    with np.errstate(all="ignore"):  # degenerate slivers have no centre of mass: not a volume, no warning
-        return bool(len(pieces)) and all(p.is_volume for p in pieces)
+    if not len(welded.faces) or not (welded.is_watertight and welded.is_winding_consistent):
+        return False
+    piece = trimesh.graph.connected_component_labels(welded.face_adjacency, node_count=len(welded.faces))
+    order = np.argsort(piece, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(piece[order]) != 0])
+    tri = welded.triangles[order]
+    with np.errstate(all="ignore"):  # degenerate slivers: no volume, no warning
+        signed = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0
+        volume = np.add.reduceat(signed, starts)
+        scale = np.add.reduceat(np.abs(signed), starts)
+        return bool(np.all(volume > VOLUME_TOLERANCE * scale) and np.all(np.isfinite(volume)))
 
 
 def _material(rgb, double_sided: bool) -> PBRMaterial:

@@ -77,6 +77,15 @@ def test_closed_volume_tells_solids_from_sheets_and_inside_out_shells():
     inside_out.invert()
     assert not closed_volume(trimesh.util.concatenate([trimesh.creation.box(extents=[4, 4, 4]), inside_out]))
     assert not closed_volume(trimesh.Trimesh(np.eye(3), [[0, 1, 2]]))
+    far = np.array([[0.0, 0.0, 0.0], [1e-5, 0.0, 0.0], [0.0, 0.0, 1e-5]]) + [3.0, 2.0, -4.0]
+    folded = trimesh.Trimesh(far, [[0, 1, 2], [0, 2, 1]])  # a sheet folded back on itself: watertight, no volume
+    assert folded.is_watertight and not closed_volume(folded)
+    screw = trimesh.creation.box(extents=[1e-3, 1e-3, 1e-3])  # a millimetre cube far from the origin is a solid
+    screw.apply_translation([40.0, 3.0, -25.0])
+    assert closed_volume(trimesh.util.concatenate([screw, trimesh.creation.box(extents=[2, 2, 2])]))
+    inside_out_screw = screw.copy()
+    inside_out_screw.invert()
+    assert not closed_volume(trimesh.util.concatenate([inside_out_screw, trimesh.creation.box(extents=[2, 2, 2])]))
 
 
 def test_only_closed_parts_are_single_sided():

@@ -39,8 +39,10 @@ def with_unknowns(scenes: list[Scene], every: int) -> list[Scene]:
 
 
 def ranked(engine, query) -> list[str]:
-    """Every category the engine suggests for ``query`` in both modes, in its explanation and its category list."""
-    names = [s.category for mode in ("basic", "full") for s in engine.suggest(query, mode)]
+    """Every category the engine suggests for ``query`` (in basic mode, every one it ranks; full mode ranks them the
+    same and places a study's list of 40 each), in its explanation and its category list."""
+    names = [s.category for s in engine.suggest(query, "basic")]
+    names += [s.category for s in engine.suggest(query, "full", top=40)]
     names += [e["category"] for e in engine.explain(query, top=20)]
     return names + list(engine.categories)
 
