@@ -60,9 +60,9 @@ def ring(x: float, y: float, z: float, major: float, minor: float, rgb, axis=(0,
     return m, rgb
 
 
-#: A piece encloses a volume when its volume is more than this share of the sum of its faces' unsigned volume terms
-#: (the faces of a sheet folded back on itself cancel to rounding).
-VOLUME_TOLERANCE = 1e-9
+#: A piece encloses a volume when its volume is more than this many times what the rounding of its vertices'
+#: coordinates can make of nothing (a sheet folded back on itself holds no volume but that).
+VOLUME_ROUNDING = 64
 
 
 def turn(parts: list[Part], degrees: float) -> list[Part]:
@@ -78,22 +78,25 @@ def turn(parts: list[Part], degrees: float) -> list[Part]:
 
 def closed_volume(mesh: trimesh.Trimesh) -> bool:
     """True if every connected piece of ``mesh`` (faces joined by shared edges) is watertight, consistently wound
-    and faces outward — encloses a volume above VOLUME_TOLERANCE of the sum of its faces' volume terms, not a sheet
-    folded back on itself, whose terms cancel — so a viewer may cull its back faces (only its outside is ever seen).
+    and faces outward — encloses more volume than the rounding of its coordinates can (VOLUME_ROUNDING), not a sheet
+    folded back on itself — so a viewer may cull its back faces (only its outside is ever seen).
     Watertightness and winding hold for every piece when they hold for the whole (both are per edge, and an edge is
-    in one piece); each piece's volume is summed from its faces, without making a mesh of it."""
+    in one piece); solids that touch along an edge (four faces on it) therefore count as open, drawn from both sides.
+    Each piece's volume is summed from its faces, without making a mesh of it."""
     welded = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
     if not len(welded.faces) or not (welded.is_watertight and welded.is_winding_consistent):
         return False
     piece = trimesh.graph.connected_component_labels(welded.face_adjacency, node_count=len(welded.faces))
     order = np.argsort(piece, kind="stable")
     starts = np.flatnonzero(np.r_[True, np.diff(piece[order]) != 0])
-    tri = welded.triangles[order]
+    tri = welded.triangles[order] - welded.bounds.mean(axis=0)  # about the mesh's centre: less to cancel
     with np.errstate(all="ignore"):  # degenerate slivers: no volume, no warning
-        signed = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0
-        volume = np.add.reduceat(signed, starts)
-        scale = np.add.reduceat(np.abs(signed), starts)
-        return bool(np.all(volume > VOLUME_TOLERANCE * scale) and np.all(np.isfinite(volume)))
+        edges = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # as trimesh's mass properties take it
+        volume = np.add.reduceat(np.einsum("ij,ij->i", tri[:, 0], edges), starts) / 6.0
+        area = np.add.reduceat(np.linalg.norm(edges, axis=1), starts) / 2.0
+        # what rounding the vertices' coordinates leaves of a volume: their last bit over the piece's surface
+        rounding = VOLUME_ROUNDING * np.finfo(float).eps * np.abs(welded.vertices).max() * area
+        return bool(np.all(np.isfinite(volume)) and np.all(volume > rounding))
 
 
 def _material(rgb, double_sided: bool) -> PBRMaterial:

@@ -78,8 +78,17 @@ def test_closed_volume_tells_solids_from_sheets_and_inside_out_shells():
     assert not closed_volume(trimesh.util.concatenate([trimesh.creation.box(extents=[4, 4, 4]), inside_out]))
     assert not closed_volume(trimesh.Trimesh(np.eye(3), [[0, 1, 2]]))
     far = np.array([[0.0, 0.0, 0.0], [1e-5, 0.0, 0.0], [0.0, 0.0, 1e-5]]) + [3.0, 2.0, -4.0]
-    folded = trimesh.Trimesh(far, [[0, 1, 2], [0, 2, 1]])  # a sheet folded back on itself: watertight, no volume
-    assert folded.is_watertight and not closed_volume(folded)
+    for back in ([0, 2, 1], [1, 0, 2], [2, 1, 0]):  # a sheet folded back on itself: watertight, no volume
+        folded = trimesh.Trimesh(far, [[0, 1, 2], back], process=False)
+        assert folded.is_watertight and not closed_volume(folded), back
+    rng = np.random.default_rng(0)
+    for _ in range(200):  # small sheets far away: what rounding leaves of their volume is no volume
+        corner = rng.uniform(-100.0, 100.0, 3)
+        sheet = corner + rng.uniform(-1e-5, 1e-5, (3, 3))
+        assert not closed_volume(trimesh.Trimesh(sheet, [[0, 1, 2], [1, 0, 2]], process=False))
+    ball = trimesh.creation.icosphere(radius=1e-4)
+    ball.apply_translation([50.0, 0.0, 0.0])
+    assert closed_volume(ball)
     screw = trimesh.creation.box(extents=[1e-3, 1e-3, 1e-3])  # a millimetre cube far from the origin is a solid
     screw.apply_translation([40.0, 3.0, -25.0])
     assert closed_volume(trimesh.util.concatenate([screw, trimesh.creation.box(extents=[2, 2, 2])]))
