@@ -34,6 +34,7 @@ from ...scenes.frames import FACES
 from ...suggestion.suggest import Engine, EngineOptions, Scores
 from .context import ContextStats
 from .features import FRAMES, ORIENTATION, RANKING, frame_proposals, ranking_features
+from .model_text import check_model_text
 
 FORMAT = "scenesuggest-learned"
 VERSION = 1
@@ -253,12 +254,24 @@ class LearnedEngine(Engine):
             context = meta["context"]
             stats = ContextStats(context["names"], context["scene_types"],
                                  {k[8:]: v for k, v in payload.items() if k.startswith("context.")})
-            ranker = lgb.Booster(model_str=_text(payload["ranker"]))
-            frames = lgb.Booster(model_str=_text(payload["frames"])) if "frames" in payload else None
+            ranker = _booster(payload["ranker"], len(RANKING), "ranker", path)
+            frames = _booster(payload["frames"], len(ORIENTATION), "frames", path) if "frames" in payload else None
         except (KeyError, TypeError, lgb.basic.LightGBMError, UnicodeDecodeError) as e:
             raise SceneSuggestError(f"the learned engine's file is incomplete or damaged ({type(e).__name__}: {e})",
                                     file=str(path), field="ranker") from None
         return cls(priors, stats, ranker, frames, meta, options).choosing_frames(choose_frames)
+
+
+def _booster(raw: np.ndarray, features: int, name: str, path: Path) -> lgb.Booster:
+    """One of the file's LightGBM models, its text checked first (:mod:`.model_text`): LightGBM aborts the process
+    on some damaged texts instead of raising."""
+    text = _text(raw)
+    try:
+        check_model_text(text, features)
+    except ValueError as e:
+        raise SceneSuggestError(f"the learned engine's {name} model is damaged: {e}", file=str(path),
+                                field=name) from None
+    return lgb.Booster(model_str=text)
 
 
 def _checked_meta(raw: np.ndarray | None, path: Path) -> dict:
