@@ -10,6 +10,8 @@ else, naming what is wrong.
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 #: Arrays of a tree with one entry per internal node (num_leaves − 1) and per leaf (num_leaves).
 INTERNAL = ("split_feature", "split_gain", "threshold", "decision_type", "left_child", "right_child")
 LEAVES = ("leaf_value",)
@@ -74,7 +76,7 @@ def _check_tree(block: str, k: int, features: int) -> None:
     if cats:
         bounds = [_to_int(v, f"{where}: cat_boundaries") for v in fields.get("cat_boundaries", "").split()]
         words = fields.get("cat_threshold", "").split()
-        if (len(bounds) != cats + 1 or bounds[0] != 0 or any(b > a for a, b in zip(bounds[1:], bounds))
+        if (len(bounds) != cats + 1 or bounds[0] != 0 or any(a > b for a, b in pairwise(bounds))
                 or bounds[-1] != len(words)):
             raise ValueError(f"{where}: cat_boundaries do not index its {len(words)} cat_threshold words")
         for v in words:
