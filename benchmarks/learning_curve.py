@@ -108,12 +108,15 @@ def _in_sample(spec, corpus, periods) -> dict:
 def _figures(ranks: list[float], records: list[dict], training_scenes: int) -> dict:
     r = np.asarray(ranks, dtype=float)
     out = {"training_scenes": training_scenes, "mrr": float(np.mean(1 / r)), "top1": float(np.mean(r <= 1)),
-           "queries": len(r)}
-    for pose, key in (("full", "orient_folded_within_45"), ("frames", "frames_orient_folded_within_45")):
-        if pose == "full" or (records and all(f"{pose}_folded" in x for x in records)):
-            folded = np.array([x[f"{pose}_folded"] for x in records])
-            out[key] = float(np.mean(folded <= 45)) if len(folded) else 0.0
+           "queries": len(r), "orient_folded_within_45": _within_45(records, "full")}
+    if records and all("frames_folded" in x for x in records):
+        out["frames_orient_folded_within_45"] = _within_45(records, "frames")
     return out
+
+
+def _within_45(records: list[dict], pose: str) -> float:
+    folded = np.array([x[f"{pose}_folded"] for x in records])
+    return float(np.mean(folded <= 45)) if len(folded) else 0.0
 
 
 def _summary(share: float, runs: list[dict]) -> dict:

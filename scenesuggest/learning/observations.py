@@ -44,10 +44,12 @@ MIN_BEARING_M = 0.02
 WALL_GAP_M = 0.3
 
 
-def is_radial(size) -> bool:
-    """Whether a reference has no front: its footprint is nearly square (aspect below RADIAL_ASPECT)."""
-    sx, _, sz = size
-    return max(sx, sz) / max(min(sx, sz), 1e-9) < RADIAL_ASPECT
+def is_radial(size):
+    """Whether a reference has no front: its footprint is nearly square (aspect below RADIAL_ASPECT). ``size``:
+    one (x, y, z) extent in metres, or an array (…, 3) of them for an array of answers."""
+    size = np.asarray(size, dtype=float)
+    sx, sz = size[..., 0], size[..., 2]
+    return np.maximum(sx, sz) / np.maximum(np.minimum(sx, sz), 1e-9) < RADIAL_ASPECT
 
 
 @dataclass(frozen=True)
@@ -156,7 +158,7 @@ def scene_observations(scene: Scene, index: int = 0, first: int = 0) -> tuple[li
         normal = np.array([o.contact_normal for _, o, _, _ in rows], dtype=float)
         ref_t = np.array([ref.transform for _, _, ref, _ in rows], dtype=float)
         ref_size = np.array([ref.size for _, _, ref, _ in rows], dtype=float)
-        radial = np.array([is_radial(ref.size) for _, _, ref, _ in rows])
+        radial = is_radial(ref_size)
         heading = np.array([supports[k].heading for k, _, _, _ in rows])
         offset = poses.plane_offsets(point, normal, ref_t, radial)
         theta = np.mod(heading - poses.reference_headings(point, normal, ref_t, radial), 2 * math.pi)

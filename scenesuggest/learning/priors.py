@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterable
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -158,15 +159,27 @@ class Priors:
         self._groups = {tuple(int(v) for v in key): g for g, key in enumerate(self.group_keys)}
         self._occ_starts = np.searchsorted(self.occ_key, np.arange(len(self.entities) * len(self.scene_types) + 1))
         self._chains: dict[str, list[int]] = {}
-        # the kernel density's inputs in float64, made once (the engine gathers them per reference)
-        self.sample_xy = self.pair_xy.astype(float)
-        self.seg_inv_bandwidth = 1.0 / self.seg_bandwidth.astype(float)
-        self.seg_weight64 = self.seg_weight.astype(float)
         # log_density of each segment's θ (row 2s) and φ (row 2s + 1) counts, filled as queries need them; the OS
         # commits memory only for the pages of rows filled (about 14 rows a page)
         self._log_density = np.empty((2 * len(self.seg_theta_n), BINS))
         self._log_density_filled = np.zeros(2 * len(self.seg_theta_n), dtype=bool)
         self._group_seg_starts = np.searchsorted(self.seg_group, np.arange(len(self.group_keys) + 1))
+
+    # the kernel density's inputs in float64, made on the first query (not for priors only trained or saved)
+    @cached_property
+    def sample_xy(self) -> np.ndarray:
+        """(samples, 2) ``pair_xy`` in float64."""
+        return self.pair_xy.astype(float)
+
+    @cached_property
+    def seg_inv_bandwidth(self) -> np.ndarray:
+        """(segments, 2) 1 / ``seg_bandwidth``, in float64."""
+        return 1.0 / self.seg_bandwidth.astype(float)
+
+    @cached_property
+    def seg_weight64(self) -> np.ndarray:
+        """(segments,) ``seg_weight`` in float64."""
+        return self.seg_weight.astype(float)
 
     def segment_log_density(self, rows: np.ndarray) -> np.ndarray:
         """(len(rows), BINS) log-probabilities of the heading bins (:func:`~scenesuggest.learning.orientation.

@@ -43,9 +43,10 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
     segs, kinds, angles, rows = [], [], [], []  # per contribution: segment, kind, reference angle, candidate
     if refs:
         transforms = np.array([ref.transform for ref, _ in refs])
-        radial = np.array([is_radial(ref.size) for ref, _ in refs])
+        sizes = np.array([ref.size for ref, _ in refs], dtype=float)
+        radial = is_radial(sizes)
         fronts = poses.reference_headings(prep.point, prep.normal, transforms, radial)
-        towards = bearings(prep.point, prep.normal, transforms, np.array([ref.size for ref, _ in refs]))
+        towards = bearings(prep.point, prep.normal, transforms, sizes)
         seg = np.stack([engine.resolve(ref.category, prep.scene_type, relation, prep.surface_type).segment
                         for ref, relation in refs])[:, idx]  # (references, m)
         kind_of = np.array([[-1 if k is None else k for k in pair_kind_rows(relation, bool(is_round))]

@@ -313,7 +313,7 @@ class Engine:
                     for ref, relation in refs]
         delta = poses.plane_offsets(prep.point if point is None else point, prep.normal,
                                     np.array([ref.transform for ref, _ in refs]),
-                                    np.array([is_radial(ref.size) for ref, _ in refs]))
+                                    is_radial(np.array([ref.size for ref, _ in refs], dtype=float)))
         sizes = [len(r.owner) for r in resolved]
         if not sum(sizes):
             return [np.zeros(n) for _ in refs]

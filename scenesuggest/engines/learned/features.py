@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...learning.observations import is_radial
 from ...learning.orientation import BINS, KINDS, decide
 from ...scenes import poses
 from ...scenes.scene import SURFACE_TYPES
@@ -123,9 +124,7 @@ def frame_proposals(engine: Engine, scores: Scores, idx: np.ndarray, faces: np.n
     support = _at(evidence - evidence.max(axis=2, keepdims=True), heading)  # (m, kinds, frames)
     product_support = _at(product - product.max(axis=1, keepdims=True), heading)
     footprint = np.log(engine.size[idx, 0] * engine.size[idx, 2] + 1e-4)
-    size = engine.size[idx]
-    radial = (np.maximum(size[:, 0], size[:, 2]) / np.maximum(np.minimum(size[:, 0], size[:, 2]), 1e-9) < 1.1
-              ).astype(float)
+    radial = is_radial(engine.size[idx]).astype(float)
     wall_m = prep.wall[1] if prep.wall is not None else 5.0
     rows = np.zeros((m, n_frames, len(ORIENTATION)), dtype=np.float32)
     rows[..., 0] = np.arange(n_frames)
