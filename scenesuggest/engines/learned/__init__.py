@@ -52,7 +52,8 @@ class LearnedKind(EngineKind):
                 raise SceneSuggestError(f"unknown key: this engine takes name, {', '.join(OPTIONS)}", field=key)
         frames = options.get("frames", False)
         if not isinstance(frames, bool):
-            raise SceneSuggestError(f"expected true or false, got {frames!r}", field="frames")
+            raise SceneSuggestError(f"expected true or false, got a value of type {type(frames).__name__}",
+                                    field="frames")  # the value itself may be anything, of any length
         file = options.get("file")
         if file is None:
             return LearnedConfig(None, frames)
