@@ -127,9 +127,11 @@ def wall_reference(scene: Scene, point, normal) -> tuple[Wall, float] | None:
     return nearest_wall(room_walls(scene), point)
 
 
-def near_wall(distance: float, size) -> bool:
-    """Whether an object of canonical ``size`` whose contact point is ``distance`` from a wall stands at it."""
-    return distance - min(float(size[0]), float(size[2])) / 2 <= WALL_GAP_M
+def near_wall(distance: float, size):
+    """Whether an object of canonical ``size`` whose contact point is ``distance`` (metres) from a wall stands at
+    it. ``size``: one (x, y, z) extent in metres, or an array (…, 3) of them for an array of answers."""
+    size = np.asarray(size, dtype=float)
+    return distance - np.minimum(size[..., 0], size[..., 2]) / 2 <= WALL_GAP_M
 
 
 def wall_heading(wall: Wall, normal) -> float:

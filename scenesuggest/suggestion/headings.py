@@ -20,7 +20,7 @@ def paper_scores(engine, scores, idx: np.ndarray) -> np.ndarray:
     prep = scores.prepared
     out = np.zeros((len(idx), BINS))
     for (ref, relation), dens in zip(prep.references, scores.densities, strict=True):
-        seg = engine.resolve(ref.category, prep.scene_type, relation, prep.surface_type).segment[idx]
+        seg = engine.pair_sources(ref.category, prep.scene_type, relation, prep.surface_type)[0][idx]
         has = np.flatnonzero(seg >= 0)
         if not len(has):
             continue
@@ -47,7 +47,7 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         radial = is_radial(sizes)
         fronts = poses.reference_headings(prep.point, prep.normal, transforms, radial)
         towards = bearings(prep.point, prep.normal, transforms, sizes)
-        seg = np.stack([engine.resolve(ref.category, prep.scene_type, relation, prep.surface_type).segment
+        seg = np.stack([engine.pair_sources(ref.category, prep.scene_type, relation, prep.surface_type)[0]
                         for ref, relation in refs])[:, idx]  # (references, m)
         kind_of = np.array([[-1 if k is None else k for k in pair_kind_rows(relation, bool(is_round))]
                             for (_, relation), is_round in zip(refs, radial, strict=True)])  # (references, 2)
@@ -59,8 +59,8 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
             angles.append(angle[r])
             rows.append(c)
     if prep.wall is not None:  # only candidates that would stand at it
-        seg = engine.resolve(WALL, prep.scene_type, "wall", prep.surface_type).segment[idx]
-        seg = np.where([near_wall(prep.wall[1], size) for size in engine.size[idx]], seg, -1)
+        seg = engine.pair_sources(WALL, prep.scene_type, "wall", prep.surface_type)[0][idx]
+        seg = np.where(near_wall(prep.wall[1], engine.size[idx]), seg, -1)
         has = np.flatnonzero(seg >= 0)
         segs.append(seg[has] * 2)
         kinds.append(np.full(len(has), KINDS.index("wall")))

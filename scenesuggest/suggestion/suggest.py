@@ -226,6 +226,7 @@ class Engine:
         self.base_rate = own / max(total, 1.0)
         self.weights = p.orient_weights[self.candidates].astype(float)  # (n, surface types, kinds)
         self._cache: dict[tuple, Resolution] = {}
+        self._segments: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
         self._categories: dict[str, tuple[str, ...]] | None = None
 
     @property
@@ -282,6 +283,17 @@ class Engine:
             k[self.priors.entity_chain(child.category)] += 1
         return dense[self.stat_entity, np.minimum(k[self.stat_entity], K_MAX)] * self.share
 
+    def pair_sources(self, ref_category: str, scene_type: str, relation: str, surface_type: str
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """One reference key's (candidates,) pair segments of the priors (−1 where a candidate has none) and their
+        back-off trust (:meth:`Priors.pair_sources`), memoised: what the heading evidence reads."""
+        key = (ref_category, scene_type, relation, surface_type)
+        hit = self._segments.get(key)
+        if hit is None:
+            hit = self._segments[key] = self.priors.pair_sources(self.stat_entity, ref_category, scene_type,
+                                                                 relation, surface_type, self.options.backoff)
+        return hit
+
     def resolve(self, ref_category: str, scene_type: str, relation: str, surface_type: str) -> Resolution:
         """One reference key resolved for every candidate: the KDE samples of their relative positions and their
         pair segments (memoised; pure)."""
@@ -290,8 +302,7 @@ class Engine:
         if hit is not None:
             return hit
         p = self.priors
-        seg, trust = p.pair_sources(self.stat_entity, ref_category, scene_type, relation, surface_type,
-                                    self.options.backoff)
+        seg, trust = self.pair_sources(*key)
         has = np.flatnonzero(seg >= 0)
         starts, counts = p.seg_start[seg[has]], p.seg_count[seg[has]]
         owner = np.repeat(has, counts)

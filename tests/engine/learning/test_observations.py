@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from scenesuggest.learning.observations import WALL, scene_observations
+from scenesuggest.learning.observations import WALL, WALL_GAP_M, is_radial, near_wall, scene_observations
 
 
 def _close(a: float, b: float, tolerance: float = 1e-5) -> bool:
@@ -58,3 +58,13 @@ def test_walls_are_references_of_objects_that_stand_at_them(stanford):
                 desks += 1
                 walls += k in at_wall
     assert desks >= 50 and walls / desks > 0.8  # desks stand against walls
+
+
+def test_near_wall_and_is_radial_answer_an_array_of_sizes_as_they_answer_each():
+    """The query-time checks of a candidate's size (does it stand at the wall, has it a front) give for an array of
+    sizes what they give for each size alone, and the wall rule reads the smaller footprint side."""
+    sizes = np.array([[0.3, 1.0, 0.3], [2.0, 0.5, 0.4], [0.4, 0.1, 2.0], [1.0, 1.0, 0.98], [0.05, 2.0, 3.0]])
+    for distance in (0.0, 0.1, 0.25, 1.0):
+        assert near_wall(distance, sizes).tolist() == [bool(near_wall(distance, s)) for s in sizes]
+    assert is_radial(sizes).tolist() == [bool(is_radial(s)) for s in sizes]
+    assert near_wall(WALL_GAP_M + 0.19, [0.4, 1.0, 2.0]) and not near_wall(WALL_GAP_M + 0.21, [0.4, 1.0, 2.0])
