@@ -7,10 +7,13 @@ linked into place, so it never replaces a file.
 
 A restore goes only into an empty database (no tables), so it never mixes two studies' data, and only restores
 what ``study backup`` wrote and our migrations define: the digest must match; the schema the backup brings is
-compared with the one the migrations build at its revision, and anything else (a trigger, a view, a function, a
-changed table) is refused by name (``backup_schema``). PostgreSQL is restored as the app's role, never a
-superuser; its schema is built by our migrations and the archive gives only rows. Sign-ins (login attempts,
-admin sessions) are not carried across.
+compared, object by object, with the one the migrations build at its revision, and anything else (a trigger, a
+view, a function, a changed table) is refused by name (``backup_schema``). Either way the restored schema is the
+migrations' own and the backup gives only rows: a SQLite backup's rows are copied into a file the migrations
+built (its values checked first: only what the app can have written, ids within ID_LIMIT, foreign keys that name
+rows; SQLite's statistics never come across), a PostgreSQL archive's rows are loaded by COPY statements of ours,
+as the app's role, never a superuser. Sign-ins (login attempts, admin sessions) are not carried across. Nothing
+is expanded beyond the backup's real size on disk before it is checked.
 """
 
 from __future__ import annotations
@@ -33,8 +36,10 @@ import scenesuggest
 
 from .backup_archive import PAYLOAD, BackupError, extract_payload, read_manifest, write_archive
 from .backup_schema import (
+    ID_LIMIT,
     SIGN_INS,
     check_sqlite_head,
+    copy_sqlite_rows,
     known_revisions,
     migrate_to,
     pg_refusals,
@@ -42,6 +47,7 @@ from .backup_schema import (
     pg_toc,
     sqlite_differences,
     sqlite_objects,
+    sqlite_value_problems,
 )
 
 __all__ = ["BackupError", "backup", "restore"]
@@ -240,7 +246,7 @@ def _restore_sqlite(source: Path, url: str) -> dict:
                           field="--db")
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=".restore-") as scratch:
-        copy, reference = Path(scratch) / "backup.sqlite3", Path(scratch) / "reference.sqlite3"
+        copy, built = Path(scratch) / "backup.sqlite3", Path(scratch) / "restored.sqlite3"
         _private_file(copy)
         manifest = extract_payload(source, copy, check_head=check_sqlite_head)
         try:
@@ -251,8 +257,9 @@ def _restore_sqlite(source: Path, url: str) -> dict:
             raise BackupError(f"the backup's database cannot be read ({e})", file=str(source)) from None
         if verdict != "ok":
             raise BackupError(f"the backup's database fails SQLite's integrity check ({verdict})", file=str(source))
-        migrate_to(f"sqlite:///{reference}", manifest["revision"])
-        differences = sqlite_differences(sqlite_objects(copy), sqlite_objects(reference))
+        _private_file(built)
+        migrate_to(f"sqlite:///{built}", manifest["revision"])  # the schema is ours; the backup gives only rows
+        differences = sqlite_differences(sqlite_objects(copy), sqlite_objects(built))
         if differences:
             raise BackupError("holds what the migrations do not create, so nothing was restored: "
                               + "; ".join(differences), file=str(source))
@@ -262,26 +269,28 @@ def _restore_sqlite(source: Path, url: str) -> dict:
                 raise BackupError(f"the backup's database holds {key} {held[key]!r}, its manifest says "
                                   f"{manifest[key]!r}: the backup is not what it claims; nothing was restored",
                                   file=str(source))
-        created = not path.exists()
-        if created:
-            _private_file(path)
-        path.chmod(0o600)
-        backup_db = sqlite3.connect(f"{copy.as_uri()}?mode=ro", uri=True)
-        target = sqlite3.connect(path)
+        target = sqlite3.connect(built.as_uri(), uri=True)
+        rows_only = (*SIGN_INS, "alembic_version")  # sign-ins stay behind; the migrations set the revision
         try:
-            backup_db.backup(target)
-            with target:
-                present = {name for (name,) in target.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-                for table in present.intersection(SIGN_INS):
-                    target.execute(f"DELETE FROM {table}")  # noqa: S608 - our own table names
+            target.execute("ATTACH DATABASE ? AS backup", (f"{copy.as_uri()}?mode=ro",))
+            problems = sqlite_value_problems(target, "backup", rows_only)
+            if problems:
+                raise BackupError("holds values the app cannot have written, so nothing was restored: "
+                                  + "; ".join(problems[:10]) + (f"; and {len(problems) - 10} more"
+                                                                 if len(problems) > 10 else ""), file=str(source))
+            copy_sqlite_rows(target, "backup", rows_only)
+            target.execute("DETACH DATABASE backup")
             check = target.execute("PRAGMA integrity_check").fetchone()[0]
+        except sqlite3.DatabaseError as e:
+            raise BackupError(f"the backup's rows cannot be stored ({e}); nothing was restored",
+                              file=str(source)) from None
         finally:
             target.close()
-            backup_db.close()
-    if check != "ok":
-        path.unlink()
-        raise BackupError(f"the restored database fails SQLite's integrity check ({check}); nothing was kept",
-                          file=str(source))
+        if check != "ok":
+            raise BackupError(f"the restored database fails SQLite's integrity check ({check}); nothing was kept",
+                              file=str(source))
+        built.chmod(0o600)
+        os.replace(built, path)
     return {**_summary(url), "integrity": check}
 
 
@@ -423,11 +432,17 @@ def _load_copy_blocks(cur, lines, columns: dict[str, set[str]]) -> None:
 
 
 def _set_sequences(cur, counted: list[str]) -> None:
-    """Set the id sequence of each table of ``counted`` (but alembic_version) after its largest id."""
+    """Set the id sequence of each table of ``counted`` (but alembic_version) after its largest id, once every id
+    is one the app can have written (from 1 to ID_LIMIT: a sequence carried across keeps room for arrivals)."""
     from psycopg import sql
 
     for table in counted:
         if table != "alembic_version":
+            low, high = cur.execute(sql.SQL("SELECT MIN(id), MAX(id) FROM {}").format(
+                sql.Identifier("public", table))).fetchone()
+            if low is not None and (low < 1 or high > ID_LIMIT):
+                raise BackupError(f"{table}.id: ids from {low} to {high}, where the app writes ids from 1 up "
+                                  f"(at most {ID_LIMIT}); nothing was kept")
             cur.execute(sql.SQL("SELECT setval(pg_get_serial_sequence({}, 'id'), "
                                 "COALESCE(MAX(id), 0) + 1, false) FROM {} "
                                 "WHERE pg_get_serial_sequence({}, 'id') IS NOT NULL").format(

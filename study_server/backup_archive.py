@@ -112,6 +112,11 @@ def _payload(source: Path, check_head=None):
                               "names", file=where)
         if member.size > source.stat().st_size:
             raise BackupError(f"{member.name} claims more bytes than the file holds", file=where)
+        on_disk = source.stat().st_blocks * 512
+        if member.size > on_disk:  # holes: gigabytes that take no disk until they are written out
+            raise BackupError(f"{member.name} claims {member.size} bytes, but the file takes {on_disk} bytes on "
+                              "disk (a sparse or compressed file): nothing is expanded beyond the backup's real "
+                              "size; copy it whole (cp --sparse=never) and restore the copy", file=where)
     except BaseException:
         tar.close()
         raise

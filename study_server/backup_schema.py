@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 import sqlite3
 import subprocess
+from collections import Counter
 from pathlib import Path
 
 from sqlalchemy.exc import SQLAlchemyError
@@ -69,30 +70,125 @@ def migrate_to(url: str, revision: str) -> None:
 SQLITE_OWN = ("sqlite_sequence", "sqlite_stat1", "sqlite_stat4")
 
 
-def sqlite_objects(path: Path) -> dict[str, tuple[str, str, str]]:
-    """Every schema object of the SQLite file ``path`` (name → type, table, SQL with its spaces collapsed), but
-    SQLite's own bookkeeping tables (:data:`SQLITE_OWN`)."""
+def sqlite_objects(path: Path) -> list[tuple[str, str, str, str]]:
+    """Every schema object of the SQLite file ``path`` as (type, name, table, SQL with its spaces collapsed), one
+    entry per ``sqlite_master`` row (SQLite keeps triggers in a namespace of their own, so a name may come twice),
+    but SQLite's own bookkeeping tables (:data:`SQLITE_OWN`)."""
     con = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
     try:
         rows = con.execute("SELECT type, name, tbl_name, sql FROM sqlite_master").fetchall()
     finally:
         con.close()
-    return {name: (kind, table, " ".join((sql or "").split())) for kind, name, table, sql in rows
-            if not (kind == "table" and name in SQLITE_OWN)}
+    return [(kind, name, table, " ".join((sql or "").split())) for kind, name, table, sql in rows
+            if not (kind == "table" and name in SQLITE_OWN)]
 
 
-def sqlite_differences(backup: dict, reference: dict) -> list[str]:
-    """What ``backup``'s schema has that ``reference``'s (the migrations') has not, or has otherwise."""
+def sqlite_differences(backup: list, reference: list) -> list[str]:
+    """What ``backup``'s schema objects (:func:`sqlite_objects`) have that ``reference``'s (the migrations') have
+    not, or have otherwise, counting every object: each must be one of the migrations', as many times."""
+    extra, missing = Counter(backup) - Counter(reference), Counter(reference) - Counter(backup)
+    changed = {(k, n) for k, n, _t, _s in extra} & {(k, n) for k, n, _t, _s in missing}
+    ours = {name for _k, name, _t, _s in reference}
     found = []
-    for name, (kind, table, sql) in sorted(backup.items()):
-        if name not in reference:
-            found.append(f"{kind} {name!r}" + (f" on {table}" if table != name else "") + " (not made by the "
-                         "migrations)")
-        elif reference[name] != (kind, table, sql):
+    for kind, name, table, _sql in sorted(extra.elements()):
+        on = f" on {table}" if table != name else ""
+        if (kind, name) in changed:
             found.append(f"{kind} {name!r} is not as the migrations create it")
-    found += [f"{kind} {name!r} is missing" for name, (kind, _t, _s) in sorted(reference.items())
-              if name not in backup]
+        elif name in ours:  # SQLite keeps triggers apart: a trigger may take the name of an index of ours
+            found.append(f"{kind} {name!r}{on}, named like an object of the migrations (not made by them)")
+        else:
+            found.append(f"{kind} {name!r}{on} (not made by the migrations)")
+    found += [f"{kind} {name!r} is missing" for kind, name, _t, _s in sorted(missing.elements())
+              if (kind, name) not in changed]
+    return list(dict.fromkeys(found))
+
+
+#: The largest row id a restore accepts: a billion rows, more than any study writes, so that an id sequence carried
+#: across has at least a billion arrivals left (PostgreSQL's ``integer`` ids end at 2³¹ − 1).
+ID_LIMIT = 2**30
+_DATE = "[0-9][0-9][0-9][0-9]-[0-9][0-9]-[0-9][0-9] [0-9][0-9]:[0-9][0-9]:[0-9][0-9]"
+
+
+def _written_by_app(declared: str, column: str, nullable: bool, key: bool) -> str:
+    """A SQL condition that holds of every value the app can write into a SQLite column of the ``declared`` type
+    (as SQLAlchemy stores it): integers as integers (a primary key from 1 to ID_LIMIT), times as
+    ``YYYY-MM-DD HH:MM:SS[.ffffff]`` naming a real instant, JSON as valid JSON text, strings as text within
+    their length."""
+    c = '"' + column.replace('"', '""') + '"'
+    kind = declared.upper()
+    length = re.fullmatch(r"VARCHAR\((\d+)\)", kind)
+    if kind in ("INTEGER", "BIGINT", "SMALLINT"):
+        check = f"typeof({c}) = 'integer'" + (f" AND {c} BETWEEN 1 AND {ID_LIMIT}" if key else "")
+    elif kind == "BOOLEAN":
+        check = f"typeof({c}) = 'integer' AND {c} IN (0, 1)"
+    elif kind == "FLOAT":
+        check = f"typeof({c}) IN ('real', 'integer')"
+    elif kind == "DATETIME":  # a day and a time that exist: 2026-02-31 moved by no days is 3 March
+        check = (f"typeof({c}) = 'text' AND ({c} GLOB '{_DATE}' OR {c} GLOB '{_DATE}.[0-9][0-9][0-9][0-9][0-9][0-9]')"
+                 f" AND date(substr({c}, 1, 10), '+0 days') = substr({c}, 1, 10)"
+                 f" AND time(substr({c}, 12, 8)) = substr({c}, 12, 8)")
+    elif kind == "JSON":
+        check = f"typeof({c}) = 'text' AND json_valid({c})"
+    elif length:
+        check = f"typeof({c}) = 'text' AND length({c}) <= {length.group(1)}"
+    elif kind == "TEXT":
+        check = f"typeof({c}) = 'text'"
+    else:
+        raise ValueError(f"no rule for the SQLite type {declared!r} of column {column!r}")
+    return f"({c} IS NULL OR ({check}))" if nullable else f"({c} IS NOT NULL AND {check})"
+
+
+def sqlite_value_problems(con: sqlite3.Connection, schema: str, skip: tuple[str, ...]) -> list[str]:
+    """The columns of the tables (but ``skip``) of the database attached to ``con`` as ``schema`` that hold values
+    the app cannot have written (see :func:`_written_by_app`; the types are those of ``con``'s main database, the
+    migrations'), and the rows whose foreign keys name no row: each with how many and the first row's id."""
+    found = []
+    tables = _tables(con, skip)
+    for table in tables:
+        columns = con.execute(f'PRAGMA main.table_info("{table}")').fetchall()  # cid, name, type, notnull, _, pk
+        checks = [_written_by_app(kind, name, not notnull and not pk, pk == 1 and name == "id")
+                  for _cid, name, kind, notnull, _default, pk in columns]
+        bad = con.execute("SELECT " + ", ".join(f"COALESCE(SUM(NOT {c}), 0)" for c in checks)
+                          + f' FROM {schema}."{table}"').fetchone()
+        for (_cid, name, _kind, *_rest), check, count in zip(columns, checks, bad, strict=True):
+            if count:
+                first = con.execute(f'SELECT rowid, quote("{name}") FROM {schema}."{table}" WHERE NOT {check} '
+                                    "ORDER BY rowid LIMIT 1").fetchone()
+                shown = first[1] if len(first[1]) <= 40 else first[1][:40] + "…"
+                found.append(f"{table}.{name}: {count} value{'s' * (count > 1)} the app cannot have written "
+                             f"(the first in row {first[0]}: {shown})")
+    dangling = con.execute(f"PRAGMA {schema}.foreign_key_check").fetchall()  # table, rowid, parent, fk index
+    for (table, parent), rows in _grouped(dangling).items():
+        if table in skip:
+            continue
+        found.append(f"{table}: {len(rows)} row{'s' * (len(rows) > 1)} naming a {parent} row that does not exist "
+                     f"(the first: row {min(rows)})")
     return found
+
+
+def _tables(con: sqlite3.Connection, skip: tuple[str, ...]) -> list[str]:
+    """The tables of ``con``'s main database (the migrations'), but SQLite's own and ``skip``."""
+    return [name for (name,) in con.execute("SELECT name FROM main.sqlite_master WHERE type = 'table' AND "
+                                            "name NOT LIKE 'sqlite_%' ORDER BY name") if name not in skip]
+
+
+def _grouped(dangling: list) -> dict:
+    out: dict = {}
+    for table, rowid, parent, _index in dangling:
+        out.setdefault((table, parent), []).append(rowid)
+    return out
+
+
+def copy_sqlite_rows(con: sqlite3.Connection, schema: str, skip: tuple[str, ...]) -> None:
+    """Copy every row of the tables of ``con``'s main database (the migrations' schema) from the database attached
+    as ``schema``, in one transaction, but the tables of ``skip``: the migrations made every table, index and
+    trigger, and nothing of the backup's schema comes across."""
+    with con:
+        for table in _tables(con, skip):
+            names = ", ".join('"' + c[1].replace('"', '""') + '"'
+                              for c in con.execute(f'PRAGMA main.table_info("{table}")'))
+            con.execute(f'INSERT INTO main."{table}" ({names}) SELECT {names} FROM {schema}."{table}" '  # noqa: S608
+                        "ORDER BY rowid")
 
 
 def check_sqlite_head(head: bytes, size: int) -> None:

@@ -8,9 +8,7 @@ from __future__ import annotations
 from datetime import UTC, datetime
 
 from sqlalchemy import (
-    JSON,
     BigInteger,
-    DateTime,
     Float,
     ForeignKey,
     Index,
@@ -22,6 +20,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import Mapped, mapped_column
 
+from .column_types import Document, Time
 from .extensions import db
 
 #: Event ids outgrow 32 bits in long studies; SQLite needs INTEGER for its row-id alias.
@@ -40,7 +39,7 @@ class StudyRecord(db.Model):
     title: Mapped[str] = mapped_column(String(200))
     hash: Mapped[str] = mapped_column(String(64))
     assignments: Mapped[int] = mapped_column(Integer, default=0)
-    registered_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    registered_at: Mapped[datetime] = mapped_column(Time, default=utcnow)
 
 
 class Participant(db.Model):
@@ -51,7 +50,7 @@ class Participant(db.Model):
     study_hash: Mapped[str] = mapped_column(String(64))
     platform: Mapped[str] = mapped_column(String(16))
     platform_id: Mapped[str] = mapped_column(String(128))
-    platform_meta: Mapped[dict] = mapped_column(JSON, default=dict)
+    platform_meta: Mapped[dict] = mapped_column(Document, default=dict)
     token: Mapped[str] = mapped_column(String(64), unique=True, index=True)
     row: Mapped[int] = mapped_column(Integer, index=True)  # −1 until consent (no schedule row held)
     seed: Mapped[int] = mapped_column(Integer)
@@ -66,14 +65,14 @@ class Participant(db.Model):
     user_agent: Mapped[str] = mapped_column(String(512), default="")
     #: The language the participant's pages speak, chosen at arrival (study_server.i18n.choose); None before.
     language: Mapped[str | None] = mapped_column(String(16), nullable=True)
-    viewport: Mapped[dict | None] = mapped_column(JSON, nullable=True)
-    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
-    last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)
-    finished_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    viewport: Mapped[dict | None] = mapped_column(Document, nullable=True)
+    created_at: Mapped[datetime] = mapped_column(Time, default=utcnow)
+    last_seen_at: Mapped[datetime] = mapped_column(Time, default=utcnow, index=True)
+    finished_at: Mapped[datetime | None] = mapped_column(Time, nullable=True)
     #: Why the experimenter should look at this participant: [{"reason": text, "at": ISO time, "by": the keyed
     #: address of the request that raised it, "times": how often it was raised, "cleared_at": when the
     #: experimenter cleared it (absent while open)}, …].
-    flags: Mapped[list] = mapped_column(JSON, default=list)
+    flags: Mapped[list] = mapped_column(Document, default=list)
     #: Keyed hash of the client address at arrival (for per-address quotas; the address itself is not kept).
     address: Mapped[str | None] = mapped_column(String(32), nullable=True, index=True)
     events_stored: Mapped[int] = mapped_column(Integer, default=0)
@@ -95,14 +94,14 @@ class Trial(db.Model):
     scene_id: Mapped[str] = mapped_column(String(64))
     period: Mapped[int] = mapped_column(Integer)
     block: Mapped[int] = mapped_column(Integer)
-    started_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
-    done_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    started_at: Mapped[datetime | None] = mapped_column(Time, nullable=True)
+    done_at: Mapped[datetime | None] = mapped_column(Time, nullable=True)
     #: When the page with the condition's instructions was first shown before this trial, and when the participant
     #: dismissed it (flow.briefing_due: the first trial, and every trial whose condition differs from the one
     #: before); None when none was due. The time between them is not trial time: the trial starts after.
-    briefing_shown_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
-    briefed_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
-    final_scene: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    briefing_shown_at: Mapped[datetime | None] = mapped_column(Time, nullable=True)
+    briefed_at: Mapped[datetime | None] = mapped_column(Time, nullable=True)
+    final_scene: Mapped[dict | None] = mapped_column(Document, nullable=True)
     #: Why the trial should be reviewed: its events do not show the study's minimum work, or its scene came less
     #: close to the target than the study's min_target_score (None: neither, or not yet checked).
     review: Mapped[str | None] = mapped_column(Text, nullable=True)
@@ -118,7 +117,7 @@ class Trial(db.Model):
     #: The whole closeness result found at "done" (scenesuggest.contract.scoring.Closeness.record: score, matched,
     #: missing, extra, errors in metres and degrees, the matched pairs), exported as stored; {"unavailable": why}
     #: when the check failed, None before "done" or for trials done before it was stored (the export computes those).
-    closeness: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    closeness: Mapped[dict | None] = mapped_column(Document, nullable=True)
 
 
 class Event(db.Model):
@@ -132,8 +131,8 @@ class Event(db.Model):
     type: Mapped[str] = mapped_column(String(32))
     trial: Mapped[int | None] = mapped_column(Integer, nullable=True)
     client_t: Mapped[float] = mapped_column(Float)
-    server_t: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
-    payload: Mapped[dict] = mapped_column(JSON, default=dict)
+    server_t: Mapped[datetime] = mapped_column(Time, default=utcnow)
+    payload: Mapped[dict] = mapped_column(Document, default=dict)
     #: The version of the event vocabulary the page spoke (scenesuggest.contract.events.VERSIONS).
     vocabulary: Mapped[int] = mapped_column(SmallInteger, default=1, server_default="1")
 
@@ -148,9 +147,9 @@ class ShownList(db.Model):
     participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"))
     trial: Mapped[int | None] = mapped_column(Integer, nullable=True)
     source: Mapped[str] = mapped_column(String(16))
-    query: Mapped[dict] = mapped_column(JSON)
-    items: Mapped[list] = mapped_column(JSON)
-    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    query: Mapped[dict] = mapped_column(Document)
+    items: Mapped[list] = mapped_column(Document)
+    created_at: Mapped[datetime] = mapped_column(Time, default=utcnow)
 
 
 class SurveyResponse(db.Model):
@@ -159,8 +158,8 @@ class SurveyResponse(db.Model):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id"), index=True)
     survey: Mapped[str] = mapped_column(String(32))
-    answers: Mapped[dict] = mapped_column(JSON)
-    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    answers: Mapped[dict] = mapped_column(Document)
+    created_at: Mapped[datetime] = mapped_column(Time, default=utcnow)
 
 
 class SessionLog(db.Model):
@@ -171,8 +170,8 @@ class SessionLog(db.Model):
     participant_id: Mapped[int | None] = mapped_column(ForeignKey("participants.id"), index=True, nullable=True)
     study_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
     kind: Mapped[str] = mapped_column(String(32))
-    detail: Mapped[dict] = mapped_column(JSON, default=dict)
-    at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    detail: Mapped[dict] = mapped_column(Document, default=dict)
+    at: Mapped[datetime] = mapped_column(Time, default=utcnow)
 
 
 class LoginAttempt(db.Model):
@@ -183,7 +182,7 @@ class LoginAttempt(db.Model):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     ip: Mapped[str] = mapped_column(String(64), index=True)
     ok: Mapped[bool | None] = mapped_column(db.Boolean, nullable=True)
-    at: Mapped[datetime] = mapped_column(DateTime, default=utcnow, index=True)
+    at: Mapped[datetime] = mapped_column(Time, default=utcnow, index=True)
 
 
 class AdminSession(db.Model):
@@ -192,8 +191,8 @@ class AdminSession(db.Model):
 
     __tablename__ = "admin_sessions"
     id: Mapped[str] = mapped_column(String(64), primary_key=True)
-    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
-    last_seen_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
+    created_at: Mapped[datetime] = mapped_column(Time, default=utcnow)
+    last_seen_at: Mapped[datetime] = mapped_column(Time, default=utcnow)
 
 
 class AdminLink(db.Model):
@@ -202,9 +201,9 @@ class AdminLink(db.Model):
 
     __tablename__ = "admin_links"
     id: Mapped[str] = mapped_column(String(64), primary_key=True)
-    created_at: Mapped[datetime] = mapped_column(DateTime, default=utcnow)
-    expires_at: Mapped[datetime] = mapped_column(DateTime)
-    used_at: Mapped[datetime | None] = mapped_column(DateTime, nullable=True)
+    created_at: Mapped[datetime] = mapped_column(Time, default=utcnow)
+    expires_at: Mapped[datetime] = mapped_column(Time)
+    used_at: Mapped[datetime | None] = mapped_column(Time, nullable=True)
 
 
 def log(kind: str, participant: Participant | None = None, study_id: str | None = None, **detail) -> None:

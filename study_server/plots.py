@@ -44,7 +44,7 @@ def _arrivals(study: Study) -> list[tuple[datetime, str]]:
     rows = db.session.execute(select(Participant.created_at, Participant.status, Participant.row)
                               .where(Participant.study_id == study.id, Participant.pilot.is_(False))
                               .order_by(Participant.created_at))
-    return [(at, outcome(status, row)) for at, status, row in rows]
+    return [(at, outcome(status, row)) for at, status, row in rows if at is not None]  # None: unreadable
 
 
 def _trial_times(study: Study) -> list[tuple[str, str, float]]:
@@ -53,7 +53,8 @@ def _trial_times(study: Study) -> list[tuple[str, str, float]]:
                               .join(Participant).where(Participant.study_id == study.id,
                                                        Participant.pilot.is_(False), Trial.kind == "trial",
                                                        Trial.done_at.is_not(None), Trial.started_at.is_not(None)))
-    return [(c, s, (done - started).total_seconds()) for c, s, started, done in rows]
+    return [(c, s, (done - started).total_seconds()) for c, s, started, done in rows
+            if started is not None and done is not None]  # None: unreadable
 
 
 def _when(value) -> datetime | None:

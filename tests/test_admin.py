@@ -182,3 +182,29 @@ def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(monkeypatch
     doc = c.get(path).json
     assert doc["problem"].startswith("this trial cannot be replayed from seq 2 on: a delete event without object")
     assert [e["scene"] for e in doc["events"]] == [1, 2, 2] and len(doc["steps"]) == 2  # the steps before it
+
+
+def test_one_unreadable_row_does_not_take_down_the_admin_pages_or_the_export(admin_app):
+    """A cell changed behind the app's back (a time that is no time, flags that are not JSON) reads as missing: the
+    dashboard, the participants, each participant's page and the export still answer, the bad time shown as
+    unreadable."""
+    from sqlalchemy import text
+
+    for i in range(3):
+        to_trials(admin_app.test_client(), query=f"pid=p{i}")
+    with admin_app.app_context():
+        db.session.execute(text("UPDATE participants SET created_at = 'yesterday' WHERE id = 1"))
+        db.session.execute(text("UPDATE participants SET flags = '[not json' WHERE id = 2"))
+        db.session.execute(text("UPDATE trials SET started_at = '2026-02-31 10:00:00' WHERE id = 1"))
+        db.session.commit()
+    c = admin_app.test_client()
+    login(c)
+    for path in ("/admin/", "/admin/demo/participants", "/admin/demo/participants/1", "/admin/demo/participants/2",
+                 "/admin/demo/participants/3"):
+        assert c.get(path).status_code == 200, path
+    listing = c.get("/admin/demo/participants").get_data(as_text=True)
+    assert "unreadable" in listing and listing.count("/admin/demo/participants/") >= 3
+    r = c.get("/admin/demo/export.zip")
+    assert r.status_code == 200
+    z = zipfile.ZipFile(io.BytesIO(r.data))
+    assert len(z.read("demo/participants.csv").decode().splitlines()) == 4

@@ -188,6 +188,138 @@ def test_sign_ins_stay_behind_and_an_existing_file_becomes_private(study_db, tmp
         assert con.execute("SELECT COUNT(*) FROM participants").fetchone()[0] == 1
 
 
+def test_a_trigger_named_like_an_index_of_the_migrations_is_refused(study_db, tmp_path):
+    """SQLite keeps triggers in a namespace of their own: a trigger may share the name of one of our indexes, made
+    again after it, so that keying the schema by name alone would see only the index."""
+    run(study_db, "DROP INDEX ix_participants_token",
+        "CREATE TRIGGER ix_participants_token AFTER INSERT ON participants BEGIN "
+        "UPDATE participants SET token = 'backdoor-4' WHERE id = NEW.id; END",
+        "CREATE UNIQUE INDEX ix_participants_token ON participants (token)")
+    backup(study_db, tmp_path / "b.backup")
+    with pytest.raises(BackupError, match="trigger 'ix_participants_token' on participants, named like an object "
+                                          "of the migrations"):
+        restore(tmp_path / "b.backup", f"sqlite:///{tmp_path / 'r.sqlite3'}")
+    assert not (tmp_path / "r.sqlite3").exists()
+
+
+def test_nothing_of_a_backups_schema_reaches_the_restored_database_even_unchecked(study_db, tmp_path, monkeypatch):
+    """The migrations build the restored schema and only rows are copied in: were the schema check ever to miss
+    one, no trigger or view of a backup would come across, and a new participant's token is the app's own."""
+    import study_server.backup as backup_module
+
+    backdoored(study_db)
+    run(study_db, "CREATE TRIGGER ix_participants_row AFTER INSERT ON participants BEGIN "
+                  "UPDATE participants SET token = 'backdoor-4' WHERE id = NEW.id; END")
+    backup(study_db, tmp_path / "b.backup")
+    monkeypatch.setattr(backup_module, "sqlite_differences", lambda *_: [])
+    target = tmp_path / "r.sqlite3"
+    done = restore(tmp_path / "b.backup", f"sqlite:///{target}")
+    assert done["participants"] == 1 and done["integrity"] == "ok"
+    with sqlite3.connect(target) as con:
+        assert con.execute("SELECT type, name FROM sqlite_master WHERE type IN ('trigger', 'view')").fetchall() == []
+    app = make_app(tmp_path / "served", f"sqlite:///{target}")
+    with app.app_context():
+        participant, _ = arrive(app.extensions["studies"]["demo"].study, "link", "p2")
+        from study_server.extensions import db
+        from study_server.models import Participant
+
+        assert db.session.get(Participant, participant.id).token not in ("known", "backdoor-4")
+
+
+@pytest.mark.parametrize(("statement", "named"), [
+    ("UPDATE participants SET created_at = 'yesterday'", "participants.created_at: 1 value"),
+    ("UPDATE participants SET created_at = '2026-02-31 10:00:00.000000'", "participants.created_at"),
+    ("UPDATE participants SET flags = '[not json'", "participants.flags: 1 value"),
+    ("UPDATE participants SET row = 'one'", "participants.row"),
+    ("UPDATE participants SET token = X'00ff'", "participants.token"),
+    ("UPDATE participants SET platform = 'a platform longer than sixteen'", "participants.platform"),
+    ("UPDATE participants SET pilot = 2", "participants.pilot"),
+    ("UPDATE trials SET id = 2147483646 WHERE id = (SELECT MAX(id) FROM trials)", "trials.id: 1 value"),
+    ("UPDATE trials SET participant_id = 99 WHERE id = (SELECT MIN(id) FROM trials)",
+     "trials: 1 row naming a participants row that does not exist"),
+])
+def test_values_the_app_cannot_have_written_are_refused_by_table_column_and_row(study_db, tmp_path, statement,
+                                                                                named):
+    """One forged cell (a time that is no time, flags that are not JSON, an id at the end of PostgreSQL's range,
+    a row naming no participant) would take down every admin page or the export: it is named, and nothing is
+    restored."""
+    run(study_db, statement)
+    backup(study_db, tmp_path / "b.backup")
+    with pytest.raises(BackupError) as info:
+        restore(tmp_path / "b.backup", f"sqlite:///{tmp_path / 'r.sqlite3'}")
+    assert "values the app cannot have written" in info.value.message and named in info.value.message
+    assert "nothing was restored" in info.value.message
+    assert not (tmp_path / "r.sqlite3").exists()
+
+
+def test_sqlites_statistics_are_never_carried_across(study_db, tmp_path):
+    """A forged sqlite_stat1 (a table SQLite itself keeps) would turn the look-up before every suggestion into a
+    scan: the restored database plans its queries as the app's own does, from no statistics."""
+    run(study_db, "ANALYZE")
+    run(study_db, "DELETE FROM sqlite_stat1",
+        "INSERT INTO sqlite_stat1 VALUES ('lists', 'ix_lists_participant_created', '1 1000000 1000000')")
+    backup(study_db, tmp_path / "b.backup")
+    target = tmp_path / "r.sqlite3"
+    restore(tmp_path / "b.backup", f"sqlite:///{target}")
+    with sqlite3.connect(target) as con:
+        assert con.execute("SELECT name FROM sqlite_master WHERE name LIKE 'sqlite_stat%'").fetchall() == []
+        plan = " ".join(str(r) for r in con.execute(
+            "EXPLAIN QUERY PLAN SELECT COUNT(*) FROM lists WHERE participant_id = 1 AND created_at >= '2026'"))
+        assert "ix_lists_participant_created" in plan, plan
+
+
+def test_a_sparse_backup_is_refused_before_its_payload_is_expanded(tmp_path, study_db):
+    """A backup whose database is mostly holes (a real SQLite header, then hundreds of megabytes that take no disk;
+    size and SHA-256 recomputed as anyone who can write the file can) is refused from its size on disk, before a
+    byte of the payload is written or even hashed."""
+    import hashlib
+
+    made = backup(study_db, tmp_path / "b.backup")
+    with tarfile.open(tmp_path / "b.backup") as tar:
+        head = bytearray(tar.extractfile("database.sqlite3").read(4096))
+    claimed = 256 << 20
+    head[28:32] = (claimed // 4096).to_bytes(4, "big")
+    digest = hashlib.sha256(bytes(head))
+    zeros = bytes(1 << 20)
+    for _ in range((claimed - 4096) >> 20):
+        digest.update(zeros)
+    digest.update(bytes((claimed - 4096) % (1 << 20)))
+    manifest = json.dumps({"format": "scenesuggest-backup/1", "kind": "sqlite", "payload": "database.sqlite3",
+                           **{k: made[k] for k in ("revision", "participants", "events", "app_version")},
+                           "bytes": claimed, "sha256": digest.hexdigest()}).encode()
+    out = tmp_path / "sparse.backup"
+    with out.open("wb") as f:
+        for name, size, body in ((MANIFEST, len(manifest), manifest), ("database.sqlite3", claimed, bytes(head))):
+            info = tarfile.TarInfo(name)
+            info.size = size
+            f.write(info.tobuf(tarfile.PAX_FORMAT))
+            f.write(body + bytes(-len(body) % 512))
+            if name != MANIFEST:
+                f.seek(size - len(body) + (-size % 512), 1)
+        f.write(bytes(1024))
+    assert out.stat().st_blocks * 512 < claimed // 100  # holes
+    scratch_sizes = []
+    import study_server.backup_archive as archive
+
+    real_extract = archive.extract_payload
+
+    def watched(source, into, check_head=None):
+        try:
+            return real_extract(source, into, check_head)
+        finally:
+            scratch_sizes.append(into.stat().st_size)
+
+    import study_server.backup as backup_module
+
+    backup_module.extract_payload = watched
+    try:
+        with pytest.raises(BackupError, match="takes .* bytes on disk"):
+            restore(out, f"sqlite:///{tmp_path / 'r.sqlite3'}")
+    finally:
+        backup_module.extract_payload = real_extract
+    assert scratch_sizes == [0] and not (tmp_path / "r.sqlite3").exists()
+
+
 # --- PostgreSQL ---------------------------------------------------------------------------------------------------
 @pytest.fixture
 def pg_source(postgres_server, tmp_path, demo_resources):
@@ -240,5 +372,16 @@ def test_a_postgres_archive_with_an_extra_index_is_refused_and_nothing_is_kept(p
     backup(pg_source, tmp_path / "b.backup")
     target = postgres_server.create("extra_" + tmp_path.name[-8:].lower().replace("-", "_"), owner="app")
     with pytest.raises(BackupError, match="INDEX ix_extra"):
+        restore(tmp_path / "b.backup", target)
+    assert tables(target) == []
+
+
+def test_a_postgres_id_near_the_end_of_its_sequence_is_refused_and_nothing_is_kept(pg_source, postgres_server,
+                                                                                   tmp_path):
+    """An id of 2³¹ − 2 would leave the restored sequence one arrival from its end."""
+    run(pg_source, "UPDATE trials SET id = 2147483646 WHERE id = (SELECT MAX(id) FROM trials)")
+    backup(pg_source, tmp_path / "b.backup")
+    target = postgres_server.create("ids_" + tmp_path.name[-8:].lower().replace("-", "_"), owner="app")
+    with pytest.raises(BackupError, match="trials.id: ids from 1 to 2147483646"):
         restore(tmp_path / "b.backup", target)
     assert tables(target) == []
