@@ -32,6 +32,7 @@ from scipy.optimize import minimize
 
 from scenesuggest.atomic import write_atomically
 from scenesuggest.errors import SceneSuggestError
+from scenesuggest.npz import read_npz
 
 from .human import Human, bounds, free_parameters
 from .transport import Response
@@ -63,15 +64,15 @@ def priors_content_sha256(path: Path) -> str | None:
     if not path.is_file():
         return None
     h = hashlib.sha256()
-    with np.load(path, allow_pickle=False) as arrays:
-        for name in sorted(arrays.files):
-            a = arrays[name]
-            if name == "meta":
-                meta = json.loads(a.tobytes())
-                meta.pop("code", None)
-                a = np.frombuffer(json.dumps(meta, sort_keys=True).encode(), dtype=np.uint8)
-            h.update(f"{name}:{a.dtype.str}:{a.shape};".encode())
-            h.update(np.ascontiguousarray(a).tobytes())
+    arrays = read_npz(path)
+    for name in sorted(arrays):
+        a = arrays[name]
+        if name == "meta":
+            meta = json.loads(a.tobytes())
+            meta.pop("code", None)
+            a = np.frombuffer(json.dumps(meta, sort_keys=True).encode(), dtype=np.uint8)
+        h.update(f"{name}:{a.dtype.str}:{a.shape};".encode())
+        h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
 
 

@@ -85,6 +85,8 @@ def study_validate_cmd(file: str, resources: bool, as_json: bool) -> None:
     to_build = sorted(problems(s)) if resources and s.server_resources else []
     if resources and not s.server_resources:
         rt.check_resources()  # what a study file names must be there
+    if resources and not to_build:
+        rt.warm()  # and load: a damaged priors, library or engine file is named here, not when served
     warnings = _warnings(s)
     info = {"id": s.id, "hash": s.hash, "conditions": [c.id for c in s.conditions], "rows": s.n_rows,
             "trials_per_participant": len([t for t in s.plan(0) if t.kind == "trial"]), "scenes": list(s.scenes),
@@ -153,6 +155,8 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
             "any address (and dodge the arrival quota and login limits). Bind to 127.0.0.1 behind the proxy, or "
             "set SCENESUGGEST_PROXY_HOPS=0", field="--host")
     upgrade_database(app)
+    for rt in app.extensions["studies"].values():  # a file that cannot be loaded stops the start here, once, named
+        rt.warm()
     password_file = config.ensure_admin_password(config.instance_path())
     base = f"http://{host}:{port}"
     for rt in app.extensions["studies"].values():

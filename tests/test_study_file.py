@@ -224,3 +224,45 @@ def test_a_malformed_list_of_tables_is_reported_once(study_dir):
     with pytest.raises(StudyFileError) as info:
         load_study(path)
     assert sorted(e.field for e in info.value.problems) == ["condition", "conditions", "scene", "scenes"]
+
+
+@pytest.fixture(scope="module")
+def damaged_engine(tmp_path_factory):
+    """A learned engine's file (trained on the synthetic corpus) whose ranker has one changed split_feature line:
+    unchecked, LightGBM aborts the process that reads it."""
+    import numpy as np
+    import synthetic
+
+    from scenesuggest import engines
+    from scenesuggest.npz import npz_bytes, read_npz
+
+    corpus = synthetic.corpus()
+    folder = tmp_path_factory.mktemp("engine")
+    engines.kind("learned").train(None, corpus.scenes, corpus.taxonomy, folder / "good.npz", seed=0)
+    payload = read_npz(folder / "good.npz")
+    lines = payload["ranker"].tobytes().decode().split("\n")
+    i = next(k for k, line in enumerate(lines) if line.startswith("split_feature="))
+    lines[i] = "split_feature=" + " ".join(["999"] * len(lines[i].split("=", 1)[1].split()))
+    payload["ranker"] = np.frombuffer("\n".join(lines).encode(), dtype=np.uint8)
+    (folder / "damaged.npz").write_bytes(npz_bytes(payload))
+    return folder / "damaged.npz"
+
+
+def test_a_damaged_engine_file_fails_validate_and_stops_serve_once_naming_it(study_dir, demo_resources,
+                                                                              damaged_engine, tmp_path):
+    """`study validate` loads what the study names; `study serve` loads it before any worker starts, so that a
+    damaged engine file is one message naming it (exit 2), not workers booting over and over."""
+    shutil.copy(damaged_engine, study_dir / "bad.learned.npz")
+    path = edit(study_dir, 'engine = { orientation = "learned" }', 'engine = { name = "learned", file = '
+                                                                    '"bad.learned.npz" }')
+    cli = [sys.executable, "-m", "scenesuggest.cli", "study"]
+    checked = subprocess.run([*cli, "validate", str(path)], capture_output=True, text=True, timeout=120)
+    assert checked.returncode == 2 and "bad.learned.npz" in checked.stderr, checked.stderr
+    assert "ranker model is damaged" in checked.stderr and "Traceback" not in checked.stderr
+    env = {**os.environ, "SCENESUGGEST_STUDIES": str(path), "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"),
+           "DATABASE_URL": f"sqlite:///{tmp_path / 'serve.sqlite3'}",
+           "SCENESUGGEST_SECRET_KEY": "loopback-only-" + "x" * 32}
+    served = subprocess.run([*cli, "serve", "--no-prepare", "--port", "1"], capture_output=True, text=True,
+                            env=env, timeout=120)
+    assert served.returncode == 2 and "bad.learned.npz" in served.stderr, served.stderr
+    assert "ranker model is damaged" in served.stderr and "Booting worker" not in served.stderr

@@ -42,7 +42,7 @@ from ..atomic import write_atomically
 from ..corpora.folds import similar_groups
 from ..digest import ENGINE_SOURCES, source_digest
 from ..errors import SceneSuggestError
-from ..npz import npz_bytes
+from ..npz import npz_bytes, read_npz
 from ..scenes import frames
 from ..scenes.scene import SURFACE_TYPES, Scene
 from ..scenes.taxonomy import MIN_OBSERVATIONS, Taxonomy
@@ -247,10 +247,10 @@ class Priors:
     def load(cls, path: str | Path) -> Priors:
         """Read a priors file; a file that is not one, or of another version, is an error naming the file."""
         path = Path(path)
+        payload = _read(path)
         try:
-            with np.load(path, allow_pickle=False) as data:
-                return cls.from_payload({k: data[k] for k in data.files}, path)
-        except (OSError, ValueError, KeyError) as e:
+            return cls.from_payload(payload, path)
+        except (ValueError, KeyError) as e:
             raise SceneSuggestError(f"cannot read priors: {e}", file=str(path)) from None
 
     @classmethod
@@ -264,11 +264,7 @@ class Priors:
     def read_meta(path: str | Path) -> dict:
         """The metadata of a priors file, checked as :meth:`load` checks it, without reading the arrays."""
         path = Path(path)
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                return _checked_meta(data, path)
-        except (OSError, ValueError) as e:
-            raise SceneSuggestError(f"cannot read priors: {e}", file=str(path)) from None
+        return _checked_meta(_read(path, ("meta",)), path)
 
     # --- lookups -------------------------------------------------------------------------------------------
     def stat_entity(self, category: str, backoff: bool = True) -> int | None:
@@ -424,6 +420,15 @@ def peak_normalised(counts: np.ndarray) -> np.ndarray:
     h = smooth(np.asarray(counts, dtype=np.float64))
     peak = h.max(axis=-1, keepdims=True)
     return np.where(peak > 0, h / np.where(peak > 0, peak, 1.0), 1.0).astype(np.float32)
+
+
+def _read(path: Path, only: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
+    """The arrays of the priors file ``path`` (``only``: just these), each checked before it takes memory
+    (:func:`scenesuggest.npz.read_npz`)."""
+    try:
+        return read_npz(path, only)
+    except SceneSuggestError as e:
+        raise SceneSuggestError(f"cannot read priors: {e.message}", file=str(path), field=e.field) from None
 
 
 def _checked_meta(data, path: Path) -> dict:

@@ -28,7 +28,7 @@ from ...atomic import write_atomically
 from ...digest import ENGINE_SOURCES, source_digest
 from ...errors import SceneSuggestError
 from ...learning.priors import Priors
-from ...npz import npz_bytes
+from ...npz import npz_bytes, read_npz
 from ...scenes import poses
 from ...scenes.frames import FACES
 from ...suggestion.suggest import Engine, EngineOptions, Scores
@@ -232,22 +232,14 @@ class LearnedEngine(Engine):
     def read_meta(path: str | Path) -> dict:
         """The metadata of a learned engine's file, checked as :meth:`load` checks it, without reading the rest."""
         path = Path(path)
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                return _checked_meta(data["meta"] if "meta" in data.files else None, path)
-        except (OSError, ValueError) as e:
-            raise SceneSuggestError(f"cannot read the learned engine: {e}", file=str(path)) from None
+        return _checked_meta(_read(path, ("meta",)).get("meta"), path)
 
     @classmethod
     def load(cls, path: str | Path, options: EngineOptions | None = None, choose_frames: bool = False
              ) -> LearnedEngine:
         """Read a learned engine's file; one that is not one, or of another version, is an error naming it."""
         path = Path(path)
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                payload = {k: data[k] for k in data.files}
-        except (OSError, ValueError) as e:
-            raise SceneSuggestError(f"cannot read the learned engine: {e}", file=str(path)) from None
+        payload = _read(path)
         meta = _checked_meta(payload.get("meta"), path)
         try:
             priors = Priors.from_payload({k[7:]: v for k, v in payload.items() if k.startswith("priors.")}, path)
@@ -260,6 +252,16 @@ class LearnedEngine(Engine):
             raise SceneSuggestError(f"the learned engine's file is incomplete or damaged ({type(e).__name__}: {e})",
                                     file=str(path), field="ranker") from None
         return cls(priors, stats, ranker, frames, meta, options).choosing_frames(choose_frames)
+
+
+def _read(path: Path, only: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
+    """The arrays of the learned engine's file ``path`` (``only``: just these), each checked before it takes
+    memory (:func:`scenesuggest.npz.read_npz`)."""
+    try:
+        return read_npz(path, only)
+    except SceneSuggestError as e:
+        raise SceneSuggestError(f"cannot read the learned engine: {e.message}", file=str(path),
+                                field=e.field) from None
 
 
 def _booster(raw: np.ndarray, features: int, name: str, path: Path) -> lgb.Booster:
