@@ -1,11 +1,12 @@
 """Export a study as tidy CSV tables plus ``manifest.json`` and a data dictionary.
 
-Cells are safe to open in a spreadsheet: a text cell that begins with ``=``, ``+``, ``-``, ``@``, a tab, a
-carriage return or ``'`` is written with a leading ``'`` (OWASP's advice against formula injection; numbers are
-written as they are). :func:`scenesuggest.contract.cells.unescape_cell` undoes it, and the project's reader
-(``analysis.load``) applies it, so the tables load back to the stored values. Text that is not valid Unicode (a
-lone surrogate stored before the server refused it) is written with a backslash escape (``\\udfff``) rather
-than failing the export.
+Cells are safe to open in a spreadsheet: a text cell is written as it is only when it is a number or begins with a
+letter, a digit or an inert mark such as JSON's ``{`` (:data:`scenesuggest.contract.cells.INERT`); any other
+(``=``, ``+``, ``-``, ``@``, a tab, a space, a no-break space, a byte-order mark, a full-width ``＝``, ``|``, ``'`` …)
+gets a leading ``'``, so that no spreadsheet runs a participant's text as a formula.
+:func:`scenesuggest.contract.cells.unescape_cell` undoes it, and the project's reader (``analysis.load``) applies
+it, so the tables load back to the stored values. Text that is not valid Unicode (a lone surrogate stored before
+the server refused it) is written with a backslash escape (``\\udfff``) rather than failing the export.
 
 Tables (one row per …): ``participants`` (participant), ``trials`` (trial), ``events`` (logged event),
 ``suggestions`` (item of a list the server showed: context suggestions and search results, with ranks),

@@ -207,9 +207,11 @@ def dictionary_markdown() -> str:
             lines.append(f"| {c.name} | {c.type} | {c.description.rstrip('.')}.{allowed} |")
         lines.append("")
     lines += ["## Text cells", "",
-              "A text cell beginning with `=`, `+`, `-`, `@`, a tab, a carriage return or `'` is written "
-              "with one leading `'` so that spreadsheets show it as text instead of running it as a formula "
-              "(OWASP's advice on CSV injection); numbers are written as they are. Remove that one "
+              "A text cell is written as it is when it is a number or begins with a letter, a digit or one of "
+              "`{ [ \" ( # _ . / < * :`; any other text cell (one beginning with `=`, `+`, `-`, `@`, a tab, a "
+              "space, a no-break space, a byte-order mark, a full-width `＝`, `|`, `'` …) is written with one "
+              "leading `'` so that spreadsheets show it as text instead of running it as a formula (CSV "
+              "injection: OWASP's list, and the characters spreadsheets skip before it). Remove that one "
               "`'` to get the stored value (`analysis.load.read_export` does). Text that was stored without "
               "being valid Unicode appears with backslash escapes (`\\udfff`).", ""]
     return "\n".join(lines)

@@ -12,13 +12,14 @@ from __future__ import annotations
 from sqlalchemy import func, select
 
 from .extensions import db
+from .flow import is_open
 from .models import Participant, open_flags
 
-#: The columns of approvals.csv.
-APPROVAL_COLUMNS = ("participant", "platform", "platform_id", "session", "status", "code", "decision", "flags",
+#: The columns of approvals.csv. ``assignment``: MTurk's assignment id (what MTurk approves), once the session has
+#: ended — an id that resumes a session is never written while it could (Prolific approves by participant id: its
+#: SESSION_ID is never written at all).
+APPROVAL_COLUMNS = ("participant", "platform", "platform_id", "assignment", "status", "code", "decision", "flags",
                     "finished_at")
-#: The platform's own session id, as the entry link carried it.
-SESSION_KEY = {"prolific": "SESSION_ID", "mturk": "assignmentId"}
 RETURNED = ("no_consent", "screened_out", "returned")
 
 
@@ -48,6 +49,7 @@ def approval_rows(study_id: str) -> list[dict]:
     """One row per participant who arrived, in arrival order."""
     people = db.session.scalars(select(Participant).where(Participant.study_id == study_id).order_by(Participant.id))
     return [{"participant": p.id, "platform": p.platform, "platform_id": p.platform_id,
-             "session": (p.platform_meta or {}).get(SESSION_KEY.get(p.platform, ""), ""), "status": p.status,
+             "assignment": (p.platform_meta or {}).get("assignmentId", "") if p.platform == "mturk" and
+             not is_open(p) else "", "status": p.status,
              "code": p.code or "", "decision": decision(p), "flags": len(open_flags(p)),
              "finished_at": p.finished_at.isoformat() if p.finished_at else ""} for p in people]

@@ -141,7 +141,8 @@ def test_export_cells_cannot_run_as_formulas_and_load_back_unchanged(client, app
     from study_server.export import export_to
 
     hostile = ["=HYPERLINK(\"http://evil\",\"x\")", "+cmd|' /C calc'!A0", "-2+3", "@SUM(A1)", "\tx", "\rx",
-               "'quoted", "-12.5"]
+               "'quoted", "\uff1dSUM(A1)", " =1+1", "\u00a0=1+1", "\ufeff=1+1", "|cmd", "\u200b=1", "\u202e=1",
+               "'", "''x", "-12.5"]
     b = to_trials(client)
     assert post_events(client, b, [event(i, text=t) for i, t in enumerate(hostile)]).status_code == 200
     with app.app_context():
@@ -149,7 +150,9 @@ def test_export_cells_cannot_run_as_formulas_and_load_back_unchanged(client, app
     raw = (tmp_path / "export" / "session_log.csv").read_text()
     assert all(not line.startswith(("=", "+", "@")) for line in raw.splitlines())
     assert [safe_cell(t) for t in hostile[:-1]] == ["'" + t for t in hostile[:-1]] and safe_cell("-12.5") == "-12.5"
-    assert [unescape_cell(safe_cell(t)) for t in hostile] == hostile
+    plain = ["text", "Ünïcode", "desk", '{"a": 1}', "[1, 2]", "2026-12-05 10:00", "", "_id", "１２"]
+    assert [safe_cell(t) for t in plain] == plain  # JSON, dates and words stay as they are
+    assert [unescape_cell(safe_cell(t)) for t in hostile + plain] == hostile + plain
     data = read_export(tmp_path / "export")
     searched = [p["text"] for p in data.events["payload"]]
     assert searched == hostile

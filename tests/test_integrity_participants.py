@@ -150,6 +150,18 @@ def test_made_up_or_foreign_prolific_ids_are_refused(tmp_path, demo_resources, q
         assert db.session.query(Participant).count() == 0
 
 
+@pytest.mark.parametrize("pid", ["p1\u202e", "p\u200b1", "\ufeffp1", "p1\u2028", "p1\u2029", "p\u0085", "p\ue000",
+                                 "p\u2066x\u2069", "x" * 129])
+def test_a_plain_links_id_with_invisible_characters_is_refused(client, pid):
+    """Bidi overrides, zero-width and line separators would let one id read as another on the admin pages and in
+    the export."""
+    from urllib.parse import quote
+
+    r = client.get(f"/study/demo/start?pid={quote(pid)}")
+    assert r.status_code == 422 and b"pid is not a valid link id" in r.data
+    assert client.get("/study/demo/start?pid=" + quote("Ünïcode p1 ok")).status_code == 302
+
+
 def test_coming_back_under_another_id_after_declining_is_flagged(tmp_path, demo_resources):
     app = make_app(tmp_path, studies=[study_copy(tmp_path, platform="prolific")])
     c = app.test_client()
@@ -178,6 +190,9 @@ def test_an_exclusion_is_final_and_nothing_is_taken_after_the_end(app_on):
     assert r.status_code == 410 and r.json["status"] == "excluded"
     assert c.post("/api/trial/done", headers=auth(b), json={"trial": b["trial"]["index"]}).status_code == 410
     assert c.post("/api/suggest", headers=auth(b), json={"trial": b["trial"]["index"]}).status_code == 410
+    seen = participant_of(app_on, "p1").last_seen_at
+    assert c.post("/api/heartbeat", headers=auth(b)).status_code == 410  # an ended session is not seen any more
+    assert participant_of(app_on, "p1").last_seen_at == seen
     page = c.get("/study/demo/")
     assert b"This session has ended" in page.data and b'id="boot"' not in page.data
     with app_on.app_context():  # finishing the survey later changes nothing

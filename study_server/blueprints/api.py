@@ -177,6 +177,7 @@ def session_state():
 def heartbeat():
     who = caller()
     if isinstance(who, Participant):
+        _open(who)  # an ended session (excluded, completed …) is seen no more: 410, last_seen_at kept
         who.last_seen_at = utcnow()
         db.session.commit()
         return jsonify({"ok": True, "acked_seq": who.acked_seq})

@@ -8,6 +8,7 @@ import hmac
 import posixpath
 import re
 import secrets
+import unicodedata
 
 from flask import (
     Blueprint,
@@ -74,7 +75,16 @@ PROLIFIC_ID = re.compile(r"[0-9a-fA-F]{24}")
 MTURK_ID = re.compile(r"[A-Z0-9]{10,64}")
 #: The only hosts an MTurk HIT may be submitted to (``turkSubmitTo``).
 MTURK_SUBMIT = ("https://www.mturk.com", "https://workersandbox.mturk.com")
-LINK_ID = re.compile(r"[^\x00-\x1f\x7f]{1,128}")
+#: A plain link's ``pid``: up to LINK_ID_MAX visible characters — no control or format character (bidi overrides,
+#: zero-width spaces, byte-order marks), line or paragraph separator, surrogate, private-use or unassigned code
+#: point, any of which would let one id read as another on the admin pages and in the export.
+LINK_ID_MAX = 128
+INVISIBLE = frozenset(("Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp"))
+
+
+def link_id(value: str) -> bool:
+    """Whether ``value`` may be a plain link's ``pid`` (see INVISIBLE)."""
+    return 0 < len(value) <= LINK_ID_MAX and not any(unicodedata.category(c) in INVISIBLE for c in value)
 
 
 class EntryError(Exception):
@@ -84,30 +94,30 @@ class EntryError(Exception):
 def _platform_identity(study, args) -> tuple[str, dict]:
     """(platform id, platform metadata) from the entry URL's parameters ("" for an anonymous link); raises
     :class:`EntryError` naming a missing or malformed parameter."""
-    def value(name: str, pattern: re.Pattern, required: bool = True) -> str:
+    def value(name: str, valid, required: bool = True) -> str:
         v = args.get(name, "")
         if not v and not required:
             return ""
-        if not pattern.fullmatch(v):
+        if not valid(v):
             raise EntryError(_("%(name)s is missing", name=name) if not v
                              else _("%(name)s is not a valid %(platform)s id", name=name, platform=study.platform))
         return v
 
     if study.platform == "prolific":
-        meta = {"PROLIFIC_PID": value("PROLIFIC_PID", PROLIFIC_ID),
-                "STUDY_ID": value("STUDY_ID", PROLIFIC_ID, required=bool(study.platform_study_id)),
-                "SESSION_ID": value("SESSION_ID", PROLIFIC_ID, required=False)}
+        meta = {"PROLIFIC_PID": value("PROLIFIC_PID", PROLIFIC_ID.fullmatch),
+                "STUDY_ID": value("STUDY_ID", PROLIFIC_ID.fullmatch, required=bool(study.platform_study_id)),
+                "SESSION_ID": value("SESSION_ID", PROLIFIC_ID.fullmatch, required=False)}
         if study.platform_study_id and meta["STUDY_ID"] != study.platform_study_id:
             raise EntryError(_("STUDY_ID is not this study's Prolific id"))
         return meta["PROLIFIC_PID"], meta
     if study.platform == "mturk":
-        meta = {k: value(k, MTURK_ID) for k in ("workerId", "assignmentId", "hitId")}
+        meta = {k: value(k, MTURK_ID.fullmatch) for k in ("workerId", "assignmentId", "hitId")}
         submit = args.get("turkSubmitTo", "").rstrip("/")
         if submit not in MTURK_SUBMIT:
             raise EntryError(_("turkSubmitTo is not one of MTurk's submit hosts"))
         meta["turkSubmitTo"] = submit
         return meta["workerId"], meta
-    pid = value("pid", LINK_ID, required=False)
+    pid = value("pid", link_id, required=False)
     return pid, ({"pid": pid} if pid else {})
 
 
