@@ -157,9 +157,10 @@ def nginx_missing() -> str | None:
 class NginxProxy:
     """nginx from Debian as a child process, all in ``prefix``, with the site configuration
     ``scenesuggest study deploy-files`` writes (the one shipped), a self-signed certificate for 127.0.0.1, and
-    the given app servers' ports as its upstream. ``https`` is its base URL, ``cert`` the certificate to trust."""
+    the given app servers' ports as its upstream. ``https`` is its base URL, ``cert`` the certificate to trust. Its
+    access log (``prefix``/access.log) is in ``log_format``: ``timing`` (:func:`read_timings`) or the site's own."""
 
-    def __init__(self, prefix: Path, app_ports: list[int]):
+    def __init__(self, prefix: Path, app_ports: list[int], log_format: str = "timing"):
         from study_server.deployment import Deployment, write_deploy_files
 
         self.prefix = prefix
@@ -172,7 +173,7 @@ class NginxProxy:
         write_deploy_files(prefix / "deploy", Deployment(
             "127.0.0.1", app_ports, self.http_port, self.https_port, address="127.0.0.1", cert=str(self.cert),
             key=str(key), nginx_dir=str(prefix / "deploy" / "nginx"), cache=str(prefix / "cache"),
-            acme_root=str(prefix / "acme")))
+            acme_root=str(prefix / "acme"), access_log=str(prefix / "access.log"), access_log_format=log_format))
         (prefix / "nginx.conf").write_text(NGINX_CONF.format(prefix=prefix))
         self.https = f"https://127.0.0.1:{self.https_port}"
         self.http = f"http://127.0.0.1:{self.http_port}"

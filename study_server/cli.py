@@ -166,10 +166,16 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
                "SCENESUGGEST_ADMIN_PASSWORD_HASH)")
     sys.stdout.flush()
     os.environ.setdefault("SCENESUGGEST_WARM", "1")  # each worker loads the studies before its first request
-    # --timeout: a worker answering one request longer than this is killed; the admin's export streams a large
-    # study for longer than gunicorn's default 30 s (330 MB of events: about a minute)
-    os.execv(sys.executable, [sys.executable, "-m", "gunicorn", "--workers", str(workers), "--timeout", "300", "--bind",
-                              f"{host}:{port}", "--access-logfile", "-", "study_server:create_app()"])
+    os.execv(sys.executable, gunicorn_command(workers, f"{host}:{port}"))
+
+
+def gunicorn_command(workers: int, bind: str) -> list[str]:
+    """How ``study serve`` runs gunicorn: with the settings of :mod:`study_server.gunicorn_settings` (an access log
+    without secrets, no control socket; never a gunicorn.conf.py of the working directory). --timeout: a worker
+    answering one request longer than this is killed; the admin's export streams a large study for longer than
+    gunicorn's default 30 s (330 MB of events: about a minute)."""
+    return [sys.executable, "-m", "gunicorn", "-c", "python:study_server.gunicorn_settings", "--workers", str(workers),
+            "--timeout", "300", "--bind", bind, "--access-logfile", "-", "study_server:create_app()"]
 
 
 def entry_links(app, study, base: str) -> list[str]:

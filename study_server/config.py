@@ -97,6 +97,18 @@ MIN_SECRET = 32
 MAX_PROXY_HOPS = 5
 
 
+#: A host name: dot-separated labels of 1 to 63 letters, digits and '-' (not first or last), at most 253 characters
+#: in all; no empty label (a leading '.' is a wildcard to Flask's trusted hosts and nginx), no lone '-'.
+HOST_LABEL = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)")
+HOST_NAME_RULE = ("expected the public host name: labels of letters, digits and '-' (not first or last) joined by "
+                  "single dots, e.g. study.example.org")
+
+
+def is_host_name(value: str) -> bool:
+    """Whether ``value`` is a host name by :data:`HOST_LABEL` (an IPv4 address is one)."""
+    return 0 < len(value) <= 253 and all(HOST_LABEL.fullmatch(label) for label in value.split("."))
+
+
 def from_environment(instance: Path) -> dict:
     """The app's settings as a Flask config dict. In production the secret key must come from the environment
     (a generated one would differ between hosts and vanish with the instance folder) and cookies are Secure."""
@@ -114,9 +126,8 @@ def from_environment(instance: Path) -> dict:
         raise ConfigError(f"expected the number of reverse proxies before the app, 0 to {MAX_PROXY_HOPS}",
                           field="SCENESUGGEST_PROXY_HOPS")
     server_name = os.environ.get("SCENESUGGEST_SERVER_NAME", "")
-    if server_name and not re.fullmatch(r"[A-Za-z0-9.-]{1,253}", server_name):
-        raise ConfigError("expected the public host name (letters, digits, '.' and '-')",
-                          field="SCENESUGGEST_SERVER_NAME")
+    if server_name and not is_host_name(server_name):
+        raise ConfigError(HOST_NAME_RULE, field="SCENESUGGEST_SERVER_NAME")
     warm = os.environ.get("SCENESUGGEST_WARM", "1" if production else "0")
     if warm not in ("0", "1"):
         raise ConfigError("expected 1 (load every study's resources before the first request) or 0",

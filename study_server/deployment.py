@@ -59,13 +59,16 @@ class Deployment:
     user: str = "scenesuggest"
     env_file: str = "/etc/scenesuggest/scenesuggest.env"
     workers: int = 2
+    #: nginx's access log of the site and its format (``scenesuggest``: no query string, no secret, no Referer)
+    access_log: str = "/var/log/nginx/access.log"
+    access_log_format: str = "scenesuggest"
 
     def check(self) -> None:
         """Refuse, naming it, any value that would change the meaning of a file it lands in."""
         import ipaddress
 
-        if not re.fullmatch(r"[A-Za-z0-9.-]+", self.server_name):
-            raise DeployError("expected a host name (letters, digits, '.' and '-')", field="--server-name")
+        if not config.is_host_name(self.server_name):
+            raise DeployError(config.HOST_NAME_RULE, field="--server-name")
         if not USER_NAME.fullmatch(self.user) or self.user == "root":
             raise DeployError("expected a system user name (lower-case letters, digits, '_' and '-'), not root: "
                               "the app servers run unprivileged", field="--user")
@@ -76,7 +79,10 @@ class Deployment:
                 ipaddress.ip_address(self.address)
             except ValueError:
                 raise DeployError("expected an IP address to listen on", field="address") from None
+        if not re.fullmatch(r"[a-z_]{1,32}", self.access_log_format):
+            raise DeployError("expected the name of an nginx log format", field="access_log_format")
         for value, name in ((self.cert, "--cert"), (self.key, "--key"), (self.nginx_dir, "nginx_dir"),
+                            (self.access_log, "access_log"),
                             (self.cache, "cache"), (self.acme_root, "acme_root"), (self.env_file, "env_file"),
                             (sys.executable, "the Python running this"), (str(config.data_home()),
                                                                           "SCENESUGGEST_HOME")):
@@ -107,6 +113,7 @@ class Deployment:
             "CERT": cert, "KEY": key, "STATIC": str(config.PACKAGE / "static"), "THREE": str(three_folder()),
             "NGINX_DIR": self.nginx_dir, "USER": self.user, "ENV_FILE": self.env_file, "PYTHON": sys.executable,
             "WORKERS": str(self.workers), "HOME": str(config.data_home()),
+            "ACCESS_LOG": f"{self.access_log} {self.access_log_format}",
             "STUDIES": ":".join(str(p.resolve()) for p in config.study_files()), "SECRET": secrets.token_hex(32),
             "STUDY_DIRS": " ".join(sorted({str(p.resolve().parent) for p in config.study_files()}))}
 

@@ -22,6 +22,7 @@ import csv
 import hashlib
 import io
 import json
+import os
 import subprocess
 import tempfile
 import zipfile
@@ -254,13 +255,18 @@ class _Sink:
 
 
 class FolderSink(_Sink):
+    """Into files of the folder ``out``, readable by their owner only (0600; a new folder 0700), as backups are:
+    an export holds what participants did and the ids their platforms know them by."""
+
     def __init__(self, out: Path):
-        out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(mode=0o700, parents=True, exist_ok=True)
         self.out = out
 
     def begin(self, name: str) -> None:
         super().begin(name)
-        self.file = (self.out / name).open("wb")
+        fd = os.open(self.out / name, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        os.fchmod(fd, 0o600)  # a file of an earlier export may have been readable by others
+        self.file = os.fdopen(fd, "wb")
 
     def _put(self, data: bytes) -> None:
         self.file.write(data)

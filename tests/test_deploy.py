@@ -282,6 +282,24 @@ HOSTILE = [  # (Deployment's keyword, value, the option named): each would have 
 ]
 
 
+@pytest.mark.parametrize("name", ["-", "a..b", ".example.org", "example.org.", "-a.org", "a-.org", "a" * 64 + ".org",
+                                  "a_b.org", "a b", "ä.org", "x." * 127 + "x"])
+def test_a_server_name_that_is_no_host_name_is_refused_by_deploy_files_and_the_app(tmp_path, monkeypatch, name):
+    """A leading '.' is a wildcard to Flask's trusted hosts and to nginx; '-' and empty labels name no host."""
+    from study_server.config import ConfigError, from_environment
+    from study_server.deployment import DeployError, Deployment, write_deploy_files
+
+    with pytest.raises(DeployError) as info:
+        write_deploy_files(tmp_path / "out", Deployment(name))
+    assert info.value.field == "--server-name" and not (tmp_path / "out").exists()
+    monkeypatch.setenv("SCENESUGGEST_SERVER_NAME", name)
+    with pytest.raises(ConfigError) as info:
+        from_environment(tmp_path / "instance")
+    assert info.value.field == "SCENESUGGEST_SERVER_NAME"
+    monkeypatch.setenv("SCENESUGGEST_SERVER_NAME", "study-1.example.org")
+    assert from_environment(tmp_path / "instance")["TRUSTED_HOSTS"][0] == "study-1.example.org"
+
+
 @pytest.mark.parametrize(("key", "value", "option"), HOSTILE)
 def test_deploy_files_refuse_a_value_that_would_change_a_files_meaning(tmp_path, key, value, option):
     from study_server.deployment import DeployError, Deployment, write_deploy_files
@@ -361,3 +379,112 @@ def test_postgresql_without_its_driver_says_how_to_install_it(tmp_path, monkeypa
         create_app({"INSTANCE_PATH": str(tmp_path), "STUDY_FILES": [DEMO_STUDY], "SECRET_KEY": "x",
                     "SQLALCHEMY_DATABASE_URI": "postgresql+psycopg://u@127.0.0.1/x"})
     assert info.value.field == "DATABASE_URL" and "scenesuggest-studio[postgres]" in info.value.message
+
+
+def test_served_gunicorn_logs_no_secret_reads_no_local_config_and_has_no_control_socket(tmp_path, demo_resources):
+    """gunicorn as `study serve` runs it, from a folder holding a gunicorn.conf.py (gunicorn would run it) and with
+    a home of its own (where gunicorn's default control socket would go): an entry link's SESSION_ID and pilot
+    signature, a one-time admin link's secret and a Referer never reach the access log."""
+    import signal
+    import time
+    import urllib.error
+    import urllib.request
+
+    from serverproc import free_port
+
+    from study_server.cli import gunicorn_command
+
+    make_app(tmp_path, f"sqlite:///{tmp_path / 'study.sqlite3'}")  # migrated
+    folder = tmp_path / "cwd"
+    folder.mkdir()
+    (folder / "gunicorn.conf.py").write_text(f"open({str(tmp_path / 'ran')!r}, 'w').close()\n")
+    port = free_port()
+    env = {**os.environ, "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"), "HOME": str(tmp_path / "home"),
+           "DATABASE_URL": f"sqlite:///{tmp_path / 'study.sqlite3'}", "SCENESUGGEST_STUDIES": str(demo_resources),
+           "SCENESUGGEST_SECRET_KEY": "loopback-only-" + "x" * 32, "PYTHONPATH": os.getcwd()}
+    server = subprocess.Popen(gunicorn_command(1, f"127.0.0.1:{port}"), cwd=folder, env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, start_new_session=True)
+    secret = "5ec2e75ec2e75ec2e75ec2e7"
+    try:
+        for path in (f"/study/demo/start?pid=p1&SESSION_ID={secret}&pilot={secret}", f"/admin/link/{secret}",
+                     "/healthz"):
+            request = urllib.request.Request(f"http://127.0.0.1:{port}{path}",
+                                             headers={"Referer": f"http://x/?SESSION_ID={secret}"})
+            for _ in range(300):
+                try:
+                    urllib.request.urlopen(request, timeout=10).close()
+                    break
+                except urllib.error.HTTPError:
+                    break
+                except OSError:
+                    time.sleep(0.1)
+    finally:
+        os.killpg(server.pid, signal.SIGTERM)
+        log = server.communicate(timeout=30)[0].decode(errors="replace")
+    assert '"GET /healthz HTTP/1.1" 200' in log, log
+    assert '"GET /study/demo/start HTTP/1.1"' in log and '"GET /admin/link/[secret] HTTP/1.1"' in log
+    assert secret not in log
+    assert not (tmp_path / "ran").exists()  # the folder's gunicorn.conf.py never ran
+    assert not (tmp_path / "home" / ".gunicorn").exists()  # no control socket
+
+
+def test_served_gunicorn_believes_no_forwarded_header_itself(tmp_path):
+    """gunicorn takes X-Forwarded-Proto from loopback by default; with the app's settings only the app's own
+    proxy rule (SCENESUGGEST_PROXY_HOPS) decides, so a local client cannot make a request https."""
+    import signal
+    import time
+    import urllib.request
+
+    from serverproc import free_port
+
+    from study_server.cli import gunicorn_command
+
+    (tmp_path / "scheme_app.py").write_text(
+        "def app(environ, start_response):\n"
+        "    start_response('200 OK', [('Content-Type', 'text/plain')])\n"
+        "    return [environ['wsgi.url_scheme'].encode()]\n")
+    port = free_port()
+    command = gunicorn_command(1, f"127.0.0.1:{port}")[:-1] + ["scheme_app:app"]
+    server = subprocess.Popen(command, cwd=tmp_path, env={**os.environ, "PYTHONPATH": f"{tmp_path}:{os.getcwd()}"},
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        request = urllib.request.Request(f"http://127.0.0.1:{port}/", headers={"X-Forwarded-Proto": "https",
+                                                                               "X-Forwarded-Ssl": "on"})
+        for _ in range(300):
+            try:
+                with urllib.request.urlopen(request, timeout=10) as r:
+                    scheme = r.read().decode()
+                break
+            except OSError:
+                time.sleep(0.1)
+    finally:
+        os.killpg(server.pid, signal.SIGTERM)
+        server.wait(timeout=30)
+    assert scheme == "http"
+
+
+def test_nginx_logs_no_secret_of_an_entry_link_or_a_one_time_admin_link(tmp_path):
+    """The site as `study deploy-files` writes it, in front of nothing (each answer a 502, each still logged): an
+    entry link's SESSION_ID and test signature, a one-time link's secret and a Referer never reach the access log,
+    on HTTPS or on the redirect from HTTP."""
+    import ssl
+    import urllib.error
+    import urllib.request
+
+    from serverproc import NginxProxy, free_port, nginx_missing
+
+    missing = nginx_missing()
+    if missing:
+        pytest.skip(missing)
+    secret = "5ec2e75ec2e75ec2e75ec2e7"
+    with NginxProxy(tmp_path / "nginx", [free_port()], log_format="scenesuggest") as proxy:
+        trusted = ssl.create_default_context(cafile=str(proxy.cert))
+        for base in (proxy.https, proxy.http):
+            for path in (f"/study/demo/start?PROLIFIC_PID=a&SESSION_ID={secret}&pilot={secret}",
+                         f"/admin/link/{secret}"):
+                request = urllib.request.Request(base + path, headers={"Referer": f"{base}/?SESSION_ID={secret}"})
+                with pytest.raises(urllib.error.HTTPError):  # 502: no app behind (from HTTP after the 301)
+                    urllib.request.urlopen(request, timeout=10, context=trusted)
+    log = (tmp_path / "nginx" / "access.log").read_text()
+    assert log.count("\n") == 6 and log.count('"GET /study/demo/start HTTP/1.1" 502') == 2
+    assert '"GET /admin/link/[secret] HTTP/1.1" 301' in log and secret not in log

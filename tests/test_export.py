@@ -33,6 +33,8 @@ def test_export_command_writes_tidy_tables(app, tmp_path):
         "library_index_sha256": hashlib.sha256((study.library / "library.json").read_bytes()).hexdigest()}
     for name, digest in manifest["files"].items():
         assert hashlib.sha256((out / name).read_bytes()).hexdigest() == digest
+    assert out.stat().st_mode & 0o777 == 0o700  # what participants did is the operator's alone, as backups are
+    assert {f.name: f.stat().st_mode & 0o777 for f in out.iterdir()} == {f.name: 0o600 for f in out.iterdir()}
     with (out / "trials.csv").open() as f:
         trials = list(csv.DictReader(f))
     assert [t["trial"] for t in trials] == [str(i) for i in range(-1, 9)]

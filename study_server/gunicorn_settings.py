@@ -1,0 +1,52 @@
+"""gunicorn's settings for the study server, and its access log without secrets.
+
+``study serve`` and the systemd unit run gunicorn with ``-c python:study_server.gunicorn_settings``, so gunicorn
+never reads a ``gunicorn.conf.py`` from the working directory (it would run it), and with these settings:
+
+- no control socket (by default one path per user, which every instance would take over and delete on exit);
+- no X-Forwarded-* believed by gunicorn itself (by default it takes X-Forwarded-Proto from loopback): the app
+  believes exactly SCENESUGGEST_PROXY_HOPS proxies, none by default;
+- :class:`AccessLog`: an entry link's query carries Prolific's ``SESSION_ID`` (what resumes a session in another
+  browser) and a pilot's signature, a one-time admin link carries its secret in its path, and a Referer repeats
+  either; each request is logged as method, path and protocol with no query string, the one-time link's secret
+  cut out (:func:`logged_path`), and no Referer, cookie or authorisation, whatever ``--access-logformat`` asks for.
+"""
+
+from __future__ import annotations
+
+from gunicorn.glogging import Logger
+
+#: Paths that hold a secret after this prefix: the one-time admin sign-in link (``/admin/link/<secret>``).
+SECRET_PATHS = ("/admin/link/",)
+#: Request headers and WSGI variables an access-log atom must never show.
+UNLOGGED = ("referer", "cookie", "authorization", "query_string", "raw_uri", "http_referer", "http_cookie",
+            "http_authorization", "request_uri")
+
+# --- gunicorn's settings (read with -c python:study_server.gunicorn_settings) -----------------------------------
+logger_class = "study_server.gunicorn_settings.AccessLog"
+control_socket_disable = True
+forwarded_allow_ips = ""
+secure_scheme_headers: dict = {}
+access_log_format = '%(h)s %(l)s %(u)s %(t)s "%(r)s" %(s)s %(b)s "%(a)s"'
+
+
+def logged_path(path: str) -> str:
+    """``path`` as the access log shows it: a one-time link's secret replaced by ``[secret]``."""
+    for prefix in SECRET_PATHS:
+        if path.startswith(prefix):
+            return prefix + "[secret]"
+    return path
+
+
+class AccessLog(Logger):
+    """gunicorn's logger, its access-log atoms stripped of secrets (see the module docstring)."""
+
+    def atoms(self, resp, req, environ, request_time):
+        atoms = super().atoms(resp, req, environ, request_time)
+        path = logged_path(environ.get("PATH_INFO") or "/")
+        atoms.update({"r": f"{environ.get('REQUEST_METHOD')} {path} {environ.get('SERVER_PROTOCOL')}", "U": path,
+                      "q": "-", "f": "-"})
+        for key in list(atoms):
+            if key[:1] == "{" and key[1:-2] in UNLOGGED:
+                atoms[key] = "-"
+        return atoms
