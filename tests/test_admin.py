@@ -208,3 +208,27 @@ def test_one_unreadable_row_does_not_take_down_the_admin_pages_or_the_export(adm
     assert r.status_code == 200
     z = zipfile.ZipFile(io.BytesIO(r.data))
     assert len(z.read("demo/participants.csv").decode().splitlines()) == 4
+
+
+def test_a_participants_page_stays_small_whatever_they_stored(admin_app):
+    """600 searches of 2,000 '&' each (escaped, 6 MB on one page before): the page shows 250 events at a time, each
+    payload cut after 600 characters and said to be cut, with links to the earlier and later events."""
+    from integrityhelp import event, post_events
+
+    participant = admin_app.test_client()
+    b = to_trials(participant)
+    for first in range(0, 600, 200):
+        r = post_events(participant, b, [event(i, text="&" * 2000) for i in range(first, first + 200)])
+        assert r.status_code == 200, r.json
+    c = admin_app.test_client()
+    login(c)
+    pages, url = [], "/admin/demo/participants/1"
+    while url:
+        page = c.get(url).get_data(as_text=True)
+        pages.append(page)
+        later = re.search(r'href="([^"]+)">later events', page)
+        url = later.group(1).replace("&amp;", "&") if later else None
+    assert len(pages) == 3 and all(len(p) < 2_000_000 for p in pages), [len(p) for p in pages]
+    assert pages[0].count("characters more: the export holds them") == 250
+    assert "event 0<" in pages[0] and "event 250<" in pages[1] and "event 599<" in pages[2]
+    assert "earlier events" in pages[1] and "earlier events" not in pages[0]

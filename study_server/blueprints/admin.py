@@ -148,16 +148,42 @@ def participant(study_id: str, pid: int):
     p = db.session.get(Participant, pid)
     if p is None or p.study_id != study_id:
         abort(404)
-    timeline = [(r.at, "server", r.kind, json.dumps(r.detail, sort_keys=True))
-                for r in db.session.scalars(select(SessionLog).where(SessionLog.participant_id == pid))]
-    timeline += [(e.server_t, f"event {e.seq}", e.type, json.dumps(e.payload, sort_keys=True))
-                 for e in db.session.scalars(select(Event).where(Event.participant_id == pid).order_by(Event.seq)
-                                             .limit(5000))]
-    timeline.sort(key=lambda x: x[0])
+    start = max(0, request.args.get("from", 0, type=int))
+    events = list(db.session.scalars(select(Event).where(Event.participant_id == pid, Event.seq >= start)
+                                     .order_by(Event.seq).limit(PAGE_EVENTS + 1)))
+    following = events[PAGE_EVENTS] if len(events) > PAGE_EVENTS else None
+    events = events[:PAGE_EVENTS]
+    logged = select(SessionLog).where(SessionLog.participant_id == pid)  # the server's log rows of this page's time
+    if start and events:
+        logged = logged.where(SessionLog.at >= events[0].server_t)
+    if following is not None:
+        logged = logged.where(SessionLog.at < following.server_t)
+    timeline = [(r.at, "server", r.kind, shown(r.detail)) for r in db.session.scalars(logged.order_by(
+        SessionLog.id).limit(PAGE_LOG))]
+    timeline += [(e.server_t, f"event {e.seq}", e.type, shown(e.payload)) for e in events]
+    timeline.sort(key=lambda x: (x[0] is None, x[0] or utcnow()))
     trials = list(db.session.scalars(select(Trial).where(Trial.participant_id == pid).order_by(Trial.position)))
     surveys = list(db.session.scalars(select(SurveyResponse).where(SurveyResponse.participant_id == pid)))
+    pages = {"from": start, "next": following.seq if following is not None else None,
+             "previous": max(0, start - PAGE_EVENTS) if start else None}
     return render_template("admin/participant.html", study=study, p=p, timeline=timeline, trials=trials,
-                           surveys=surveys)
+                           surveys=surveys, pages=pages, shown_chars=DETAIL_CHARS)
+
+
+#: A participant's page shows PAGE_EVENTS events at a time (and at most PAGE_LOG of the server's log rows between
+#: them), each payload cut after DETAIL_CHARS characters: whatever a participant stored within the quota, the page
+#: stays under about 2 MB, escaped (the export holds everything whole).
+PAGE_EVENTS = 250
+PAGE_LOG = 250
+DETAIL_CHARS = 600
+
+
+def shown(value) -> str:
+    """A stored JSON value as a participant's page shows it: at most DETAIL_CHARS characters, then how many more."""
+    text = json.dumps(value, sort_keys=True)
+    if len(text) <= DETAIL_CHARS:
+        return text
+    return f"{text[:DETAIL_CHARS]} … ({len(text) - DETAIL_CHARS:,} characters more: the export holds them)"
 
 
 def _trial_of(study_id: str, pid: int, index: int) -> Trial:
