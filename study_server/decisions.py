@@ -78,10 +78,27 @@ def engine_use(study: Study) -> list[dict]:
     for c, r, n in db.session.execute(select(condition, reason, func.count()).where(
             SessionLog.study_id == study.id, SessionLog.kind == "engine_fallback").group_by(condition, reason)):
         reasons.setdefault(str(c), Counter())[str(r)[:120]] += n
+    circuits: dict[str, SessionLog] = {}  # the last opening or closing of each http engine's circuit
+    for row in db.session.scalars(select(SessionLog).where(SessionLog.study_id == study.id,
+                                                           SessionLog.kind == "engine_circuit")
+                                  .order_by(SessionLog.id)):
+        circuits[str((row.detail or {}).get("condition"))] = row
     return [{"condition": c.id, "engine": c.engine.name, "version": c.engine.kind.version,
              "fallback": c.engine.config.fallback.name if c.engine.name == "http" else None,
              "fallbacks": sum(reasons.get(c.id, Counter()).values()),
-             "reasons": reasons.get(c.id, Counter()).most_common(3)} for c in study.conditions if c.id != "none"]
+             "reasons": reasons.get(c.id, Counter()).most_common(3),
+             "circuit": _circuit(circuits.get(c.id))} for c in study.conditions if c.id != "none"]
+
+
+def _circuit(row: SessionLog | None) -> str | None:
+    """What the last logged change of an http engine's circuit says, for the dashboard (None: never opened)."""
+    if row is None:
+        return None
+    detail = row.detail or {}
+    if detail.get("state") == "open":
+        return (f"opened {row.at:%Y-%m-%d %H:%M:%S} UTC after {detail.get('failures')} failures "
+                f"({str(detail.get('reason'))[:120]}): asked again every {detail.get('retry_s')} s or more")
+    return f"closed {row.at:%Y-%m-%d %H:%M:%S} UTC: the engine answers again"
 
 
 def exclude(p: Participant, reason: str) -> None:

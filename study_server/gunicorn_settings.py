@@ -6,6 +6,8 @@ never reads a ``gunicorn.conf.py`` from the working directory (it would run it),
 - no control socket (by default one path per user, which every instance would take over and delete on exit);
 - no X-Forwarded-* believed by gunicorn itself (by default it takes X-Forwarded-Proto from loopback): the app
   believes exactly SCENESUGGEST_PROXY_HOPS proxies, none by default;
+- a folder of lock files shared by the workers (``on_starting``), so that at most half of them wait on http
+  engines at once (``scenesuggest.engines.http.WaitSlots``);
 - :class:`AccessLog`: an entry link's query carries Prolific's ``SESSION_ID`` (what resumes a session in another
   browser) and a pilot's signature, a one-time admin link carries its secret in its path, and a Referer repeats
   either; each request is logged as method, path and protocol with no query string, the one-time link's secret
@@ -13,6 +15,10 @@ never reads a ``gunicorn.conf.py`` from the working directory (it would run it),
 """
 
 from __future__ import annotations
+
+import os
+import shutil
+import tempfile
 
 from gunicorn.glogging import Logger
 
@@ -28,6 +34,22 @@ control_socket_disable = True
 forwarded_allow_ips = ""
 secure_scheme_headers: dict = {}
 access_log_format = '%(h)s %(l)s %(u)s %(t)s "%(r)s" %(s)s %(b)s "%(a)s"'
+
+
+def on_starting(server) -> None:
+    """Before the workers start: a folder of their own for the locks that bound how many of them wait on http
+    engines at once (``scenesuggest.engines.http.WaitSlots``), and their number, in the workers' environment."""
+    os.environ[WAITS] = tempfile.mkdtemp(prefix="scenesuggest-engine-waits-")
+    os.environ[WORKERS] = str(server.cfg.workers)
+
+
+def on_exit(server) -> None:
+    shutil.rmtree(os.environ.get(WAITS, ""), ignore_errors=True)
+
+
+#: The environment variables on_starting sets for the workers (read by study_server.studies).
+WAITS = "SCENESUGGEST_ENGINE_WAITS"
+WORKERS = "SCENESUGGEST_WORKERS"
 
 
 def logged_path(path: str) -> str:

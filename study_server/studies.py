@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import threading
-from functools import cached_property
+from functools import cached_property, partial
 from pathlib import Path
 
 from flask import abort, current_app, request, url_for
@@ -151,7 +151,21 @@ class StudyRuntime:
                     raise EngineUnavailable(f"the {spec.name} engine of the condition {condition_id!r} cannot be "
                                             f"loaded: {type(e).__name__}: {e}") from e
                 self.engine_failures.pop(condition_id, None)
+                loaded = self._engines[condition_id]
+                if hasattr(loaded, "breaker"):  # an http engine: its circuit's changes go in the study's log, and
+                    loaded.breaker.on_change = partial(self._circuit_changed, condition_id)
+                    loaded.slots = engine_wait_slots()  # at most half the server's workers wait on engines
             return self._engines[condition_id]
+
+    def _circuit_changed(self, condition_id: str, state: str, detail: dict) -> None:
+        """Log an http engine's circuit opening or closing (the admin's dashboard shows the last of each
+        condition), in the transaction of the request that saw it."""
+        from flask import has_app_context
+
+        from .models import log
+
+        if has_app_context():
+            log("engine_circuit", None, study_id=self.study.id, condition=condition_id, state=state, **detail)
 
     def loaded_engines(self) -> dict[str, SuggestionEngine]:
         """The engines loaded so far, by condition (nothing is loaded by asking)."""
@@ -275,3 +289,23 @@ class StudyRuntime:
             if s.start:
                 scene_json.load(s.start)
                 self._document(Path(s.start))
+
+
+#: The share of a server's workers that may wait on http engines at once (the others serve everyone else).
+ENGINE_WAIT_SHARE = 0.5
+
+
+def engine_wait_slots():
+    """The wait slots shared by this server's workers (``study_server.gunicorn_settings``: at most
+    ENGINE_WAIT_SHARE of them, at least one), None when not served by gunicorn that way (one process)."""
+    import math
+    import os
+
+    from scenesuggest.engines.http import WaitSlots
+
+    from .gunicorn_settings import WAITS, WORKERS
+
+    folder, workers = os.environ.get(WAITS), os.environ.get(WORKERS, "1")
+    if not folder or not os.path.isdir(folder) or not workers.isdigit():
+        return None
+    return WaitSlots(folder, max(1, math.floor(int(workers) * ENGINE_WAIT_SHARE)))

@@ -14,6 +14,11 @@ because of the engine.
 
 Connections are kept alive (one per thread) and made afresh after any failure, and when the engine has closed
 one while it was idle.
+
+A slow or failing engine never slows anyone else: the query carries at most ``wire.MAX_QUERY_OBJECTS`` objects of
+the participant's scene (:func:`.wire.query_scene`), so a participant cannot make it slow; a circuit breaker
+(:class:`Breaker`) falls back at once while the engine keeps failing and tries it again now and then; and a
+server's workers share :class:`WaitSlots`, so that at most half of them wait on engines at once.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import contextlib
 import http.client
 import ipaddress
 import math
+import os
 import select
 import socket
 import ssl
@@ -49,7 +55,8 @@ DEFAULT_MAX_SUGGESTIONS = 40
 DEFAULT_MAX_BYTES = 1 << 20
 OPTIONS = ("url", "timeout_ms", "fallback", "max_suggestions", "max_bytes")
 
-__all__ = ["ANSWER_SCHEMA", "EngineUnavailable", "HttpEngine", "KIND", "QUERY_SCHEMA", "parse_answer"]
+__all__ = ["ANSWER_SCHEMA", "Breaker", "EngineUnavailable", "HttpEngine", "KIND", "QUERY_SCHEMA", "WaitSlots",
+           "parse_answer"]
 
 
 @dataclass(frozen=True)
@@ -115,6 +122,94 @@ class HttpKind(EngineKind):
 
         fallback = context.load(config.fallback) if context.load is not None else load(config.fallback, context)
         return HttpEngine(config, fallback)
+
+
+#: The circuit breaker (:class:`Breaker`): failures in a row that open it, how long it stays open at first
+#: (seconds; each failed probe doubles it, up to BREAKER_MAX_S).
+BREAKER_FAILURES = 3
+BREAKER_OPEN_S = 10.0
+BREAKER_MAX_S = 300.0
+
+
+class Breaker:
+    """While the engine is failing, queries stop paying its timeout: after BREAKER_FAILURES failures in a row (a
+    timeout, a refused connection, an error status, an answer that breaks a rule) the circuit opens and every
+    query gets the fallback's list at once; after BREAKER_OPEN_S seconds one query (the first to come) probes the
+    engine while the others still fall back; an answer closes the circuit, a failure opens it again for twice as
+    long (up to BREAKER_MAX_S). ``on_change(state, detail)`` hears each opening (``"open"``: the last reason, the
+    failures, the seconds until the next probe) and closing (``"closed"``). One per engine and process; thread-safe.
+    """
+
+    def __init__(self, on_change=None, clock=time.monotonic):
+        self.on_change = on_change
+        self._clock = clock
+        self._lock = threading.Lock()
+        self.failures = 0
+        self.state = "closed"  # closed | open | probing
+        self._until = 0.0
+        self._open_s = BREAKER_OPEN_S
+
+    def refusal(self) -> str | None:
+        """None when a query may go to the engine now (the circuit is closed, or this query is the probe); else
+        why it falls back at once."""
+        with self._lock:
+            if self.state == "closed":
+                return None
+            now = self._clock()
+            if self.state == "open" and now >= self._until:
+                self.state = "probing"
+                return None
+            wait = max(0.0, self._until - now)
+            return (f"the engine failed {self.failures} times in a row: not asked for {wait:.0f} s more"
+                    if self.state == "open" else "the engine failed: another query is trying it again")
+
+    def record(self, failure: str | None) -> None:
+        """The outcome of a query sent to the engine: None for an answer, else why it failed."""
+        with self._lock:
+            if failure is None:
+                changed = self.state != "closed"
+                self.failures, self.state, self._open_s = 0, "closed", BREAKER_OPEN_S
+                event = ("closed", {}) if changed else None
+            else:
+                self.failures += 1
+                event = None
+                if self.state == "probing" or self.failures >= BREAKER_FAILURES:
+                    if self.state == "probing":
+                        self._open_s = min(2 * self._open_s, BREAKER_MAX_S)
+                    self.state, self._until = "open", self._clock() + self._open_s
+                    event = ("open", {"reason": failure, "failures": self.failures, "retry_s": self._open_s})
+        if event is not None and self.on_change is not None:
+            self.on_change(*event)
+
+
+class WaitSlots:
+    """At most ``count`` queries wait on engines at once among the processes sharing ``folder`` (one server's
+    workers): a query holds an exclusive lock on one of ``count`` files while it is sent and answered, and one that
+    finds every file locked gets the fallback's list at once. A sync worker waiting on an engine serves nobody
+    else, so this keeps the rest of a server's workers for everyone else however slow the engine is. The kernel
+    drops a process's locks when it dies: a killed worker holds no slot."""
+
+    def __init__(self, folder: str | Path, count: int):
+        self.folder, self.count = Path(folder), count
+
+    @contextlib.contextmanager
+    def held(self):
+        """Yields whether a slot was free (and holds it meanwhile)."""
+        import fcntl
+
+        for i in range(self.count):
+            fd = os.open(self.folder / f"slot-{i}", os.O_RDWR | os.O_CREAT, 0o600)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                continue
+            try:
+                yield True
+            finally:
+                os.close(fd)  # closing the file releases the lock
+            return
+        yield False
 
 
 class _Watchdog:
@@ -204,6 +299,9 @@ class HttpEngine:
         self._watchdog = _Watchdog()
         #: Answers replaced by the fallback's in this process (what /healthz reports).
         self.fallbacks = 0
+        self.breaker = Breaker()
+        #: Shared with the server's other workers (:class:`WaitSlots`); None: no bound (one process).
+        self.slots: WaitSlots | None = None
         self._count = threading.Lock()
 
     @property
@@ -220,12 +318,25 @@ class HttpEngine:
         allowed = set(self.categories) if only is None else set(only) & set(self.categories)
         limit = min(top or self.options.max_suggestions, self.options.max_suggestions)
         try:
+            refused = self.breaker.refusal()
+            if refused is not None:
+                raise EngineUnavailable(refused)
             body = orjson.dumps(query_document(prep, mode, limit, allowed), option=orjson.OPT_SERIALIZE_NUMPY)
-            try:
-                doc = orjson.loads(self._exchange(body))
-            except orjson.JSONDecodeError:  # NaN, Infinity and 1e999 are not JSON either
-                raise EngineUnavailable("invalid answer: not JSON") from None
-            found = parse_answer(doc, allowed, self.categories, prep.point, prep.normal, self.options.max_suggestions)
+            with self.slots.held() if self.slots is not None else contextlib.nullcontext(True) as free:
+                if not free:
+                    raise EngineUnavailable(f"the engine is busy: {self.slots.count} queries of this server "
+                                            "already wait on engines")
+                try:
+                    try:
+                        doc = orjson.loads(self._exchange(body))
+                    except orjson.JSONDecodeError:  # NaN, Infinity and 1e999 are not JSON either
+                        raise EngineUnavailable("invalid answer: not JSON") from None
+                    found = parse_answer(doc, allowed, self.categories, prep.point, prep.normal,
+                                         self.options.max_suggestions)
+                except EngineUnavailable as e:
+                    self.breaker.record(str(e))
+                    raise
+            self.breaker.record(None)
         except EngineUnavailable as e:
             with self._count:
                 self.fallbacks += 1

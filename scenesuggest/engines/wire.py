@@ -11,15 +11,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection, Mapping
+from dataclasses import replace
 
 import numpy as np
 
 from ..scenes import frames, poses
+from ..scenes.scene import Scene
 from ..scenes.scene_json import finite, scene_to_dict
 from ..suggestion.suggest import MODES, Suggestion
 from ..suggestion.suggestable import suggestable
 
 PROTOCOL_VERSION = 1
+#: The most objects of a participant's scene a query carries (:func:`query_scene`).
+MAX_QUERY_OBJECTS = 400
 #: A placement's rotation must be orthonormal to this tolerance, and its origin this close to the click (metres).
 RIGID_TOLERANCE = 1e-4
 MAX_DISTANCE_M = 100.0
@@ -38,7 +42,12 @@ QUERY_SCHEMA = {
     "properties": {
         "protocol": {"const": PROTOCOL_VERSION},
         "scene": {"type": "object", "description": "the participant's scene in the native scene format "
-                                                   "(scenesuggest-scene, version 1)"},
+                                                   "(scenesuggest-scene, version 1); beyond "
+                                                   f"{MAX_QUERY_OBJECTS} objects, the clicked object with what "
+                                                   "supports it and what stands on it, then the objects nearest "
+                                                   "the click"},
+        "objects_left_out": {"type": "integer", "minimum": 0,
+                             "description": "how many objects of the participant's scene the summary leaves out"},
         "parent": {"type": "string", "description": "id of the clicked object"},
         "point": {**_VEC3, "description": "the clicked point"},
         "normal": {**_VEC3, "description": "the unit surface normal there"},
@@ -77,11 +86,45 @@ class EngineUnavailable(Exception):
 
 
 def query_document(prep, mode: str, top: int, categories: Collection[str]) -> dict:
-    """The JSON document POSTed for a prepared query (:data:`QUERY_SCHEMA`)."""
-    return {"protocol": PROTOCOL_VERSION, "scene": scene_to_dict(prep.query.scene), "parent": prep.query.parent_id,
+    """The JSON document POSTed for a prepared query (:data:`QUERY_SCHEMA`): the scene summarised to at most
+    MAX_QUERY_OBJECTS objects (:func:`query_scene`)."""
+    scene, left_out = query_scene(prep.query.scene, prep.query.parent_id, prep.point)
+    return {"protocol": PROTOCOL_VERSION, "scene": scene_to_dict(scene), "objects_left_out": left_out,
+            "parent": prep.query.parent_id,
             "point": [float(x) for x in prep.point], "normal": [float(x) for x in prep.normal],
             "surface_type": prep.surface_type, "scene_type": prep.scene_type, "mode": mode, "top": int(top),
             "categories": sorted(categories)}
+
+
+def query_scene(scene: Scene, parent_id: str, point) -> tuple[Scene, int]:
+    """(the scene an engine is sent, how many objects it leaves out): the whole scene up to MAX_QUERY_OBJECTS
+    objects; beyond, the clicked object with what supports it and what stands on it, then the others nearest the
+    click (metres, world frame; each with what supports it, so that the summary is a scene), so that the size of
+    a query — and an engine's time — does not grow with what a participant piles up."""
+    if len(scene) <= MAX_QUERY_OBJECTS:
+        return scene, 0
+    objects = scene.objects
+    kept: dict[str, None] = {}
+
+    def keep(object_id: str | None) -> None:
+        chain = []
+        while object_id is not None and object_id not in kept and object_id in objects:
+            chain.append(object_id)
+            object_id = objects[object_id].parent
+        if len(kept) + len(chain) <= MAX_QUERY_OBJECTS:
+            kept.update(dict.fromkeys(reversed(chain)))
+
+    keep(parent_id)
+    for o in scene.children(parent_id):
+        keep(o.id)
+    ids = list(objects)
+    centres = np.array([objects[i].transform[:3, 3] for i in ids], dtype=float)
+    for k in np.argsort(np.linalg.norm(centres - np.asarray(point, dtype=float), axis=1), kind="stable"):
+        if len(kept) >= MAX_QUERY_OBJECTS:
+            break
+        keep(ids[k])
+    summary = {k: v for k, v in objects.items() if k in kept}
+    return replace(scene, objects=summary), len(scene) - len(summary)
 
 
 def _placements(items: list, point: np.ndarray) -> np.ndarray:

@@ -4,9 +4,11 @@ does, the participant gets a list within the timeout (the fallback's, with the r
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -271,6 +273,38 @@ def test_a_condition_served_by_a_hostile_engine_still_suggests_and_logs_why(tmp_
     assert "<td>1</td><td>no answer within 300 ms (1)</td>" in table and external not in table
 
 
+def test_an_open_circuit_answers_participants_at_once_and_the_admin_sees_it(tmp_path, external, demo_resources):
+    from sqlalchemy import select
+    from werkzeug.security import generate_password_hash
+
+    from study_server.extensions import db
+    from study_server.models import SessionLog
+
+    app = make_app(tmp_path, studies=[http_study(tmp_path, f"{external}/hang")],
+                   ADMIN_PASSWORD_HASH=generate_password_hash("admin-password"))
+    client = app.test_client()
+    b = to_trials(client)
+    start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")
+    body = {"trial": b["trial"]["index"], "scene": {"objects": start["objects"]}, "parent": "room",
+            "point": [0.0, 0.0, 0.5], "normal": [0, 1, 0]}
+    took = []
+    for _ in range(5):
+        started = time.monotonic()
+        r = client.post("/api/suggest", headers=auth(b), json=body)
+        took.append(time.monotonic() - started)
+        assert r.status_code == 200 and r.json["engine"] == "paper"
+    assert min(took[:3]) >= 0.29 and max(took[3:]) < 0.25, took  # the circuit opened after three timeouts
+    with app.app_context():
+        rows = db.session.scalars(select(SessionLog).where(SessionLog.kind == "engine_circuit")).all()
+        assert [(r.study_id, r.detail["condition"], r.detail["state"], r.detail["failures"]) for r in rows] == [
+            ("demo", "full", "open", 3)]
+    admin = app.test_client()
+    page = admin.get("/admin/login")
+    admin.post("/admin/login", data={"csrf_token": csrf(page), "password": "admin-password"})
+    dashboard = admin.get("/admin/").get_data(as_text=True)
+    assert "after 3 failures (no answer within 300 ms): asked again every 10.0 s or more" in dashboard
+
+
 def test_the_reference_engine_server_and_the_http_engine_keep_the_published_schemas(demo_priors, tmp_path):
     """`scenesuggest engine serve` in its own process answers the http engine; the query sent and the answer
     given validate against the schemas the API's OpenAPI document publishes, and the answer is the served
@@ -322,3 +356,135 @@ def test_the_reference_engine_server_and_the_http_engine_keep_the_published_sche
     finally:
         server.kill()
         server.wait()
+
+
+def test_a_failing_engine_stops_costing_its_timeout_and_is_tried_again_later(external, demo_priors, monkeypatch):
+    """Three timeouts in a row open the circuit: the next queries get the fallback's list at once; after the open
+    time one query probes the engine (a failure opens it again for twice as long); an answer closes it. Each
+    opening and closing is told to on_change."""
+    from scenesuggest.engines import http
+
+    monkeypatch.setattr(http, "BREAKER_OPEN_S", 0.5)
+    engine = http_engine(f"{external}/hang", demo_priors)
+    heard = []
+    engine.breaker.on_change = lambda state, detail: heard.append((state, detail))
+
+    def timed():
+        started = time.monotonic()
+        found = engine.suggest(a_query(), "full", top=3)
+        return time.monotonic() - started, found.fallback
+
+    paid = [timed() for _ in range(3)]
+    assert all(s >= 0.29 and reason == "no answer within 300 ms" for s, reason in paid)
+    assert heard == [("open", {"reason": "no answer within 300 ms", "failures": 3, "retry_s": 0.5})]
+    for _ in range(20):
+        took, reason = timed()
+        assert took < 0.1 and reason.startswith("the engine failed 3 times in a row: not asked for")
+    time.sleep(0.55)
+    took, reason = timed()  # the probe: the engine still hangs
+    assert took >= 0.29 and reason == "no answer within 300 ms" and heard[-1][1]["retry_s"] == 1.0
+    engine.options = replace(engine.options, url=f"{external}/good")
+    engine._path = "/good"
+    time.sleep(1.05)
+    assert timed()[1] is None and heard[-1] == ("closed", {})  # it answers again: closed
+    assert timed()[1] is None and len(heard) == 3
+
+
+def test_only_one_query_probes_an_open_circuit_while_the_others_fall_back():
+    from scenesuggest.engines.http import BREAKER_FAILURES, Breaker
+
+    now = [0.0]
+    breaker = Breaker(clock=lambda: now[0])
+    for _ in range(BREAKER_FAILURES - 1):
+        breaker.record("HTTP 500")
+    assert breaker.refusal() is None and breaker.state == "closed"  # not yet
+    breaker.record("HTTP 500")
+    assert breaker.state == "open" and "3 times in a row" in breaker.refusal()
+    now[0] = 10.0
+    assert breaker.refusal() is None and breaker.state == "probing"  # the first query after the open time probes
+    assert breaker.refusal() == "the engine failed: another query is trying it again"
+    breaker.record(None)
+    assert breaker.state == "closed" and breaker.failures == 0 and breaker.refusal() is None
+
+
+def test_a_scene_piled_high_is_sent_summarised_so_a_participant_cannot_slow_the_engine():
+    """2,500 objects on the floor: the query carries 400 — the clicked table, what supports it, what stands on it,
+    then the objects nearest the click — each with what supports it, and says how many it left out."""
+    import numpy as np
+
+    from scenesuggest.engines.wire import MAX_QUERY_OBJECTS, query_scene
+    from scenesuggest.scenes.scene import ObjectInstance, Scene
+
+    def at(x, z, y=0.0):
+        t = np.eye(4)
+        t[:3, 3] = (x, y, z)
+        return t
+
+    objects = {"room": ObjectInstance("room", "r", "Room", np.eye(4), (20.0, 3.0, 20.0)),
+               "table": ObjectInstance("table", "t", "Table", at(9.0, 9.0), (1.0, 0.7, 1.0), parent="room"),
+               "cup": ObjectInstance("cup", "c", "Cup", at(9.0, 9.0, 0.7), (0.1, 0.1, 0.1), parent="table")}
+    for i in range(2500):
+        objects[f"box{i}"] = ObjectInstance(f"box{i}", "b", "Box", at(i % 50 * 0.3, i // 50 * 0.3), (0.2, 0.2, 0.2),
+                                            parent="room")
+    scene = Scene("big", "LivingRoom", objects)
+    summary, left_out = query_scene(scene, "table", (9.0, 0.7, 9.0))
+    assert len(summary) == MAX_QUERY_OBJECTS and left_out == len(scene) - MAX_QUERY_OBJECTS
+    assert {"room", "table", "cup"} <= set(summary.objects)
+    assert all(o.parent is None or o.parent in summary.objects for o in summary)  # still a scene
+    kept = [summary.objects[k].transform[:3, 3] for k in summary.objects if k.startswith("box")]
+    dropped = [o.transform[:3, 3] for k, o in scene.objects.items() if k.startswith("box") and k not in summary.objects]
+    near = lambda p: np.hypot(p[0] - 9.0, p[2] - 9.0)  # noqa: E731
+    assert max(map(near, kept)) <= min(map(near, dropped)) + 1e-9  # the nearest were kept
+    small = Scene("small", "LivingRoom", dict(list(objects.items())[:50]))
+    assert query_scene(small, "table", (9.0, 0.7, 9.0)) == (small, 0)
+
+
+def test_waits_on_engines_take_at_most_their_share_of_a_servers_workers(external, demo_priors, tmp_path):
+    """One slot, held by another process (another worker waiting on an engine): a query falls back at once, as
+    busy, without counting against the engine; once that process is gone (killed: the kernel drops its lock), the
+    engine is asked again."""
+    from scenesuggest.engines.http import WaitSlots
+
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time\nfrom scenesuggest.engines.http import WaitSlots\n"
+        "with WaitSlots(sys.argv[1], 1).held() as free:\n    print(free, flush=True)\n    time.sleep(60)\n"),
+        str(tmp_path)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "True"
+        engine = http_engine(f"{external}/good", demo_priors)
+        engine.slots = WaitSlots(tmp_path, 1)
+        started = time.monotonic()
+        found = engine.suggest(a_query(), "full", top=3)
+        assert time.monotonic() - started < 0.2 and found.engine == "paper"
+        assert found.fallback == "the engine is busy: 1 queries of this server already wait on engines"
+        assert engine.breaker.failures == 0  # busy is not the engine's failure
+        with WaitSlots(tmp_path, 2).held() as free:  # a second slot is free
+            assert free
+    finally:
+        holder.kill()
+        holder.wait()
+    assert engine.suggest(a_query(), "full", top=3).fallback is None
+
+
+def test_served_workers_share_one_folder_of_wait_slots(tmp_path, monkeypatch):
+    """gunicorn's on_starting (study_server.gunicorn_settings) gives the workers a folder and their number; an app
+    then bounds its http engines' waits to half of them."""
+    from study_server import gunicorn_settings
+    from study_server.studies import engine_wait_slots
+
+    monkeypatch.delenv(gunicorn_settings.WAITS, raising=False)
+    assert engine_wait_slots() is None  # one process: no bound
+
+    class Server:
+        class cfg:
+            workers = 5
+
+    monkeypatch.setenv(gunicorn_settings.WAITS, "")  # restored after the test, as is the next
+    monkeypatch.setenv(gunicorn_settings.WORKERS, "1")
+    gunicorn_settings.on_starting(Server)
+    try:
+        slots = engine_wait_slots()
+        assert slots.count == 2 and slots.folder == Path(os.environ[gunicorn_settings.WAITS])
+    finally:
+        gunicorn_settings.on_exit(Server)
+    assert not slots.folder.exists()
