@@ -22,6 +22,9 @@ binds a free loopback port, writes it to PORT_FILE and serves until killed. Path
 /idle-close  the good answer, then the connection closed 0.2 s later (as servers close idle connections)
 /flaky?k=K   for each K: 500 on the first query, the good answer on the next, and so on
 /count       200 {"connections": n}: connections accepted so far (for keep-alive checks; GET or POST)
+/close       the good answer with Connection: close, then the connection closed
+/http10      the good answer as Python's http.server writes it: HTTP/1.0, no Content-Length, the end of the
+             answer the connection's close
 """
 
 from __future__ import annotations
@@ -134,6 +137,13 @@ def serve(conn: socket.socket) -> None:
                 answer["suggestions"][0].update(attachment_face="bottom", placement=[
                     1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, x, y, z, 1.0])  # front up
                 send(conn, "200 OK", json.dumps(answer).encode())
+            elif path == "/close":
+                send(conn, "200 OK", json.dumps(good_answer(query)).encode(), "Connection: close\r\n")
+                return
+            elif path == "/http10":
+                conn.sendall(b"HTTP/1.0 200 OK\r\nServer: BaseHTTP/0.6 Python/3.11\r\nContent-Type: application/json"
+                             b"\r\n\r\n" + json.dumps(good_answer(query)).encode())
+                return
             elif path == "/idle-close":
                 send(conn, "200 OK", json.dumps(good_answer(query)).encode())
                 time.sleep(0.2)

@@ -12,8 +12,11 @@ fallback engine's list instead, with the reason (:attr:`~scenesuggest.suggestion
 participant never waits longer than the timeout (and the fallback's own time) for a list and never sees an error
 because of the engine.
 
-Connections are kept alive (one per thread) and made afresh after any failure, and when the engine has closed
-one while it was idle.
+The exchange is urllib3's (kept-alive connections in a pool, made afresh after any failure and when the engine has
+closed one while it was idle; any HTTP/1.0 or 1.1 answer, whether or not the connection stays open); this module
+adds only what it does not do: a deadline for the whole exchange (the name looked up in a thread, since a lookup
+has no timeout of its own, and a watchdog that shuts a connection at the deadline however the engine dribbles its
+bytes), and a cap on the answer's size.
 
 A slow or failing engine never slows anyone else: the query carries at most ``wire.MAX_QUERY_OBJECTS`` objects of
 the participant's scene (:func:`.wire.query_scene`), so a participant cannot make it slow; a circuit breaker
@@ -24,11 +27,9 @@ server's workers share :class:`WaitSlots`, so that at most half of them wait on 
 from __future__ import annotations
 
 import contextlib
-import http.client
 import ipaddress
 import math
 import os
-import select
 import socket
 import ssl
 import threading
@@ -40,6 +41,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 import orjson
+import urllib3
 
 from ..errors import SceneSuggestError
 from ..scenes.taxonomy import Taxonomy
@@ -263,9 +265,12 @@ class _Watchdog:
                 self._wake.wait(wait)
 
 
-class _Connection(threading.local):
-    conn: http.client.HTTPConnection | None = None
-    #: The engine's own time for the last answer on this thread (its Server-Timing header), None if unsaid.
+class _Exchange(threading.local):
+    """This thread's exchange in progress: its deadline (monotonic seconds) and watchdog key; and the engine's own
+    time for the last answer on this thread (its Server-Timing header), None if unsaid."""
+
+    deadline: float = 0.0
+    key: int = 0
     server_ms: float | None = None
 
 
@@ -295,8 +300,10 @@ class HttpEngine:
         self._tls = ssl.create_default_context() if parts.scheme == "https" else None
         self._host, self._port = parts.hostname, parts.port or (443 if self._tls else 80)
         self._path = (parts.path or "/") + (f"?{parts.query}" if parts.query else "")
-        self._local = _Connection()
+        self._local = _Exchange()
         self._watchdog = _Watchdog()
+        self._pool: urllib3.HTTPConnectionPool | None = None
+        self._pool_lock = threading.Lock()
         #: Answers replaced by the fallback's in this process (what /healthz reports).
         self.fallbacks = 0
         self.breaker = Breaker()
@@ -350,133 +357,116 @@ class HttpEngine:
         return self._local.server_ms
 
     def close(self) -> None:
-        """Close this thread's connection (the next query opens a new one)."""
-        if self._local.conn is not None:
-            self._local.conn.close()
-            self._local.conn = None
+        """Close every connection to the engine (the next query opens a new one)."""
+        with self._pool_lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.close()
 
     # --- the exchange ----------------------------------------------------------------------------------------
-    def _exchange(self, body: bytes) -> bytes:
-        """POST ``body``; the answer's bytes. Everything within the timeout, or :class:`EngineUnavailable`.
+    def _connections(self) -> urllib3.HTTPConnectionPool:
+        """The pool of kept-alive connections (urllib3: any HTTP/1.0 or 1.1 answer, a connection the engine closed
+        noticed before it is used again), its connections made by :meth:`_connect`."""
+        with self._pool_lock:
+            if self._pool is None:
+                engine = self
+                base = urllib3.connection.HTTPSConnection if self._tls else urllib3.connection.HTTPConnection
 
-        A kept-alive connection that the engine closed while it was idle (servers do after a few seconds) is
-        noticed before it is used, or when it fails before the first byte of an answer, and the query is sent
-        once more on a new connection if time remains."""
-        deadline = time.monotonic() + self.options.timeout_ms / 1000
-        self._local.server_ms = None
-        key = threading.get_ident()
+                class Watched(base):  # the name resolved, connected and watched within this exchange's deadline
+                    def _new_conn(self):
+                        return engine._connect()
+
+                    def request(self, *args, **kwargs):
+                        if self.sock is not None:  # a kept-alive connection: watched from now on
+                            engine._watchdog.arm(engine._local.key, engine._local.deadline, self.sock)
+                        return super().request(*args, **kwargs)
+
+                kind = urllib3.HTTPSConnectionPool if self._tls else urllib3.HTTPConnectionPool
+                extra = {"ssl_context": self._tls} if self._tls else {}
+                self._pool = kind(self._host, self._port, maxsize=8, block=False, retries=False, **extra)
+                self._pool.ConnectionCls = Watched
+            return self._pool
+
+    def _exchange(self, body: bytes) -> bytes:
+        """POST ``body``; the answer's bytes. Everything within the timeout (urllib3's timeouts bound each step;
+        the watchdog shuts a connection at the deadline however the engine dribbles its bytes), or
+        :class:`EngineUnavailable`."""
+        local = self._local
+        local.deadline, local.key = time.monotonic() + self.options.timeout_ms / 1000, threading.get_ident()
+        local.server_ms = None
+        response = None
         try:
-            try:
-                return self._post(body, deadline, key)
-            except _Stale:
-                self.close()
-                return self._post(body, deadline, key)
+            left = self._remaining()
+            response = self._connections().urlopen(
+                "POST", self._path, body=body, headers={"Content-Type": "application/json",
+                                                        "Accept": "application/json"},
+                retries=False, redirect=False, preload_content=False, release_conn=False,
+                timeout=urllib3.Timeout(connect=left, read=left))
+            answer = self._read(response)
+            response.release_conn()  # read whole: the connection may carry the next query
+            return answer
         except EngineUnavailable:
-            self.close()
+            self._discard(response)
             raise
         except Exception as e:  # noqa: BLE001 - whatever the engine does, the participant gets the fallback's list
-            self.close()
-            if time.monotonic() >= deadline - 1e-3:
+            self._discard(response)
+            if time.monotonic() >= local.deadline - 1e-3 or isinstance(e, urllib3.exceptions.TimeoutError):
                 raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms") from None
-            cause = e.__cause__ if isinstance(e, _Stale) and e.__cause__ else e
+            cause = getattr(e, "reason", None) or e
             raise EngineUnavailable(f"connection failed ({type(cause).__name__})") from None
         finally:
-            if not self._watchdog.disarm(key):  # shut at the deadline (or never armed): not to be used again
-                self.close()
+            self._watchdog.disarm(local.key)
 
-    def _remaining(self, deadline: float) -> float:
-        left = deadline - time.monotonic()
+    def _discard(self, response) -> None:
+        """After a failure: the answer's connection closed, never reused."""
+        if response is not None:
+            response.close()
+            if response.connection is not None:
+                response.connection.close()
+            response.release_conn()
+
+    def _remaining(self) -> float:
+        left = self._local.deadline - time.monotonic()
         if left <= 0:
             raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms")
         return left
 
-    def _open(self, deadline: float, key: int) -> http.client.HTTPConnection:
-        """A new connection, made within the deadline: the name resolved, connected, TLS shaken hands — each
-        step watched, so that no step can outlast the timeout."""
+    def _connect(self) -> socket.socket:
+        """A new connection's socket, made within the deadline: the name resolved (in a thread: a lookup has no
+        timeout of its own), connected — and watched until the exchange ends, so that no step (the TLS handshake
+        that urllib3 does next among them) can outlast the timeout."""
         last: Exception | None = None
-        for family, kind, proto, _, address in _resolve(self._host, self._port, self._remaining(deadline)):
+        for family, kind, proto, _, address in _resolve(self._host, self._port, self._remaining()):
             sock = socket.socket(family, kind, proto)
-            self._watchdog.arm(key, deadline, sock)
+            self._watchdog.arm(self._local.key, self._local.deadline, sock)
             try:
-                sock.settimeout(self._remaining(deadline))
+                sock.settimeout(self._remaining())
                 sock.connect(address)
-                break
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                return sock
             except OSError as e:
                 last = e
                 sock.close()
-        else:
-            raise last or OSError("the engine's host has no address")
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        if self._tls is not None:
-            sock = self._tls.wrap_socket(sock, server_hostname=self._host, do_handshake_on_connect=False)
-            self._watchdog.arm(key, deadline, sock)
-            sock.settimeout(self._remaining(deadline))
-            sock.do_handshake()
-        conn = http.client.HTTPConnection(self._host, self._port)
-        conn.sock = sock
-        return conn
+        raise last or OSError("the engine's host has no address")
 
-    def _post(self, body: bytes, deadline: float, key: int) -> bytes:
-        conn = self._local.conn
-        if conn is not None and _closed_by_peer(conn.sock):
-            self.close()
-            conn = None
-        reused = conn is not None
-        if conn is None:
-            conn = self._local.conn = self._open(deadline, key)
-        else:
-            self._watchdog.arm(key, deadline, conn.sock)
-        sock = conn.sock  # the connection lets go of it when the engine says it will close: the answer still reads it
-        sock.settimeout(self._remaining(deadline))
-        try:
-            conn.request("POST", self._path, body, {"Content-Type": "application/json", "Accept": "application/json"})
-            response = conn.getresponse()
-        except (ConnectionError, http.client.BadStatusLine) as e:
-            if reused and time.monotonic() < deadline:
-                raise _Stale() from e
-            raise
-        try:
-            return self._read(response, sock, deadline)
-        finally:
-            response.close()  # whatever happened: the socket the answer holds is not left to the collector
-
-    def _read(self, response: http.client.HTTPResponse, sock, deadline: float) -> bytes:
+    def _read(self, response) -> bytes:
         """The answer's body, at most ``max_bytes``, within the deadline."""
-        self._local.server_ms = _server_ms(response.getheader("Server-Timing"))
+        self._local.server_ms = _server_ms(response.headers.get("Server-Timing"))
         if response.status != 200:
             raise EngineUnavailable(f"HTTP {response.status}")
         cap = self.options.max_bytes
-        length = response.getheader("Content-Length")
+        length = response.headers.get("Content-Length")
         if length is not None and (not (length.isascii() and length.isdigit()) or int(length) > cap):
             raise EngineUnavailable(f"answer larger than {cap} bytes")
         chunks, size = [], 0
-        while True:
-            sock.settimeout(self._remaining(deadline))
-            chunk = response.read(min(65536, cap + 1 - size))  # read, not read1: it ends the response
-            if not chunk:
-                break
+        for chunk in response.stream(65536, decode_content=False):
             chunks.append(chunk)
             size += len(chunk)
             if size > cap:
                 raise EngineUnavailable(f"answer larger than {cap} bytes")
-        self._remaining(deadline)
-        if response.will_close:
-            self.close()
+            self._remaining()
+        self._remaining()
         return b"".join(chunks)
-
-
-class _Stale(Exception):
-    """A kept-alive connection failed before the first byte of an answer: the engine had closed it."""
-
-
-def _closed_by_peer(sock) -> bool:
-    """Whether an idle kept-alive connection has something to read — the engine's close (or bytes it should not
-    have sent): either way it cannot carry the next query."""
-    try:
-        readable, _, _ = select.select([sock], [], [], 0)
-    except (OSError, ValueError):
-        return True
-    return bool(readable)
 
 
 def _resolve(host: str, port: int, timeout: float) -> list:

@@ -488,3 +488,13 @@ def test_served_workers_share_one_folder_of_wait_slots(tmp_path, monkeypatch):
     finally:
         gunicorn_settings.on_exit(Server)
     assert not slots.folder.exists()
+
+
+@pytest.mark.parametrize("path", ["close", "http10"])
+def test_an_answer_that_closes_its_connection_is_an_answer(external, demo_priors, path):
+    """Connection: close, or HTTP/1.0 as Python's http.server answers (the end of the body the connection's
+    close): valid answers within the deadline, used, again and again."""
+    engine = http_engine(f"{external}/{path}", demo_priors)
+    for _ in range(3):
+        found = engine.suggest(a_query(), "full", top=3)
+        assert found.fallback is None and found.engine == "http" and len(found) == 3
