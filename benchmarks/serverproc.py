@@ -173,7 +173,8 @@ class NginxProxy:
         write_deploy_files(prefix / "deploy", Deployment(
             "127.0.0.1", app_ports, self.http_port, self.https_port, address="127.0.0.1", cert=str(self.cert),
             key=str(key), nginx_dir=str(prefix / "deploy" / "nginx"), cache=str(prefix / "cache"),
-            acme_root=str(prefix / "acme"), access_log=str(prefix / "access.log"), access_log_format=log_format))
+            acme_root=str(prefix / "acme"), access_log=str(prefix / "access.log"), access_log_format=log_format,
+            error_log=str(prefix / "error.log")))
         (prefix / "nginx.conf").write_text(NGINX_CONF.format(prefix=prefix))
         self.https = f"https://127.0.0.1:{self.https_port}"
         self.http = f"http://127.0.0.1:{self.http_port}"

@@ -58,7 +58,9 @@ def read_npz(path: str | Path, only: Collection[str] | None = None) -> dict[str,
                                         f"({MAX_EXPANSION} times its size): not a file this project wrote",
                                         file=str(path))
             return {i.filename.removesuffix(".npy"): _member(z, i, path) for i in infos}
-    except (OSError, zipfile.BadZipFile, EOFError, ValueError, NotImplementedError) as e:
+    except SceneSuggestError:
+        raise
+    except Exception as e:  # noqa: BLE001 - zlib, the .npy header's parser, zipfile: any damage is the file's
         raise SceneSuggestError(f"not a readable .npz file ({type(e).__name__}: {e})", file=str(path)) from None
 
 

@@ -400,12 +400,15 @@ def _copy_rows(tool: str, archive: Path, chosen: Path, url: str, env: dict) -> d
     return {"participants": participants, "events": events}
 
 
-def _columns_and_counted(con) -> tuple[dict[str, set[str]], list[str]]:
-    """Each table's column names in the database, and the tables whose integer ``id`` a sequence gives."""
+def _columns_and_counted(con) -> tuple[dict[str, set[str]], dict[str, int]]:
+    """Each table's column names in the database, and the tables whose integer ``id`` a sequence gives, with the
+    largest id a restore takes there (ID_LIMIT for ``integer``; for ``bigint``, which event ids outgrow 32 bits
+    into, as many arrivals left as ``integer`` keeps)."""
     found = {t: inspect(con).get_columns(t) for t in inspect(con).get_table_names()}
     columns = {t: {c["name"] for c in cols} for t, cols in found.items()}
-    counted = [t for t, cols in found.items()  # tables whose id a sequence gives
-               if any(c["name"] == "id" and str(c["type"]) in ("INTEGER", "BIGINT") for c in cols)]
+    limits = {"INTEGER": ID_LIMIT, "BIGINT": 2**63 - 1 - (2**31 - 1 - ID_LIMIT)}
+    counted = {t: limits[str(c["type"])] for t, cols in found.items() for c in cols  # ids a sequence gives
+               if c["name"] == "id" and str(c["type"]) in limits}
     return columns, counted
 
 
@@ -431,18 +434,19 @@ def _load_copy_blocks(cur, lines, columns: dict[str, set[str]]) -> None:
                 copy.write(row)
 
 
-def _set_sequences(cur, counted: list[str]) -> None:
+def _set_sequences(cur, counted: dict[str, int]) -> None:
     """Set the id sequence of each table of ``counted`` (but alembic_version) after its largest id, once every id
-    is one the app can have written (from 1 to ID_LIMIT: a sequence carried across keeps room for arrivals)."""
+    is one the app can have written (from 1 to the table's limit: a sequence carried across keeps room for a
+    billion arrivals)."""
     from psycopg import sql
 
-    for table in counted:
+    for table, limit in counted.items():
         if table != "alembic_version":
             low, high = cur.execute(sql.SQL("SELECT MIN(id), MAX(id) FROM {}").format(
                 sql.Identifier("public", table))).fetchone()
-            if low is not None and (low < 1 or high > ID_LIMIT):
+            if low is not None and (low < 1 or high > limit):
                 raise BackupError(f"{table}.id: ids from {low} to {high}, where the app writes ids from 1 up "
-                                  f"(at most {ID_LIMIT}); nothing was kept")
+                                  f"(at most {limit}); nothing was kept")
             cur.execute(sql.SQL("SELECT setval(pg_get_serial_sequence({}, 'id'), "
                                 "COALESCE(MAX(id), 0) + 1, false) FROM {} "
                                 "WHERE pg_get_serial_sequence({}, 'id') IS NOT NULL").format(

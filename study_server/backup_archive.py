@@ -97,6 +97,20 @@ def _whole_file(source: Path) -> None:
         raise BackupError("not a file", file=str(source))
 
 
+def _holes(path: Path, start: int, length: int) -> bool:
+    """Whether bytes ``start`` to ``start + length`` of the file ``path`` hold a hole (a sparse file's unwritten
+    range, which reads as zeros and takes no disk; a compressing filesystem's data is not one). A filesystem
+    that cannot tell holes reports none."""
+    if length <= 0:
+        return False
+    with path.open("rb") as f:
+        try:
+            data = os.lseek(f.fileno(), start, os.SEEK_DATA)
+        except OSError:  # no data from start on: a hole to the end (ENXIO)
+            return True
+        return data > start or os.lseek(f.fileno(), start, os.SEEK_HOLE) < start + length
+
+
 def _payload(source: Path, check_head=None):
     """(manifest, the payload's blocks) of the backup ``source``, its members checked for form; the blocks are
     read as they are taken."""
@@ -112,11 +126,10 @@ def _payload(source: Path, check_head=None):
                               "names", file=where)
         if member.size > source.stat().st_size:
             raise BackupError(f"{member.name} claims more bytes than the file holds", file=where)
-        on_disk = source.stat().st_blocks * 512
-        if member.size > on_disk:  # holes: gigabytes that take no disk until they are written out
-            raise BackupError(f"{member.name} claims {member.size} bytes, but the file takes {on_disk} bytes on "
-                              "disk (a sparse or compressed file): nothing is expanded beyond the backup's real "
-                              "size; copy it whole (cp --sparse=never) and restore the copy", file=where)
+        if _holes(source, member.offset_data, member.size):  # gigabytes that take no disk until written out
+            raise BackupError(f"{member.name} claims {member.size} bytes, but the file has holes where they "
+                              f"should be (it takes {source.stat().st_blocks * 512} bytes on disk): nothing is "
+                              "expanded beyond the backup's real size; 'study backup' writes no holes", file=where)
     except BaseException:
         tar.close()
         raise

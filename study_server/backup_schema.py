@@ -110,13 +110,14 @@ _DATE = "[0-9][0-9][0-9][0-9]-[0-9][0-9]-[0-9][0-9] [0-9][0-9]:[0-9][0-9]:[0-9][
 
 
 def _written_by_app(declared: str, column: str, nullable: bool, key: bool) -> str:
-    """A SQL condition that holds of every value the app can write into a SQLite column of the ``declared`` type
-    (as SQLAlchemy stores it): integers as integers (a primary key from 1 to ID_LIMIT), times as
-    ``YYYY-MM-DD HH:MM:SS[.ffffff]`` naming a real instant, JSON as valid JSON text, strings as text within
-    their length."""
+    """A SQL condition that is true (never NULL) of every value the app can write into a SQLite column of the
+    ``declared`` type (as SQLAlchemy stores it): integers as integers (a primary key from 1 to ID_LIMIT), times as
+    ``YYYY-MM-DD HH:MM:SS[.ffffff]`` naming a real instant from year 1 on, JSON as valid JSON text, strings as text
+    within their length; no text with a NUL (SQLite's own functions stop reading at one)."""
     c = '"' + column.replace('"', '""') + '"'
     kind = declared.upper()
     length = re.fullmatch(r"VARCHAR\((\d+)\)", kind)
+    text = f"typeof({c}) = 'text' AND instr({c}, char(0)) = 0"
     if kind in ("INTEGER", "BIGINT", "SMALLINT"):
         check = f"typeof({c}) = 'integer'" + (f" AND {c} BETWEEN 1 AND {ID_LIMIT}" if key else "")
     elif kind == "BOOLEAN":
@@ -124,18 +125,19 @@ def _written_by_app(declared: str, column: str, nullable: bool, key: bool) -> st
     elif kind == "FLOAT":
         check = f"typeof({c}) IN ('real', 'integer')"
     elif kind == "DATETIME":  # a day and a time that exist: 2026-02-31 moved by no days is 3 March
-        check = (f"typeof({c}) = 'text' AND ({c} GLOB '{_DATE}' OR {c} GLOB '{_DATE}.[0-9][0-9][0-9][0-9][0-9][0-9]')"
+        check = (f"{text} AND ({c} GLOB '{_DATE}' OR {c} GLOB '{_DATE}.[0-9][0-9][0-9][0-9][0-9][0-9]')"
+                 f" AND substr({c}, 1, 4) <> '0000'"
                  f" AND date(substr({c}, 1, 10), '+0 days') = substr({c}, 1, 10)"
                  f" AND time(substr({c}, 12, 8)) = substr({c}, 12, 8)")
     elif kind == "JSON":
-        check = f"typeof({c}) = 'text' AND json_valid({c})"
+        check = f"{text} AND json_valid({c})"
     elif length:
-        check = f"typeof({c}) = 'text' AND length({c}) <= {length.group(1)}"
+        check = f"{text} AND length({c}) <= {length.group(1)}"
     elif kind == "TEXT":
-        check = f"typeof({c}) = 'text'"
+        check = text
     else:
         raise ValueError(f"no rule for the SQLite type {declared!r} of column {column!r}")
-    return f"({c} IS NULL OR ({check}))" if nullable else f"({c} IS NOT NULL AND {check})"
+    return f"COALESCE({c} IS NULL OR ({check}), 0)" if nullable else f"COALESCE({c} IS NOT NULL AND {check}, 0)"
 
 
 def sqlite_value_problems(con: sqlite3.Connection, schema: str, skip: tuple[str, ...]) -> list[str]:
@@ -152,8 +154,8 @@ def sqlite_value_problems(con: sqlite3.Connection, schema: str, skip: tuple[str,
                           + f' FROM {schema}."{table}"').fetchone()
         for (_cid, name, _kind, *_rest), check, count in zip(columns, checks, bad, strict=True):
             if count:
-                first = con.execute(f'SELECT rowid, quote("{name}") FROM {schema}."{table}" WHERE NOT {check} '
-                                    "ORDER BY rowid LIMIT 1").fetchone()
+                first = con.execute(f'SELECT rowid, quote(substr("{name}", 1, 41)) FROM {schema}."{table}" '
+                                    f"WHERE NOT {check} ORDER BY rowid LIMIT 1").fetchone()
                 shown = first[1] if len(first[1]) <= 40 else first[1][:40] + "…"
                 found.append(f"{table}.{name}: {count} value{'s' * (count > 1)} the app cannot have written "
                              f"(the first in row {first[0]}: {shown})")

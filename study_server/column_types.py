@@ -22,7 +22,7 @@ def _tolerant(name: str, inner):
     def process(value):
         try:
             return inner(value)
-        except (ValueError, TypeError):  # json.JSONDecodeError and orjson's are ValueErrors
+        except (ValueError, TypeError, RecursionError):  # JSONDecodeErrors are ValueErrors
             log.warning("a %s column holds a value the app cannot have written (%.40r): read as missing", name, value)
             return None
     return process

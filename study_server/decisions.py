@@ -32,7 +32,7 @@ def state(status: str, row: int, seen, fresh) -> str:
         return status
     if row < 0:
         return "visiting"
-    return "in_progress" if seen >= fresh else "stale"
+    return "in_progress" if seen is not None and seen >= fresh else "stale"  # None: unreadable (column_types)
 
 
 def progress(study: Study) -> dict:
@@ -78,11 +78,9 @@ def engine_use(study: Study) -> list[dict]:
     for c, r, n in db.session.execute(select(condition, reason, func.count()).where(
             SessionLog.study_id == study.id, SessionLog.kind == "engine_fallback").group_by(condition, reason)):
         reasons.setdefault(str(c), Counter())[str(r)[:120]] += n
-    circuits: dict[str, SessionLog] = {}  # the last opening or closing of each http engine's circuit
-    for row in db.session.scalars(select(SessionLog).where(SessionLog.study_id == study.id,
-                                                           SessionLog.kind == "engine_circuit")
-                                  .order_by(SessionLog.id)):
-        circuits[str((row.detail or {}).get("condition"))] = row
+    circuits = {c.id: db.session.scalar(select(SessionLog).where(  # the last opening or closing of each circuit
+        SessionLog.study_id == study.id, SessionLog.kind == "engine_circuit", condition == c.id)
+        .order_by(SessionLog.id.desc()).limit(1)) for c in study.conditions if c.engine.name == "http"}
     return [{"condition": c.id, "engine": c.engine.name, "version": c.engine.kind.version,
              "fallback": c.engine.config.fallback.name if c.engine.name == "http" else None,
              "fallbacks": sum(reasons.get(c.id, Counter()).values()),
@@ -94,11 +92,12 @@ def _circuit(row: SessionLog | None) -> str | None:
     """What the last logged change of an http engine's circuit says, for the dashboard (None: never opened)."""
     if row is None:
         return None
-    detail = row.detail or {}
+    detail = row.detail if isinstance(row.detail, dict) else {}
+    at = f"{row.at:%Y-%m-%d %H:%M:%S} UTC" if row.at is not None else "(time unreadable)"
     if detail.get("state") == "open":
-        return (f"opened {row.at:%Y-%m-%d %H:%M:%S} UTC after {detail.get('failures')} failures "
+        return (f"opened {at} after {detail.get('failures')} failures "
                 f"({str(detail.get('reason'))[:120]}): asked again every {detail.get('retry_s')} s or more")
-    return f"closed {row.at:%Y-%m-%d %H:%M:%S} UTC: the engine answers again"
+    return f"closed {at}: the engine answers again"
 
 
 def exclude(p: Participant, reason: str) -> None:

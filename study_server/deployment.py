@@ -62,6 +62,9 @@ class Deployment:
     #: nginx's access log of the site and its format (``scenesuggest``: no query string, no secret, no Referer)
     access_log: str = "/var/log/nginx/access.log"
     access_log_format: str = "scenesuggest"
+    #: nginx's error log of the site, at ``crit``: its messages at ``error`` (an app server that failed to answer)
+    #: name the request line, query string and all
+    error_log: str = "/var/log/nginx/error.log"
 
     def check(self) -> None:
         """Refuse, naming it, any value that would change the meaning of a file it lands in."""
@@ -82,7 +85,7 @@ class Deployment:
         if not re.fullmatch(r"[a-z_]{1,32}", self.access_log_format):
             raise DeployError("expected the name of an nginx log format", field="access_log_format")
         for value, name in ((self.cert, "--cert"), (self.key, "--key"), (self.nginx_dir, "nginx_dir"),
-                            (self.access_log, "access_log"),
+                            (self.access_log, "access_log"), (self.error_log, "error_log"),
                             (self.cache, "cache"), (self.acme_root, "acme_root"), (self.env_file, "env_file"),
                             (sys.executable, "the Python running this"), (str(config.data_home()),
                                                                           "SCENESUGGEST_HOME")):
@@ -113,7 +116,7 @@ class Deployment:
             "CERT": cert, "KEY": key, "STATIC": str(config.PACKAGE / "static"), "THREE": str(three_folder()),
             "NGINX_DIR": self.nginx_dir, "USER": self.user, "ENV_FILE": self.env_file, "PYTHON": sys.executable,
             "WORKERS": str(self.workers), "HOME": str(config.data_home()),
-            "ACCESS_LOG": f"{self.access_log} {self.access_log_format}",
+            "ACCESS_LOG": f"{self.access_log} {self.access_log_format}", "ERROR_LOG": self.error_log,
             "STUDIES": ":".join(str(p.resolve()) for p in config.study_files()), "SECRET": secrets.token_hex(32),
             "STUDY_DIRS": " ".join(sorted({str(p.resolve().parent) for p in config.study_files()}))}
 

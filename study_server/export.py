@@ -264,7 +264,7 @@ class FolderSink(_Sink):
 
     def begin(self, name: str) -> None:
         super().begin(name)
-        fd = os.open(self.out / name, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        fd = os.open(self.out / name, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o600)  # no link
         os.fchmod(fd, 0o600)  # a file of an earlier export may have been readable by others
         self.file = os.fdopen(fd, "wb")
 

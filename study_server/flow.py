@@ -242,7 +242,8 @@ def finish_trial(p: Participant, study: Study, index: int, scene: dict | None) -
 
 def check_session_time(p: Participant, study: Study) -> None:
     """Past the session time limit, a participant still in the trials goes on to the exit survey."""
-    if p.step == "trial" and utcnow() - p.created_at > timedelta(minutes=study.session_minutes):
+    if p.step == "trial" and p.created_at is not None and \
+            utcnow() - p.created_at > timedelta(minutes=study.session_minutes):  # None: unreadable (column_types)
         log("session_time_limit", p, position=p.position)
         p.step = "exit"
 

@@ -17,6 +17,7 @@ never reads a ``gunicorn.conf.py`` from the working directory (it would run it),
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 
@@ -24,16 +25,13 @@ from gunicorn.glogging import Logger
 
 #: Paths that hold a secret after this prefix: the one-time admin sign-in link (``/admin/link/<secret>``).
 SECRET_PATHS = ("/admin/link/",)
-#: Request headers and WSGI variables an access-log atom must never show.
-UNLOGGED = ("referer", "cookie", "authorization", "query_string", "raw_uri", "http_referer", "http_cookie",
-            "http_authorization", "request_uri")
 
 # --- gunicorn's settings (read with -c python:study_server.gunicorn_settings) -----------------------------------
 logger_class = "study_server.gunicorn_settings.AccessLog"
 control_socket_disable = True
 forwarded_allow_ips = ""
 secure_scheme_headers: dict = {}
-access_log_format = '%(h)s %(l)s %(u)s %(t)s "%(r)s" %(s)s %(b)s "%(a)s"'
+access_log_format = '%(h)s - %(t)s "%(r)s" %(s)s %(b)s "%(a)s"'
 
 
 def on_starting(server) -> None:
@@ -53,7 +51,9 @@ WORKERS = "SCENESUGGEST_WORKERS"
 
 
 def logged_path(path: str) -> str:
-    """``path`` as the access log shows it: a one-time link's secret replaced by ``[secret]``."""
+    """``path`` as a log shows it: no query string, repeated slashes as one, a one-time link's secret replaced by
+    ``[secret]``."""
+    path = re.sub("/{2,}", "/", path.split("?", 1)[0]) or "/"
     for prefix in SECRET_PATHS:
         if path.startswith(prefix):
             return prefix + "[secret]"
@@ -61,14 +61,29 @@ def logged_path(path: str) -> str:
 
 
 class AccessLog(Logger):
-    """gunicorn's logger, its access-log atoms stripped of secrets (see the module docstring)."""
+    """gunicorn's logger keeping no secret (see the module docstring): the access log's atoms are an allowance —
+    the client's address, the time, the method, path (:func:`logged_path`) and protocol, the status, the size, the
+    user agent and the durations; any other (a header, an environment variable, the query, the user of a Basic
+    authorisation) reads ``-`` — and a request named in an error message is named by its path alone."""
 
     def atoms(self, resp, req, environ, request_time):
-        atoms = super().atoms(resp, req, environ, request_time)
+        given = super().atoms(resp, req, environ, request_time)
         path = logged_path(environ.get("PATH_INFO") or "/")
-        atoms.update({"r": f"{environ.get('REQUEST_METHOD')} {path} {environ.get('SERVER_PROTOCOL')}", "U": path,
-                      "q": "-", "f": "-"})
-        for key in list(atoms):
-            if key[:1] == "{" and key[1:-2] in UNLOGGED:
-                atoms[key] = "-"
+        atoms = {k: given[k] for k in LOGGED if k in given}  # gunicorn reads any other atom as "-"
+        atoms.update({"r": f"{environ.get('REQUEST_METHOD')} {path} {environ.get('SERVER_PROTOCOL')}", "U": path})
         return atoms
+
+    def error(self, msg, *args, **kwargs):
+        super().error(msg, *map(_unsecret, args), **kwargs)
+
+    def exception(self, msg, *args, **kwargs):
+        super().exception(msg, *map(_unsecret, args), **kwargs)
+
+
+#: The access-log atoms logged as gunicorn gives them (see AccessLog).
+LOGGED = ("h", "t", "s", "m", "H", "b", "B", "a", "T", "D", "M", "L", "p")
+
+
+def _unsecret(value):
+    """An error message's argument: a request URI (gunicorn names the request it failed on) as :func:`logged_path`."""
+    return logged_path(value) if isinstance(value, str) and value.startswith("/") else value

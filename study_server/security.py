@@ -216,7 +216,8 @@ def admin_session() -> AdminSession | None:
         return None
     row = db.session.get(AdminSession, _digest(sid))
     now = utcnow()
-    if row is None or now - row.created_at > ADMIN_LIFETIME or now - row.last_seen_at > ADMIN_IDLE:
+    if row is None or row.created_at is None or row.last_seen_at is None or now - row.created_at > ADMIN_LIFETIME \
+            or now - row.last_seen_at > ADMIN_IDLE:  # a time that cannot be read (column_types) ends the session
         if row is not None:
             db.session.delete(row)
             db.session.commit()

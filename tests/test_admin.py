@@ -194,7 +194,7 @@ def test_one_unreadable_row_does_not_take_down_the_admin_pages_or_the_export(adm
         to_trials(admin_app.test_client(), query=f"pid=p{i}")
     with admin_app.app_context():
         db.session.execute(text("UPDATE participants SET created_at = 'yesterday' WHERE id = 1"))
-        db.session.execute(text("UPDATE participants SET flags = '[not json' WHERE id = 2"))
+        db.session.execute(text("UPDATE participants SET flags = '[not json', last_seen_at = 'x' WHERE id = 2"))
         db.session.execute(text("UPDATE trials SET started_at = '2026-02-31 10:00:00' WHERE id = 1"))
         db.session.commit()
     c = admin_app.test_client()

@@ -151,7 +151,7 @@ def test_made_up_or_foreign_prolific_ids_are_refused(tmp_path, demo_resources, q
 
 
 @pytest.mark.parametrize("pid", ["p1\u202e", "p\u200b1", "\ufeffp1", "p1\u2028", "p1\u2029", "p\u0085", "p\ue000",
-                                 "p\u2066x\u2069", "x" * 129])
+                                 "p\u2066x\u2069", "x" * 129, "p\u31641", "p\ufe0f1", "p\u034f1", "e\u0301"])
 def test_a_plain_links_id_with_invisible_characters_is_refused(client, pid):
     """Bidi overrides, zero-width and line separators would let one id read as another on the admin pages and in
     the export."""

@@ -199,19 +199,25 @@ class WaitSlots:
         """Yields whether a slot was free (and holds it meanwhile)."""
         import fcntl
 
-        for i in range(self.count):
-            fd = os.open(self.folder / f"slot-{i}", os.O_RDWR | os.O_CREAT, 0o600)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(fd)
-                continue
-            try:
-                yield True
-            finally:
-                os.close(fd)  # closing the file releases the lock
-            return
-        yield False
+        held = None
+        try:
+            self.folder.mkdir(mode=0o700, parents=True, exist_ok=True)  # a cleaner of /tmp may have taken it
+            for i in range(self.count):
+                fd = os.open(self.folder / f"slot-{i}", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o600)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    os.close(fd)
+                    continue
+                held = fd
+                break
+        except OSError:  # no folder, no file descriptor left: this query is not bounded rather than refused
+            held = -1
+        try:
+            yield held is not None
+        finally:
+            if held is not None and held >= 0:
+                os.close(held)  # closing the file releases the lock
 
 
 class _Watchdog:
@@ -325,14 +331,15 @@ class HttpEngine:
         allowed = set(self.categories) if only is None else set(only) & set(self.categories)
         limit = min(top or self.options.max_suggestions, self.options.max_suggestions)
         try:
-            refused = self.breaker.refusal()
-            if refused is not None:
-                raise EngineUnavailable(refused)
             body = orjson.dumps(query_document(prep, mode, limit, allowed), option=orjson.OPT_SERIALIZE_NUMPY)
             with self.slots.held() if self.slots is not None else contextlib.nullcontext(True) as free:
-                if not free:
+                if not free:  # asked before the breaker: a query that never reaches the engine never probes it
                     raise EngineUnavailable(f"the engine is busy: {self.slots.count} queries of this server "
                                             "already wait on engines")
+                refused = self.breaker.refusal()
+                if refused is not None:
+                    raise EngineUnavailable(refused)
+                outcome = "the query never reached the engine"  # until it has an outcome (a probe then ends)
                 try:
                     try:
                         doc = orjson.loads(self._exchange(body))
@@ -340,10 +347,12 @@ class HttpEngine:
                         raise EngineUnavailable("invalid answer: not JSON") from None
                     found = parse_answer(doc, allowed, self.categories, prep.point, prep.normal,
                                          self.options.max_suggestions)
+                    outcome = None
                 except EngineUnavailable as e:
-                    self.breaker.record(str(e))
+                    outcome = str(e)
                     raise
-            self.breaker.record(None)
+                finally:
+                    self.breaker.record(outcome)
         except EngineUnavailable as e:
             with self._count:
                 self.fallbacks += 1
@@ -403,19 +412,22 @@ class HttpEngine:
                 retries=False, redirect=False, preload_content=False, release_conn=False,
                 timeout=urllib3.Timeout(connect=left, read=left))
             answer = self._read(response)
-            response.release_conn()  # read whole: the connection may carry the next query
+            if self._watchdog.disarm(local.key):  # read whole, its socket never shut: it may carry the next query
+                response.release_conn()
+            else:
+                self._discard(response)
             return answer
         except EngineUnavailable:
+            self._watchdog.disarm(local.key)
             self._discard(response)
             raise
         except Exception as e:  # noqa: BLE001 - whatever the engine does, the participant gets the fallback's list
+            self._watchdog.disarm(local.key)
             self._discard(response)
             if time.monotonic() >= local.deadline - 1e-3 or isinstance(e, urllib3.exceptions.TimeoutError):
                 raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms") from None
             cause = getattr(e, "reason", None) or e
             raise EngineUnavailable(f"connection failed ({type(cause).__name__})") from None
-        finally:
-            self._watchdog.disarm(local.key)
 
     def _discard(self, response) -> None:
         """After a failure: the answer's connection closed, never reused."""
@@ -433,8 +445,9 @@ class HttpEngine:
 
     def _connect(self) -> socket.socket:
         """A new connection's socket, made within the deadline: the name resolved (in a thread: a lookup has no
-        timeout of its own), connected — and watched until the exchange ends, so that no step (the TLS handshake
-        that urllib3 does next among them) can outlast the timeout."""
+        timeout of its own) and connected, watched while it connects. The TLS handshake that urllib3 does next is
+        bounded by the socket's timeout (the time left; Python bounds a whole handshake by it); the request and
+        the answer are watched again (:meth:`_connections`)."""
         last: Exception | None = None
         for family, kind, proto, _, address in _resolve(self._host, self._port, self._remaining()):
             sock = socket.socket(family, kind, proto)
@@ -447,6 +460,9 @@ class HttpEngine:
             except OSError as e:
                 last = e
                 sock.close()
+            except BaseException:  # out of time: no socket left behind
+                sock.close()
+                raise
         raise last or OSError("the engine's host has no address")
 
     def _read(self, response) -> bytes:

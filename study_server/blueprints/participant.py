@@ -80,11 +80,17 @@ MTURK_SUBMIT = ("https://www.mturk.com", "https://workersandbox.mturk.com")
 #: point, any of which would let one id read as another on the admin pages and in the export.
 LINK_ID_MAX = 128
 INVISIBLE = frozenset(("Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp"))
+#: Code points Unicode says to ignore in display that are not of those categories (Hangul fillers, the combining
+#: grapheme joiner, Mongolian and standard variation selectors).
+IGNORABLE = re.compile("[\u034f\u115f\u1160\u17b4\u17b5\u180b-\u180f\u3164\ufe00-\ufe0f\uffa0"
+                       "\U000e0100-\U000e01ef]")
 
 
 def link_id(value: str) -> bool:
-    """Whether ``value`` may be a plain link's ``pid`` (see INVISIBLE)."""
-    return 0 < len(value) <= LINK_ID_MAX and not any(unicodedata.category(c) in INVISIBLE for c in value)
+    """Whether ``value`` may be a plain link's ``pid`` (see INVISIBLE and IGNORABLE), written in Unicode's composed
+    form (NFC: an id that looks like another is that other)."""
+    return (0 < len(value) <= LINK_ID_MAX and not any(unicodedata.category(c) in INVISIBLE for c in value)
+            and not IGNORABLE.search(value) and unicodedata.normalize("NFC", value) == value)
 
 
 class EntryError(Exception):

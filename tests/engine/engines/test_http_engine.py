@@ -498,3 +498,25 @@ def test_an_answer_that_closes_its_connection_is_an_answer(external, demo_priors
     for _ in range(3):
         found = engine.suggest(a_query(), "full", top=3)
         assert found.fallback is None and found.engine == "http" and len(found) == 3
+
+
+def test_a_query_that_never_reaches_the_engine_never_takes_the_probe(external, demo_priors, tmp_path):
+    """The circuit's open time is over, but every wait slot is taken: the query falls back as busy and the next
+    one that gets a slot is the probe — the circuit is not left waiting for a probe that never went."""
+    from scenesuggest.engines.http import BREAKER_FAILURES, Breaker, WaitSlots
+
+    now = [0.0]
+    engine = http_engine(f"{external}/good", demo_priors)
+    engine.breaker = Breaker(clock=lambda: now[0])
+    for _ in range(BREAKER_FAILURES):
+        engine.breaker.record("HTTP 500")
+    now[0] = 60.0
+    engine.slots = WaitSlots(tmp_path, 1)
+    with engine.slots.held() as free:  # another worker waits on an engine meanwhile
+        assert free
+        assert engine.suggest(a_query(), "full", top=3).fallback.startswith("the engine is busy")
+    assert engine.breaker.state == "open"
+    found = engine.suggest(a_query(), "full", top=3)  # the probe
+    assert found.fallback is None and engine.breaker.state == "closed"
+    engine.slots = WaitSlots(tmp_path / "taken-by-a-cleaner" / "gone", 1)
+    assert engine.suggest(a_query(), "full", top=3).fallback is None  # a lost folder is made again

@@ -4,7 +4,14 @@ import math
 
 import numpy as np
 
-from scenesuggest.learning.observations import WALL, WALL_GAP_M, is_radial, near_wall, scene_observations
+from scenesuggest.learning.observations import (
+    RADIAL_ASPECT,
+    WALL,
+    WALL_GAP_M,
+    is_radial,
+    near_wall,
+    scene_observations,
+)
 
 
 def _close(a: float, b: float, tolerance: float = 1e-5) -> bool:
@@ -64,7 +71,9 @@ def test_near_wall_and_is_radial_answer_an_array_of_sizes_as_they_answer_each():
     """The query-time checks of a candidate's size (does it stand at the wall, has it a front) give for an array of
     sizes what they give for each size alone, and the wall rule reads the smaller footprint side."""
     sizes = np.array([[0.3, 1.0, 0.3], [2.0, 0.5, 0.4], [0.4, 0.1, 2.0], [1.0, 1.0, 0.98], [0.05, 2.0, 3.0]])
-    for distance in (0.0, 0.1, 0.25, 1.0):
+    for distance in (0.0, 0.1, 0.25, 1.0):  # the rule: the contact's distance less half the smaller footprint side
+        assert near_wall(distance, sizes).tolist() == [distance - min(s[0], s[2]) / 2 <= WALL_GAP_M for s in sizes]
         assert near_wall(distance, sizes).tolist() == [bool(near_wall(distance, s)) for s in sizes]
+    assert is_radial(sizes).tolist() == [max(s[0], s[2]) / min(s[0], s[2]) < RADIAL_ASPECT for s in sizes]
     assert is_radial(sizes).tolist() == [bool(is_radial(s)) for s in sizes]
     assert near_wall(WALL_GAP_M + 0.19, [0.4, 1.0, 2.0]) and not near_wall(WALL_GAP_M + 0.21, [0.4, 1.0, 2.0])
