@@ -34,8 +34,8 @@ class FrequencyEngine(Engine):
         zeros = np.zeros(n)
         return Scores(prep, zeros, np.ones(n), zeros, self.base_rate.copy(), densities)
 
-    def terms(self, scores: Scores, i: int) -> dict[str, float]:
-        return {"frequency": float(self.base_rate[i])}
+    def term_columns(self, scores: Scores) -> dict[str, np.ndarray]:
+        return {"frequency": self.base_rate}
 
     def explain(self, query, mode: str = "full", top: int | None = 10, categories=()) -> list[dict]:
         scores = self.score(query)

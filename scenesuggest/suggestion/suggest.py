@@ -405,9 +405,11 @@ class Engine:
         allowed = self.suggestable if only is None else self.suggestable & np.isin(self.names, list(only))
         scores = self.score(query, allowed)
         prep = scores.prepared
-        points = np.tile(prep.point, (n, 1))
-        notes: list[list[str]] = [[] for _ in range(n)]
+        points = np.broadcast_to(prep.point, (n, 3))
+        notes: list[list[str]] | None = None  # said of a candidate only when an extra changed it
         total = scores.total
+        if self.options.anchor_refinement or self.options.collision_aware:
+            notes = [[] for _ in range(n)]
         if self.options.anchor_refinement:
             points, moved = refine_anchors(self, scores, self.options.refine_radius_m)
             for i in np.flatnonzero(moved > 0):
@@ -424,14 +426,14 @@ class Engine:
             order = self._ranking(total, allowed)[: top or n]
             faces, alphas, headings = self.choose_poses(scores, mode, order)
         placed = poses.placements(points[order], prep.normal, faces, self.size[order], alphas)
-        degrees = np.degrees(poses.wrap(headings))
+        degrees = np.degrees(poses.wrap(headings)).tolist()
         out = []
-        for rank, (i, placement) in enumerate(zip(order, placed, strict=True), start=1):
+        for rank, (i, placement, terms, score) in enumerate(zip(
+                order.tolist(), placed, self.term_rows(scores, order), total[order].tolist(), strict=True), start=1):
             out.append(Suggestion(
-                rank=rank, category=self.names[i], score=float(total[i]),
-                terms=self.terms(scores, i),
-                placement=placement, attachment_face=faces[rank - 1], heading_deg=float(degrees[rank - 1]),
-                models=self.members[i], notes=tuple(notes[i])))
+                rank=rank, category=self.names[i], score=score, terms=terms,
+                placement=placement, attachment_face=faces[rank - 1], heading_deg=degrees[rank - 1],
+                models=self.members[i], notes=tuple(notes[i]) if notes is not None else ()))
         return SuggestionList(tuple(out), prep.surface_type, prep.scene_type, prep.parent_category, self.name)
 
     def explain(self, query: ContextQuery, mode: str = "full", top: int | None = 10,
@@ -464,10 +466,19 @@ class Engine:
                                                                  if c in self.index and suggestable(c)]
         return rank, list(dict.fromkeys(wanted))
 
+    def term_columns(self, scores: Scores) -> dict[str, np.ndarray]:
+        """The explanation terms of every candidate, by name: the paper's occurrence, surface and position terms."""
+        return {"occurrence": scores.occurrence, "surface": scores.surface, "position": scores.position}
+
     def terms(self, scores: Scores, i: int) -> dict[str, float]:
-        """The explanation terms of candidate ``i``: the paper's occurrence, surface and position terms."""
-        return {"occurrence": float(scores.occurrence[i]), "surface": float(scores.surface[i]),
-                "position": float(scores.position[i])}
+        """The explanation terms of candidate ``i`` (:meth:`term_columns`)."""
+        return self.term_rows(scores, [i])[0]
+
+    def term_rows(self, scores: Scores, idx) -> list[dict[str, float]]:
+        """The explanation terms of candidates ``idx``, one dict each (:meth:`term_columns`, read once)."""
+        columns = {name: np.asarray(values, dtype=float)[idx].tolist()
+                   for name, values in self.term_columns(scores).items()}
+        return [dict(zip(columns, row, strict=True)) for row in zip(*columns.values(), strict=True)]
 
     def _ranking(self, total: np.ndarray, allowed: np.ndarray) -> np.ndarray:
         """Candidate indices best first (ties by name), only the allowed ones."""

@@ -125,9 +125,8 @@ class LearnedEngine(Engine):
         total[short] = full
         return total
 
-    def terms(self, scores: Scores, i: int) -> dict[str, float]:
-        return {**super().terms(scores, i), "paper_score": float(scores.paper_total[i]),
-                "learned_score": float(scores.total[i])}
+    def term_columns(self, scores: Scores) -> dict[str, np.ndarray]:
+        return {**super().term_columns(scores), "paper_score": scores.paper_total, "learned_score": scores.total}
 
     # --- orientation ---------------------------------------------------------------------------------------
     def choose_poses(self, scores: Scores, mode: str, idx: np.ndarray | None = None
