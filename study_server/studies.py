@@ -301,7 +301,7 @@ def engine_wait_slots():
     import math
     import os
 
-    from scenesuggest.engines.http import WaitSlots
+    from scenesuggest.engines.protocol import WaitSlots
 
     from .gunicorn_settings import WAITS, WORKERS
 

@@ -29,7 +29,6 @@ from __future__ import annotations
 import contextlib
 import ipaddress
 import math
-import os
 import socket
 import ssl
 import threading
@@ -47,7 +46,7 @@ from ..errors import SceneSuggestError
 from ..scenes.taxonomy import Taxonomy
 from ..suggestion.query import ContextQuery, prepare
 from ..suggestion.suggest import MODES, SuggestionList
-from .protocol import EngineKind, LoadContext, SuggestionEngine
+from .protocol import EngineKind, LoadContext, SuggestionEngine, WaitSlots
 from .wire import ANSWER_SCHEMA, QUERY_SCHEMA, EngineUnavailable, parse_answer, query_document
 
 DEFAULT_TIMEOUT_MS = 300
@@ -182,42 +181,6 @@ class Breaker:
                     event = ("open", {"reason": failure, "failures": self.failures, "retry_s": self._open_s})
         if event is not None and self.on_change is not None:
             self.on_change(*event)
-
-
-class WaitSlots:
-    """At most ``count`` queries wait on engines at once among the processes sharing ``folder`` (one server's
-    workers): a query holds an exclusive lock on one of ``count`` files while it is sent and answered, and one that
-    finds every file locked gets the fallback's list at once. A sync worker waiting on an engine serves nobody
-    else, so this keeps the rest of a server's workers for everyone else however slow the engine is. The kernel
-    drops a process's locks when it dies: a killed worker holds no slot."""
-
-    def __init__(self, folder: str | Path, count: int):
-        self.folder, self.count = Path(folder), count
-
-    @contextlib.contextmanager
-    def held(self):
-        """Yields whether a slot was free (and holds it meanwhile)."""
-        import fcntl
-
-        held = None
-        try:
-            self.folder.mkdir(mode=0o700, parents=True, exist_ok=True)  # a cleaner of /tmp may have taken it
-            for i in range(self.count):
-                fd = os.open(self.folder / f"slot-{i}", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o600)
-                try:
-                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                except BlockingIOError:
-                    os.close(fd)
-                    continue
-                held = fd
-                break
-        except OSError:  # no folder, no file descriptor left: this query is not bounded rather than refused
-            held = -1
-        try:
-            yield held is not None
-        finally:
-            if held is not None and held >= 0:
-                os.close(held)  # closing the file releases the lock
 
 
 class _Watchdog:

@@ -14,10 +14,15 @@ it validates a study condition's options (:meth:`EngineKind.configure`, errors n
 file its answers come from (:meth:`EngineKind.trained_file`, whose SHA-256 an export records), loads an engine
 from it (:meth:`EngineKind.load`), and, when the project can train it, fits one on scenes
 (:meth:`EngineKind.fit`, what ``evaluate`` does per fold) or trains its file (:meth:`EngineKind.train`).
+
+An engine that waits on another process (the ``http`` engine) takes one of a server's :class:`WaitSlots` while it
+waits, so that waits never hold more than a share of the server's workers.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -99,3 +104,39 @@ class EngineKind:
 
     def describe(self) -> dict:
         return {"name": self.name, "version": self.version, "summary": self.summary, "trainable": self.trainable}
+
+
+class WaitSlots:
+    """At most ``count`` queries wait on engines at once among the processes sharing ``folder`` (one server's
+    workers): a query holds an exclusive lock on one of ``count`` files while it is sent and answered, and one that
+    finds every file locked gets the fallback's list at once. A sync worker waiting on an engine serves nobody
+    else, so this keeps the rest of a server's workers for everyone else however slow the engine is. The kernel
+    drops a process's locks when it dies: a killed worker holds no slot."""
+
+    def __init__(self, folder: str | Path, count: int):
+        self.folder, self.count = Path(folder), count
+
+    @contextlib.contextmanager
+    def held(self):
+        """Yields whether a slot was free (and holds it meanwhile)."""
+        import fcntl
+
+        held = None
+        try:
+            self.folder.mkdir(mode=0o700, parents=True, exist_ok=True)  # a cleaner of /tmp may have taken it
+            for i in range(self.count):
+                fd = os.open(self.folder / f"slot-{i}", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o600)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    os.close(fd)
+                    continue
+                held = fd
+                break
+        except OSError:  # no folder, no file descriptor left: this query is not bounded rather than refused
+            held = -1
+        try:
+            yield held is not None
+        finally:
+            if held is not None and held >= 0:
+                os.close(held)  # closing the file releases the lock
