@@ -42,12 +42,21 @@ def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     return buffer.getvalue()
 
 
-def read_npz(path: str | Path, only: Collection[str] | None = None) -> dict[str, np.ndarray]:
+def read_npz(path: str | Path, only: Collection[str] | None = None, what: str = "") -> dict[str, np.ndarray]:
     """The arrays of an ``.npz`` file (name → array; ``only``: just these names), each member checked before memory
     is taken for it (see the module docstring): stored as ``.npy``, no Python objects, its header's shape and type
     exactly its declared size, and all of them within the file's budget. Anything else is a
-    :class:`SceneSuggestError` naming the file (and the member)."""
-    path = Path(path)
+    :class:`SceneSuggestError` naming the file (and the member), its message begun ``cannot read WHAT:`` when
+    ``what`` names the file's kind."""
+    try:
+        return _read(Path(path), only)
+    except SceneSuggestError as e:
+        if what:
+            raise SceneSuggestError(f"cannot read {what}: {e.message}", file=e.file, field=e.field) from None
+        raise
+
+
+def _read(path: Path, only: Collection[str] | None) -> dict[str, np.ndarray]:
     try:
         with zipfile.ZipFile(path) as z:
             infos = [i for i in z.infolist() if only is None or i.filename.removesuffix(".npy") in only]

@@ -294,7 +294,6 @@ class HttpEngine:
         allowed = set(self.categories) if only is None else set(only) & set(self.categories)
         limit = min(top or self.options.max_suggestions, self.options.max_suggestions)
         try:
-            body = orjson.dumps(query_document(prep, mode, limit, allowed), option=orjson.OPT_SERIALIZE_NUMPY)
             with self.slots.held() if self.slots is not None else contextlib.nullcontext(True) as free:
                 if not free:  # asked before the breaker: a query that never reaches the engine never probes it
                     raise EngineUnavailable(f"the engine is busy: {self.slots.count} queries of this server "
@@ -304,6 +303,8 @@ class HttpEngine:
                     raise EngineUnavailable(refused)
                 outcome = "the query never reached the engine"  # until it has an outcome (a probe then ends)
                 try:
+                    body = orjson.dumps(query_document(prep, mode, limit, allowed),
+                                        option=orjson.OPT_SERIALIZE_NUMPY)  # only for a query the engine gets
                     try:
                         doc = orjson.loads(self._exchange(body))
                     except orjson.JSONDecodeError:  # NaN, Infinity and 1e999 are not JSON either

@@ -247,7 +247,7 @@ class Priors:
     def load(cls, path: str | Path) -> Priors:
         """Read a priors file; a file that is not one, or of another version, is an error naming the file."""
         path = Path(path)
-        payload = _read(path)
+        payload = read_npz(path, what="priors")
         try:
             return cls.from_payload(payload, path)
         except (ValueError, KeyError) as e:
@@ -264,7 +264,7 @@ class Priors:
     def read_meta(path: str | Path) -> dict:
         """The metadata of a priors file, checked as :meth:`load` checks it, without reading the arrays."""
         path = Path(path)
-        return _checked_meta(_read(path, ("meta",)), path)
+        return _checked_meta(read_npz(path, ("meta",), "priors"), path)
 
     # --- lookups -------------------------------------------------------------------------------------------
     def stat_entity(self, category: str, backoff: bool = True) -> int | None:
@@ -420,15 +420,6 @@ def peak_normalised(counts: np.ndarray) -> np.ndarray:
     h = smooth(np.asarray(counts, dtype=np.float64))
     peak = h.max(axis=-1, keepdims=True)
     return np.where(peak > 0, h / np.where(peak > 0, peak, 1.0), 1.0).astype(np.float32)
-
-
-def _read(path: Path, only: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
-    """The arrays of the priors file ``path`` (``only``: just these), each checked before it takes memory
-    (:func:`scenesuggest.npz.read_npz`)."""
-    try:
-        return read_npz(path, only)
-    except SceneSuggestError as e:
-        raise SceneSuggestError(f"cannot read priors: {e.message}", file=str(path), field=e.field) from None
 
 
 def _checked_meta(data, path: Path) -> dict:

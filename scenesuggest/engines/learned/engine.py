@@ -231,14 +231,14 @@ class LearnedEngine(Engine):
     def read_meta(path: str | Path) -> dict:
         """The metadata of a learned engine's file, checked as :meth:`load` checks it, without reading the rest."""
         path = Path(path)
-        return _checked_meta(_read(path, ("meta",)).get("meta"), path)
+        return _checked_meta(read_npz(path, ("meta",), "the learned engine").get("meta"), path)
 
     @classmethod
     def load(cls, path: str | Path, options: EngineOptions | None = None, choose_frames: bool = False
              ) -> LearnedEngine:
         """Read a learned engine's file; one that is not one, or of another version, is an error naming it."""
         path = Path(path)
-        payload = _read(path)
+        payload = read_npz(path, what="the learned engine")
         meta = _checked_meta(payload.get("meta"), path)
         try:
             priors = Priors.from_payload({k[7:]: v for k, v in payload.items() if k.startswith("priors.")}, path)
@@ -251,16 +251,6 @@ class LearnedEngine(Engine):
             raise SceneSuggestError(f"the learned engine's file is incomplete or damaged ({type(e).__name__}: {e})",
                                     file=str(path), field="ranker") from None
         return cls(priors, stats, ranker, frames, meta, options).choosing_frames(choose_frames)
-
-
-def _read(path: Path, only: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
-    """The arrays of the learned engine's file ``path`` (``only``: just these), each checked before it takes
-    memory (:func:`scenesuggest.npz.read_npz`)."""
-    try:
-        return read_npz(path, only)
-    except SceneSuggestError as e:
-        raise SceneSuggestError(f"cannot read the learned engine: {e.message}", file=str(path),
-                                field=e.field) from None
 
 
 def _booster(raw: np.ndarray, features: int, name: str, path: Path) -> lgb.Booster:
