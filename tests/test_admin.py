@@ -232,3 +232,12 @@ def test_a_participants_page_stays_small_whatever_they_stored(admin_app):
     assert pages[0].count("characters more: the export holds them") == 250
     assert "event 0<" in pages[0] and "event 250<" in pages[1] and "event 599<" in pages[2]
     assert "earlier events" in pages[1] and "earlier events" not in pages[0]
+
+
+@pytest.mark.parametrize("value", ["1" + "0" * 30, "2147483648", "-5", "abc", "\u0661", ""])
+def test_a_participants_page_names_a_from_that_is_no_event_seq(admin_app, value):
+    to_trials(admin_app.test_client())
+    c = admin_app.test_client()
+    login(c)
+    r = c.get("/admin/demo/participants/1", query_string={"from": value})
+    assert r.status_code == 400 and b"from" in r.data and b"Traceback" not in r.data

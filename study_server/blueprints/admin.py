@@ -20,6 +20,8 @@ from flask import (
 )
 from sqlalchemy import select
 
+from scenesuggest.contract.events import MAX_SEQ
+
 from .. import authoring, decisions, pilots, plots
 from ..assignment import fresh_after
 from ..authoring import image_path
@@ -148,7 +150,10 @@ def participant(study_id: str, pid: int):
     p = db.session.get(Participant, pid)
     if p is None or p.study_id != study_id:
         abort(404)
-    start = max(0, request.args.get("from", 0, type=int))
+    given = request.args.get("from", "0")
+    if not (given.isascii() and given.isdigit() and int(given) <= MAX_SEQ):
+        raise RequestError(400, f"expected an event seq from 0 to {MAX_SEQ}", "from")
+    start = int(given)
     events = list(db.session.scalars(select(Event).where(Event.participant_id == pid, Event.seq >= start)
                                      .order_by(Event.seq).limit(PAGE_EVENTS + 1)))
     following = events[PAGE_EVENTS] if len(events) > PAGE_EVENTS else None
