@@ -93,19 +93,24 @@ def bearings(points, normals, ref_transforms, ref_sizes) -> np.ndarray:
     nearest point of a reference's footprint when the point lies outside it (a chair at a long table faces the
     table's edge, not its far-away centre), to its centre when inside; NaN on vertical planes or within
     MIN_BEARING_M."""
-    t, p, n = poses.broadcast_frames(ref_transforms, points, normals)
+    t = np.asarray(ref_transforms, dtype=float).reshape(-1, 4, 4)
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    normals = np.asarray(normals, dtype=float)
+    n = normals.reshape(-1, 3)
     n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    size = np.broadcast_to(np.asarray(ref_sizes, dtype=float).reshape(-1, 3), p.shape)
-    r = poses.rotations_of(t)
-    half = size * np.linalg.norm(t[:, :3, :3], axis=1) / 2
-    middle = np.einsum("nij,nj->ni", t[:, :3, :3], size * [0, 0.5, 0]) + t[:, :3, 3]
-    local = np.einsum("nji,nj->ni", r, p - middle)
+    size = np.asarray(ref_sizes, dtype=float).reshape(-1, 3)
+    linear = t[:, :3, :3]
+    scale = np.linalg.norm(linear, axis=1)  # of each column: the frame's scale per axis
+    r = linear / scale[:, None, :]
+    half = size * scale / 2
+    middle = linear[:, :, 1] * (size[:, 1:2] * 0.5) + t[:, :3, 3]  # the box's centre
+    local = poses.in_frames(r, p - middle)
     nearest = np.clip(local, -half, half)
     outside = (np.abs(nearest[:, 0] - local[:, 0]) > 1e-9) | (np.abs(nearest[:, 2] - local[:, 2]) > 1e-9)
-    target = np.where(outside[:, None], np.einsum("nij,nj->ni", r, nearest) + middle, middle)
+    target = np.where(outside[:, None], (r @ nearest[:, :, None])[:, :, 0] + middle, middle)
     d = target - p
     flat = d - (d * n).sum(axis=1, keepdims=True) * n
-    h = poses.headings(d, n)
+    h = poses.headings(d, normals if normals.size == 3 else n)
     horizontal = np.abs(n[:, 1]) > poses.HORIZONTAL_COS
     return np.where(horizontal & (np.linalg.norm(flat, axis=1) >= MIN_BEARING_M), h, np.nan)
 

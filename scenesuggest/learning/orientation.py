@@ -81,7 +81,8 @@ def turned(values: np.ndarray, angle) -> np.ndarray:
     at = _ROTATIONS[(-s0.astype(np.int64)) % BINS]
     at += (np.arange(len(rows)) * BINS)[:, None]
     a = rows.ravel()[at]
-    out = np.roll(a, 1, axis=1)
+    out = np.empty_like(a)
+    out[:, 1:], out[:, 0] = a[:, :-1], a[:, -1]
     out *= frac
     a *= 1 - frac
     out += a
@@ -206,15 +207,15 @@ def _or_minus_one(k: int | None) -> int:
 
 
 def mean_by(rows: np.ndarray, values: np.ndarray, n_rows: int) -> np.ndarray:
-    """(n_rows, BINS): the mean of ``values`` (m, BINS) over each row index of ``rows`` (0 where none)."""
-    out = np.zeros((n_rows, BINS))
+    """(n_rows, BINS): the mean of ``values`` (m, BINS) over each row index of ``rows`` (0 where none); each
+    row's values are summed in their order in ``values``."""
+    rows = np.asarray(rows, dtype=np.int64)
     if not len(rows):
-        return out
-    order = np.argsort(rows, kind="stable")
-    rows, values = np.asarray(rows)[order], np.asarray(values, dtype=float)[order]
-    starts = np.flatnonzero(np.r_[True, np.diff(rows) != 0])
-    out[rows[starts]] = np.add.reduceat(values, starts, axis=0) / np.diff(np.r_[starts, len(rows)])[:, None]
-    return out
+        return np.zeros((n_rows, BINS))
+    cells = (rows[:, None] * BINS + np.arange(BINS)).ravel()
+    sums = np.bincount(cells, weights=np.asarray(values, dtype=float).ravel(), minlength=n_rows * BINS)
+    counts = np.bincount(rows, minlength=n_rows)
+    return sums.reshape(n_rows, BINS) / np.maximum(counts, 1)[:, None]
 
 
 class _GroupCounts:

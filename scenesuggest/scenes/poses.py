@@ -90,27 +90,44 @@ def _shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def plane_zero(normal) -> np.ndarray:
     """The zero-heading direction of a plane: +Z on horizontal planes, +Y on vertical ones (unit, in-plane)."""
-    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    ref = np.array([0.0, 0.0, 1.0]) if is_horizontal(n) else UP
-    v = ref - np.dot(ref, n) * n
-    return v / np.linalg.norm(v)
+    return plane_axes(normal)[1]
+
+
+def plane_axes(normals) -> np.ndarray:
+    """(…, 3, 3) the unit normal, the zero direction (+Z projected onto the plane on horizontal planes, +Y on
+    vertical ones) and their cross product n × zero (a quarter turn on), as rows, of each plane with normal (…, 3)."""
+    n = np.asarray(normals, dtype=float)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    ref = np.where(np.abs(n[..., 1:2]) > HORIZONTAL_COS, (0.0, 0.0, 1.0), (0.0, 1.0, 0.0))
+    z = ref - (ref * n).sum(axis=-1, keepdims=True) * n
+    z = z / np.linalg.norm(z, axis=-1, keepdims=True)
+    side = np.stack([n[..., 1] * z[..., 2] - n[..., 2] * z[..., 1], n[..., 2] * z[..., 0] - n[..., 0] * z[..., 2],
+                     n[..., 0] * z[..., 1] - n[..., 1] * z[..., 0]], axis=-1)  # np.cross is slower on few rows
+    return np.stack([n, z, side], axis=-2)
+
+
+@functools.lru_cache(maxsize=256)
+def _plane_axes(normal: tuple[float, float, float]) -> np.ndarray:
+    axes = plane_axes(normal)
+    axes.setflags(write=False)
+    return axes
 
 
 def headings(directions, normals) -> np.ndarray:
     """(N,) signed angles (radians, about each normal) from the plane's zero direction (see :func:`plane_zero`) to
-    each direction projected onto its plane; NaN where a direction is perpendicular to its plane."""
+    each direction projected onto its plane; NaN where a direction is perpendicular to its plane. ``normals``: one
+    per direction, or one for all.
+
+    The angle is atan2(d · (n × zero), d · zero) (:func:`plane_axes`): both axes lie in the plane, so the part of
+    ``d`` along the normal changes neither."""
     d = np.asarray(directions, dtype=float).reshape(-1, 3)
-    n = np.broadcast_to(np.asarray(normals, dtype=float).reshape(-1, 3), d.shape)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    d = d - (d * n).sum(axis=1, keepdims=True) * n
-    horizontal = np.abs(n[:, 1]) > HORIZONTAL_COS
-    ref = np.where(horizontal[:, None], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])
-    z = ref - (ref * n).sum(axis=1, keepdims=True) * n
-    z = z / np.linalg.norm(z, axis=1, keepdims=True)
-    cross = np.column_stack([z[:, 1] * d[:, 2] - z[:, 2] * d[:, 1], z[:, 2] * d[:, 0] - z[:, 0] * d[:, 2],
-                             z[:, 0] * d[:, 1] - z[:, 1] * d[:, 0]])  # z × d, cheaper than np.cross on small arrays
-    out = np.arctan2((cross * n).sum(axis=1), (z * d).sum(axis=1))
-    return np.where(np.linalg.norm(d, axis=1) < 1e-9, np.nan, out)
+    normals = np.asarray(normals, dtype=float)
+    if normals.size == 3:  # one plane: its axes are memoised (a scene's clicks fall on few distinct planes)
+        along = d @ _plane_axes(tuple(normals.reshape(3).tolist())).T  # (N, 3): along n, zero, n × zero
+    else:
+        along = np.einsum("nj,nij->ni", d, plane_axes(normals.reshape(-1, 3)))
+    flat = along[:, 1] ** 2 + along[:, 2] ** 2  # the squared length of d on the plane
+    return np.where(flat < 1e-18, np.nan, np.arctan2(along[:, 2], along[:, 1]))
 
 
 def heading(direction, normal) -> float:
@@ -181,40 +198,37 @@ def placements(points, normal, faces: list[str], sizes, alphas) -> np.ndarray:
     return out
 
 
-def broadcast_frames(transforms, points, normals) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(N, 4, 4) transforms, (N, 3) points and (N, 3) normals, each given once or N times."""
-    t = np.asarray(transforms, dtype=float).reshape(-1, 4, 4)
-    p = np.asarray(points, dtype=float).reshape(-1, 3)
-    n = np.asarray(normals, dtype=float).reshape(-1, 3)
-    count = max(len(t), len(p), len(n))
-    return (np.broadcast_to(t, (count, 4, 4)), np.broadcast_to(p, (count, 3)), np.broadcast_to(n, (count, 3)))
-
-
 def rotations_of(transforms) -> np.ndarray:
     """(N, 3, 3) rotation parts of (N, 4, 4) transforms (columns normalised)."""
     r = np.asarray(transforms, dtype=float)[:, :3, :3]
     return r / np.linalg.norm(r, axis=1, keepdims=True)
 
 
+def in_frames(rotations: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """(N, 3) world ``vectors`` (N or 1, 3) in the frames of ``rotations`` (N or 1, 3, 3): Rᵀ v, one each."""
+    return (np.swapaxes(rotations, 1, 2) @ vectors[:, :, None])[:, :, 0]
+
+
 def plane_offsets(points, normals, ref_transforms, radial) -> np.ndarray:
-    """(N, 2) offsets of points from reference objects' origins, in each reference's frame, on the plane.
+    """(N, 2) offsets of points from reference objects' origins, in each reference's frame, on the plane; points,
+    normals and references are given N times or once.
 
     Horizontal planes: (x, z) in the reference's frame (or (radius, 0) for references without a front).
     Vertical planes: (distance along the wall, height) relative to the reference.
     """
-    t, p, n = broadcast_frames(ref_transforms, points, normals)
+    t = np.asarray(ref_transforms, dtype=float).reshape(-1, 4, 4)
     r = rotations_of(t)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    delta = np.einsum("nji,nj->ni", r, p - t[:, :3, 3])
-    n_local = np.einsum("nji,nj->ni", r, n)
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    delta = in_frames(r, np.asarray(points, dtype=float).reshape(-1, 3) - t[:, :3, 3])
+    n_local = in_frames(r, n / np.linalg.norm(n, axis=1, keepdims=True))
     flat = np.abs(n_local[:, 1]) > HORIZONTAL_COS
-    radial = np.broadcast_to(np.asarray(radial, dtype=bool), flat.shape)
-    xz = delta[:, [0, 2]]
-    horizontal = np.where(radial[:, None], np.column_stack([np.hypot(xz[:, 0], xz[:, 1]), np.zeros(len(xz))]), xz)
-    along = np.cross([0.0, 1.0, 0.0], n_local)
-    length = np.linalg.norm(along, axis=1, keepdims=True)
-    along = along / np.where(length > 0, length, 1.0)
-    vertical = np.column_stack([(delta * along).sum(axis=1), delta[:, 1]])
+    radius = np.hypot(delta[:, 0], delta[:, 2])
+    horizontal = np.where(np.asarray(radial, dtype=bool).reshape(-1, 1), np.column_stack([radius, 0 * radius]),
+                          delta[:, [0, 2]])
+    length = np.hypot(n_local[:, 2], n_local[:, 0])  # of up × n, the direction along a wall: (n_z, 0, −n_x)
+    length = np.where(length > 0, length, 1.0)
+    vertical = np.column_stack([delta[:, 0] * (n_local[:, 2] / length) + delta[:, 2] * (-n_local[:, 0] / length),
+                                delta[:, 1]])
     return np.where(flat[:, None], horizontal, vertical)
 
 
@@ -226,13 +240,15 @@ def plane_offset(point, normal, ref_transform: np.ndarray, radial: bool) -> np.n
 def reference_headings(points, normals, ref_transforms, radial) -> np.ndarray:
     """(N,) headings relative orientation is measured from: a reference's front on horizontal planes (or the
     direction from the point towards it when it has no front); the plane's up (0) on vertical planes; 0 where
-    undefined."""
-    t, p, n = broadcast_frames(ref_transforms, points, normals)
-    radial = np.broadcast_to(np.asarray(radial, dtype=bool), (len(p),))
-    direction = np.where(radial[:, None], t[:, :3, 3] - p, rotations_of(t)[:, :, 2])
-    h = np.nan_to_num(headings(direction, n), nan=0.0)
-    horizontal = np.abs(n[:, 1]) / np.linalg.norm(n, axis=1) > HORIZONTAL_COS
-    return np.where(horizontal, h, 0.0)
+    undefined. Points, normals and references are given N times or once."""
+    t = np.asarray(ref_transforms, dtype=float).reshape(-1, 4, 4)
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    front = t[:, :3, 2] / np.linalg.norm(t[:, :3, 2], axis=1, keepdims=True)
+    direction = np.where(np.asarray(radial, dtype=bool).reshape(-1, 1), t[:, :3, 3] - p, front)
+    normals = np.asarray(normals, dtype=float)
+    h = np.nan_to_num(headings(direction, normals if normals.size == 3 else normals.reshape(-1, 3)), nan=0.0)
+    n = normals.reshape(-1, 3)
+    return np.where(np.abs(n[:, 1]) / np.linalg.norm(n, axis=1) > HORIZONTAL_COS, h, 0.0)
 
 
 def reference_heading(point, normal, ref_transform: np.ndarray, radial: bool) -> float:

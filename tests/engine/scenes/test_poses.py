@@ -71,6 +71,33 @@ def test_plane_offsets_in_the_reference_frame():
     assert poses.wrap(towards) == pytest.approx(math.pi)  # from the point, the reference lies towards −Z
 
 
+def test_geometry_given_once_or_per_row_gives_the_same_as_one_at_a_time():
+    """A query asks with one point and one normal for many references, training with one row each: the
+    vectorised functions read both shapes alike."""
+    from scenesuggest.learning.observations import bearings
+
+    rng = np.random.default_rng(3)
+    normals = np.array([[0, 1, 0], [0, 0, 1], [0.6, 0, -0.8], [0, -1, 0], [1e-3, 1, 0]], dtype=float)
+    refs = np.stack([frames.translation(rng.normal(size=3)) @ frames.rotation_y(a) @ np.diag([*s, 1.0])
+                     for a, s in zip(rng.uniform(-3, 3, 6), rng.uniform(0.5, 2, (6, 3)), strict=True)])
+    sizes, radial = rng.uniform(0.2, 2, (6, 3)), np.array([False, True, False, False, True, False])
+    for normal in normals:
+        point = rng.normal(size=3)
+        alone = [(poses.plane_offset(point, normal, t, r), poses.reference_heading(point, normal, t, r),
+                  bearings(point, normal, t, s)[0]) for t, s, r in zip(refs, sizes, radial, strict=True)]
+        per_row = (np.tile(point, (6, 1)), np.tile(normal, (6, 1)))
+        for p, n in ((point, normal), per_row):
+            assert np.allclose(poses.plane_offsets(p, n, refs, radial), [a[0] for a in alone])
+            assert np.allclose(poses.reference_headings(p, n, refs, radial), [a[1] for a in alone])
+            assert np.allclose(bearings(p, n, refs, sizes), [a[2] for a in alone], equal_nan=True)
+        directions = rng.normal(size=(6, 3))
+        directions[0] = normal  # perpendicular to the plane: no heading
+        one = poses.headings(directions, normal)
+        assert np.isnan(one[0]) and not np.isnan(one[1:]).any()
+        assert np.allclose(poses.headings(directions, np.tile(normal, (6, 1))), one, equal_nan=True)
+        assert np.allclose([poses.heading(d, normal) for d in directions], one, equal_nan=True)
+
+
 def test_turn_about_measures_the_turn_a_person_must_make_on_the_surface():
     up, wall = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])  # floor; the left wall, facing +X
     yaw = lambda deg: poses.axis_rotation(up, math.radians(deg)) @ poses.attach_rotation("bottom", up)  # noqa: E731
