@@ -159,6 +159,7 @@ class Priors:
         self._groups = {tuple(int(v) for v in key): g for g, key in enumerate(self.group_keys)}
         self._occ_starts = np.searchsorted(self.occ_key, np.arange(len(self.entities) * len(self.scene_types) + 1))
         self._chains: dict[str, list[int]] = {}
+        self._keyed: dict[tuple[str, int], tuple[int, int]] = {}
         # log_density of each segment's θ (row 2s) and φ (row 2s + 1) counts, filled as queries need them; the OS
         # commits memory only for the pages of rows filled (about 14 rows a page)
         self._log_density = np.empty((2 * len(self.seg_theta_n), BINS))
@@ -180,6 +181,12 @@ class Priors:
     def seg_weight64(self) -> np.ndarray:
         """(segments,) ``seg_weight`` in float64."""
         return self.seg_weight.astype(float)
+
+    @cached_property
+    def alpha_log_density(self) -> np.ndarray:
+        """(entities, surface types, faces, BINS) :func:`~scenesuggest.learning.orientation.log_density` of
+        ``alpha_n``, in float64: the canonical evidence of every heading bin."""
+        return log_density(self.alpha_n)
 
     def segment_log_density(self, rows: np.ndarray) -> np.ndarray:
         """(len(rows), BINS) log-probabilities of the heading bins (:func:`~scenesuggest.learning.orientation.
@@ -292,11 +299,13 @@ class Priors:
         s = self.scene_index.get(scene_type, any_s) if scene_type not in (None, ANY) else any_s
         if not backoff:
             return chain[0], s
-        counts = self.occ_parent_n[chain, s]
-        for e, n in zip(chain, counts, strict=True):
-            if n >= MIN_OBSERVATIONS:
-                return e, s
-        return self.stat_entity(category), any_s
+        memo = (category, s)  # a known category and a known scene type: a bounded set
+        key = self._keyed.get(memo)
+        if key is None:
+            counts = self.occ_parent_n[chain, s]
+            found = [e for e, n in zip(chain, counts.tolist(), strict=True) if n >= MIN_OBSERVATIONS]
+            key = self._keyed[memo] = (found[0], s) if found else (self.stat_entity(category), any_s)
+        return key
 
     def occurrence_key(self, parent_category: str, scene_type: str | None, backoff: bool = True) -> int | None:
         """The (parent entity, scene type) row block to read P(|C on p| > k) from; None for a parent

@@ -160,14 +160,16 @@ def _attach_rotation(face: str, normal: tuple[float, float, float]) -> np.ndarra
 
 
 @functools.lru_cache(maxsize=256)
-def _zero_headings(normal: tuple[float, float, float]) -> tuple[float, ...]:
-    return tuple(zero_heading(face, normal) for face in frames.FACES)
+def _zero_headings(normal: tuple[float, float, float]) -> np.ndarray:
+    out = np.nan_to_num([zero_heading(face, normal) for face in frames.FACES])
+    out.setflags(write=False)
+    return out
 
 
 def zero_headings(normal) -> np.ndarray:
     """:func:`zero_heading` of every face (in ``frames.FACES`` order) on a plane with ``normal``; 0 where
-    undefined. Memoised: a scene's clicks fall on few distinct planes."""
-    return np.nan_to_num(_zero_headings(tuple(float(v) for v in np.asarray(normal, dtype=float).reshape(3))))
+    undefined. Memoised (read-only): a scene's clicks fall on few distinct planes."""
+    return _zero_headings(tuple(np.asarray(normal, dtype=float).reshape(3).tolist()))
 
 
 def placement(point, normal, face: str, size, alpha: float) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..learning.observations import WALL, bearings, is_radial, near_wall, wall_heading
-from ..learning.orientation import BINS, KINDS, log_density, mean_by, pair_kind_rows, turned
+from ..learning.orientation import BINS, KINDS, mean_by, pair_kind_rows, turned
 from ..scenes import poses
 from ..scenes.scene import SURFACE_TYPES
 
@@ -38,7 +38,7 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
     t = SURFACE_TYPES.index(prep.surface_type)
     out = np.zeros((m, len(KINDS), BINS))
     zero = poses.zero_headings(prep.normal)[faces]
-    out[:, 0] = turned(log_density(p.alpha_n[engine.stat_entity[idx], t, faces]), zero)
+    out[:, 0] = turned(p.alpha_log_density[engine.stat_entity[idx], t, faces], zero)
     refs = prep.references
     segs, kinds, angles, rows = [], [], [], []  # per contribution: segment, kind, reference angle, candidate
     if refs:

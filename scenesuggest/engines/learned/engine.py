@@ -118,7 +118,7 @@ class LearnedEngine(Engine):
         if found is None:
             return self.ranker.predict(rows, num_threads=1)
         first, short = found
-        full = self.ranker.predict(rows[short], num_threads=1)
+        full = first[short] + self.ranker.predict(rows[short], start_iteration=SHORTLIST_TREES, num_threads=1)
         rest = np.ones(len(rows), dtype=bool)
         rest[short] = False
         total = first - (first[rest].max() - full.min()) - 1.0
