@@ -164,9 +164,8 @@ def _model_infos(model_ids, raw_scenes, meta, names, tags, paths, mesh_dir) -> d
 
 def _local_contact(o: RawObject, point: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The contact point in the child's raw model frame and the outward normal of its touching face."""
-    inv = np.linalg.inv(o.transform)
-    p = frames.apply(inv, point[None])[0]
-    n = frames.apply_direction(inv, -normal[None])[0]
+    p = frames.apply(np.linalg.inv(o.transform), point[None])[0]
+    n = frames.direction_in_frame(o.transform, -normal[None])[0]
     return p, n
 
 

@@ -195,6 +195,7 @@ class Priors:
         only after its values)."""
         todo = rows[~self._log_density_filled[rows]]
         if len(todo):
+            todo = np.unique(todo)  # siblings of one category share their segments
             counts = np.where((todo % 2 == 0)[:, None], self.seg_theta_n[todo // 2], self.seg_phi_n[todo // 2])
             self._log_density[todo] = log_density(counts)
             self._log_density_filled[todo] = True

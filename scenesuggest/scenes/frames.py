@@ -106,9 +106,11 @@ def apply(m: np.ndarray, points) -> np.ndarray:
     return p @ m[:3, :3].T + m[:3, 3]
 
 
-def apply_direction(m: np.ndarray, vectors) -> np.ndarray:
-    """Transform directions (normals of a rigid-plus-uniform-scale map), re-normalised."""
-    v = np.asarray(vectors, dtype=float) @ np.linalg.inv(m[:3, :3])
+def direction_in_frame(m: np.ndarray, vectors) -> np.ndarray:
+    """World directions or surface normals (N, 3) in the frame of an object whose canonical → world transform is
+    ``m`` (rigid plus uniform scale): ``v @ m[:3, :3]``, the normal map of m⁻¹ (m⁻¹'s inverse transpose is mᵀ),
+    re-normalised."""
+    v = np.asarray(vectors, dtype=float) @ np.asarray(m, dtype=float)[:3, :3]
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     return v / np.where(n == 0, 1, n)
 

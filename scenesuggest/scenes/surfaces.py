@@ -34,9 +34,8 @@ def surface_direction(normal) -> str:
 
 def surface_side(parent_transform: np.ndarray, parent_size, point, normal) -> str:
     """``interior`` or ``exterior`` of a contact on a parent box (see the module docstring)."""
-    inv = np.linalg.inv(parent_transform)
-    p = frames.apply(inv, np.asarray(point, dtype=float)[None])[0]
-    n = frames.apply_direction(inv, np.asarray(normal, dtype=float)[None])[0]
+    p = frames.apply(np.linalg.inv(parent_transform), np.asarray(point, dtype=float)[None])[0]
+    n = frames.direction_in_frame(parent_transform, np.asarray(normal, dtype=float)[None])[0]
     axis = int(np.argmax(np.abs(n)))
     size = np.asarray(parent_size, dtype=float)
     lo = np.array([-size[0] / 2, 0.0, -size[2] / 2])
@@ -53,6 +52,5 @@ def surface_type(parent_transform: np.ndarray, parent_size, point, normal) -> st
 
 def attachment_face(child_transform: np.ndarray, normal) -> str:
     """The child's bbox face that touches a surface with world normal ``normal``."""
-    inv = np.linalg.inv(child_transform)
-    n_local = frames.apply_direction(inv, -np.asarray(normal, dtype=float)[None])[0]
+    n_local = frames.direction_in_frame(child_transform, -np.asarray(normal, dtype=float)[None])[0]
     return frames.face_of_direction(n_local)

@@ -68,9 +68,7 @@ def evidence(engine, prep, idx: np.ndarray, faces: np.ndarray) -> np.ndarray:
         rows.append(has)
     seg, kind, angle, row = (np.concatenate(a) if a else np.zeros(0, np.int64) for a in (segs, kinds, angles, rows))
     if len(seg):
-        distinct, each = np.unique(seg, return_inverse=True)  # siblings of one category share their segments
-        density = p.segment_log_density(distinct)[each]
-        mean = mean_by(row * len(KINDS) + kind, turned(density, angle), m * len(KINDS))
+        mean = mean_by(row * len(KINDS) + kind, turned(p.segment_log_density(seg), angle), m * len(KINDS))
         out[:, 1:] = mean.reshape(m, len(KINDS), BINS)[:, 1:]
     return out
 

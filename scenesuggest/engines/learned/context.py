@@ -86,7 +86,7 @@ def describe_click(scene: Scene, parent, point, normal, exclude: str | None = No
     size = np.asarray(parent.size, dtype=float)
     half = np.maximum(size / 2, 1e-6)
     centre = np.array([0.0, size[1] / 2, 0.0])
-    axis = int(np.argmax(np.abs(frames.apply_direction(inv, normal[None])[0])))
+    axis = int(np.argmax(np.abs(frames.direction_in_frame(parent.transform, normal[None])[0])))
     tangent = [a for a in range(3) if a != axis]
     edge = float(np.max(np.abs(local - centre)[tangent] / half[tangent]))
     dims = size * np.linalg.norm(parent.transform[:3, :3], axis=0)
