@@ -34,7 +34,7 @@ PASSWORD = "bench-password"
 
 def fill(folder: Path, participants: int, event_bytes: float) -> None:
     """A migrated database with ``participants`` consented participants of the demo study and their events."""
-    from study_server.assignment import arrive, assign
+    from study_server.participants.assignment import arrive, assign
 
     app = make_app(folder)
     with app.app_context():

@@ -28,7 +28,7 @@ from serverproc import DEMO_STUDY, StudyServer, demo_missing
 
 from simulation.participant import Bot
 from simulation.transport import FlowError, HttpTransport
-from study_server.study_file import load_study
+from study_server.studies.study_file import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -40,9 +40,9 @@ def one_run(objects: int, event_bytes: float) -> dict:
     from sqlalchemy import func, select
 
     from simulation.transport import FlaskTransport
-    from study_server import replays
-    from study_server.extensions import db
-    from study_server.models import Event, Participant, Trial
+    from study_server.base.extensions import db
+    from study_server.base.models import Event, Participant, Trial
+    from study_server.trials import replays
 
     with tempfile.TemporaryDirectory() as tmp:
         app = make_app(Path(tmp))

@@ -30,7 +30,7 @@ def sparse_backup(folder: Path, claimed: int) -> Path:
     """A backup of a real (empty, migrated) database's first page and ``claimed`` bytes in all, holes after it."""
     from demostudy import make_app
 
-    from study_server.backup import backup
+    from study_server.experimenter.backup import backup
 
     app = make_app(folder / "source")  # migrated: the scratch database whose first page is taken
     made = backup(app.config["SQLALCHEMY_DATABASE_URI"], folder / "real.backup")

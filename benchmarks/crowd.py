@@ -108,7 +108,7 @@ def record_trials(bots: int, study: Path = DEMO_STUDY, seed: int = 0) -> list[li
 
 
 def study_id(study: Path) -> str:
-    from study_server.study_file import load_study
+    from study_server.studies.study_file import load_study
 
     return load_study(study).id
 

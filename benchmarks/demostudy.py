@@ -57,7 +57,7 @@ def to_first_trial(transport, pid: str, study: str = "demo"):
 
 
 def rows_balance(rows_of_completed, study) -> tuple[dict[int, int], bool]:
-    """Completed participants per schedule row of ``study`` (loaded: :func:`study_server.study_file.load_study`;
+    """Completed participants per schedule row of ``study`` (loaded: :func:`study_server.studies.study_file.load_study`;
     every row, an empty one counting as none) and whether they are balanced: no two rows differ by more than one
     participant, and someone completed."""
     rows = Counter({r: 0 for r in range(study.n_rows)})

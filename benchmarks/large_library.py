@@ -23,7 +23,7 @@ STUDY_ID = "large-library"
 
 def demo_resources() -> tuple[Path, Path]:
     """(priors file, model library folder) the demo study is served with."""
-    from study_server.study_file import load_study
+    from study_server.studies.study_file import load_study
 
     study = load_study(DEMO_STUDY)
     return study.priors, study.library

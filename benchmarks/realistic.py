@@ -21,7 +21,7 @@ from demostudy import rows_balance
 from serverproc import own_cpu_seconds
 from stacks import postgres_stack, sqlite_stack
 
-from study_server.study_file import load_study
+from study_server.studies.study_file import load_study
 
 #: The headroom rule: plan for the app servers' cores to be busy at most this share of the time on average, so a
 #: wave of arrivals or a busy minute (up to twice the average) still finds a core to run on rather than a queue.

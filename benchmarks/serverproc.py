@@ -19,8 +19,8 @@ DEMO_STUDY = ROOT / "study_server" / "demo" / "study.toml"
 
 def demo_missing() -> str | None:
     """What the demo study lacks to be served (its priors and library; `make demo` builds them), or None."""
-    from study_server.prepare import problems
-    from study_server.study_file import load_study
+    from study_server.studies.prepare import problems
+    from study_server.studies.study_file import load_study
 
     found = problems(load_study(DEMO_STUDY))
     return "; ".join(found.values()) + " (run `make demo`)" if found else None
@@ -161,7 +161,7 @@ class NginxProxy:
     access log (``prefix``/access.log) is in ``log_format``: ``timing`` (:func:`read_timings`) or the site's own."""
 
     def __init__(self, prefix: Path, app_ports: list[int], log_format: str = "timing"):
-        from study_server.deployment import Deployment, write_deploy_files
+        from study_server.experimenter.deployment import Deployment, write_deploy_files
 
         self.prefix = prefix
         (prefix / "tmp").mkdir(parents=True)

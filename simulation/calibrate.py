@@ -95,7 +95,7 @@ class _Local:
     search, model files) and keeps the events it is sent instead of storing them."""
 
     def __init__(self, app, study_id: str):
-        from study_server.offline import OfflineAnswers
+        from study_server.studies.offline import OfflineAnswers
 
         self.answers = OfflineAnswers(app, study_id)
         self.client = app.test_client()

@@ -30,7 +30,7 @@ def _app(study_id: str | None, database_url: str | None = None, migrate: bool = 
 
 
 def _study(app, study_id: str):
-    from study_server.offline import OfflineAnswers
+    from study_server.studies.offline import OfflineAnswers
 
     return OfflineAnswers(app, study_id).study
 
@@ -60,7 +60,7 @@ def simulate_cmd(participants: int, seed: int, url: str | None, database_url: st
     Every one is a pilot (arrived through an entry link signed with the server's key and shaped for the study's
     platform), and in process they go into a database of their own unless told otherwise: a pilot never mixes
     with a study's data."""
-    from study_server import pilots
+    from study_server.participants import pilots
 
     from .calibrate import read
     from .participant import Behaviours

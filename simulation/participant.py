@@ -66,7 +66,7 @@ class Bot:
                  behaviours: Behaviours | None = None, symmetry: dict[str, float] | None = None,
                  human: Human | None = None, scene_seed: int = 0, entry: dict | None = None):
         """``entry``: the entry link's parameters as the study's platform sends them (a pilot's, signed, from
-        ``study_server.pilots.entry_query``); default ``pid=`` ``pid``, a link study's."""
+        ``study_server.participants.pilots.entry_query``); default ``pid=`` ``pid``, a link study's."""
         self.http, self.study, self.pid, self.rng = transport, study, pid, rng
         self.entry = entry if entry is not None else {"pid": pid}
         self.human = human or Human()

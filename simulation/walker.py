@@ -15,8 +15,8 @@ from urllib.parse import urlencode
 from .page import Page, read_page
 from .transport import FlowError
 
-#: The device check's report of a browser that can run the trial (study_server.device): a 1440 × 900 window, nothing
-#: missing, 60 frames a second.
+#: The device check's report of a browser that can run the trial (study_server.participants.device): a 1440 × 900
+#: window, nothing missing, 60 frames a second.
 CAPABLE_DEVICE = {"missing": "", "width": "1440", "height": "900", "pixel_ratio": "1", "touch_only": "false",
                   "fps": "60", "renderer": ""}
 #: What a person answers on the pages that ask nothing of them.

@@ -13,8 +13,8 @@ from flask import Flask
 from sqlalchemy import event
 from werkzeug.exceptions import HTTPException
 
-from . import config as settings
-from .extensions import Answers, db, json_text, json_value, migrate
+from .base import config as settings
+from .base.extensions import Answers, db, json_text, json_value, migrate
 
 MIGRATIONS = settings.MIGRATIONS
 
@@ -102,20 +102,20 @@ def create_app(config: dict | None = None) -> Flask:
         if db.engine.dialect.name == "sqlite":
             event.listen(db.engine, "connect", _sqlite_pragmas)
 
-    from .studies import load_studies
+    from .studies.served import load_studies
 
     app.extensions["studies"] = load_studies(app.config["STUDY_FILES"], check=app.config.get("CHECK_RESOURCES", True))
 
-    from . import i18n
+    from .base import i18n
 
     i18n.init_app(app)
 
-    from . import errors
+    from .base import errors
+    from .base.importmap import IMPORT_MAP
+    from .base.security import CookieSessions, csrf_token, security_headers
+    from .base.urls import RowNumber
     from .blueprints import admin, api, health, participant, vendor
-    from .boot import api_base
-    from .importmap import IMPORT_MAP
-    from .security import CookieSessions, csrf_token, security_headers
-    from .urls import RowNumber
+    from .participants.boot import api_base
 
     app.url_map.converters["row"] = RowNumber
     app.register_blueprint(vendor.bp)

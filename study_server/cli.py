@@ -16,10 +16,11 @@ import click
 from scenesuggest.cli import emit
 from scenesuggest.errors import SceneSuggestError
 
-from . import config, create_app, upgrade_database
-from .export import export_to
-from .schedule import williams_square
-from .studies import load_studies
+from . import create_app, upgrade_database
+from .base import config
+from .experimenter.export import export_to
+from .studies.schedule import williams_square
+from .studies.served import load_studies
 
 
 @click.group()
@@ -57,7 +58,7 @@ def study_init_cmd(folder: str, corpus: str, meshes: str | None, title: str | No
                    as_json: bool) -> None:
     """Start a new study in FOLDER (absent or empty): a study file with every key, commented, a practice and a
     target scene, and a README of the next steps. Never overwrites anything."""
-    from .new_study import command, init_study
+    from .studies.new_study import command, init_study
 
     written = init_study(folder, corpus, title, study_id, meshes, say=lambda m: click.echo(m, err=True))
     study_file = Path(folder) / "study.toml"
@@ -78,7 +79,7 @@ def study_init_cmd(folder: str, corpus: str, meshes: str | None, title: str | No
 def study_validate_cmd(file: str, resources: bool, as_json: bool) -> None:
     """Check a study file (keys, scenes, and optionally its priors and library); errors name the key. The
     server's own priors and library, when not built yet, are reported as what 'study prepare' will build."""
-    from .prepare import problems
+    from .studies.prepare import problems
 
     rt = next(iter(load_studies([Path(file)], check=False).values()))
     s = rt.study
@@ -119,7 +120,7 @@ def _prepare(files: list[Path]) -> list[str]:
     """Build the server's own priors and libraries that the studies of ``files`` use, where missing or stale."""
     from scenesuggest.cli import progress
 
-    from .prepare import prepare
+    from .studies.prepare import prepare
 
     built = []
     for rt in load_studies(files, check=False).values():
@@ -170,17 +171,18 @@ def study_serve_cmd(host: str, port: int, workers: int, prepare: bool) -> None:
 
 
 def gunicorn_command(workers: int, bind: str) -> list[str]:
-    """How ``study serve`` runs gunicorn: with the settings of :mod:`study_server.gunicorn_settings` (an access log
+    """How ``study serve`` runs gunicorn: with the settings of :mod:`study_server.base.gunicorn_settings` (an access log
     without secrets, no control socket; never a gunicorn.conf.py of the working directory). --timeout: a worker
     answering one request longer than this is killed; the admin's export streams a large study for longer than
     gunicorn's default 30 s (330 MB of events: about a minute)."""
-    return [sys.executable, "-m", "gunicorn", "-c", "python:study_server.gunicorn_settings", "--workers", str(workers),
-            "--timeout", "300", "--bind", bind, "--access-logfile", "-", "study_server:create_app()"]
+    return [sys.executable, "-m", "gunicorn", "-c", "python:study_server.base.gunicorn_settings",
+            "--workers", str(workers), "--timeout", "300", "--bind", bind, "--access-logfile", "-",
+            "study_server:create_app()"]
 
 
 def entry_links(app, study, base: str) -> list[str]:
     """What ``study serve`` prints of a study: the participants' link for its platform, and a fresh test link."""
-    from . import pilots
+    from .participants import pilots
 
     start = f"{base}/study/{study.id}/start"
     return [f"participants' link ({study.platform}): {pilots.participant_link(study, start)}",
@@ -244,7 +246,7 @@ def _reading(app):
     from sqlalchemy import inspect
     from sqlalchemy.exc import SQLAlchemyError
 
-    from .extensions import db
+    from .base.extensions import db
 
     with app.app_context():
         where = db.engine.url.render_as_string(hide_password=True)
@@ -284,8 +286,8 @@ def study_reset_cmd(study: str, database_url: str | None, pilots_only: bool, for
     """Remove a study's participants and everything they left (trials, events, lists, surveys, session log):
     before launch, to start clean after pilots. Refused once real participants have arrived, unless --force;
     --pilots-only removes the pilots alone, at any time."""
-    from . import pilots
-    from .extensions import db
+    from .base.extensions import db
+    from .participants import pilots
 
     app, study_id = _study_app(study, database_url)
     with _reading(app):
@@ -321,7 +323,7 @@ def _database_url(database_url: str | None) -> str:
 @click.option("--json", "as_json", is_flag=True)
 def study_backup_cmd(out: str, database_url: str | None, as_json: bool) -> None:
     """Back up the database while the server runs: SQLite's online backup, or pg_dump's custom format."""
-    from .backup import backup
+    from .experimenter.backup import backup
 
     done = backup(_database_url(database_url), out)
     emit(done, as_json, f"backed up {done['participants']} participants and {done['events']} events "
@@ -337,7 +339,7 @@ def study_restore_cmd(file: str, database_url: str | None, as_json: bool) -> Non
     """Restore a backup 'study backup' wrote into an empty database (one with no tables), as the app's role.
     Refused, naming why: a file whose digest does not match, and one holding what the migrations do not create
     (triggers, views, functions, changed tables). Sign-ins are not carried across."""
-    from .backup import restore
+    from .experimenter.backup import restore
 
     done = restore(file, _database_url(database_url))
     emit(done, as_json, f"restored {done['participants']} participants and {done['events']} events (schema "
@@ -356,7 +358,7 @@ def study_admin_link_cmd(minutes: int, base: str, as_json: bool) -> None:
     the server's database is: DATABASE_URL or the instance folder)."""
     from datetime import timedelta
 
-    from .security import new_admin_link
+    from .base.security import new_admin_link
 
     if not base.startswith(("http://", "https://")) or any(c.isspace() for c in base):
         raise SceneSuggestError("expected the server's address, like https://study.example.org", field="--base")
@@ -364,7 +366,7 @@ def study_admin_link_cmd(minutes: int, base: str, as_json: bool) -> None:
     with app.app_context():
         from sqlalchemy import inspect
 
-        from .extensions import db
+        from .base.extensions import db
 
         if not inspect(db.engine).has_table("admin_links"):
             raise SceneSuggestError(f"the database {db.engine.url.render_as_string(hide_password=True)} has no "
@@ -392,7 +394,7 @@ def study_deploy_files_cmd(out: str, server_name: str, app_ports: tuple[int, ...
                            cert: str | None, key: str | None, user: str, workers: int, as_json: bool) -> None:
     """Write nginx's site and proxy settings, the app servers' systemd unit and their environment file, filled
     in for this installation and the configured studies (see "Running a study for real" in the README)."""
-    from .deployment import Deployment, write_deploy_files
+    from .experimenter.deployment import Deployment, write_deploy_files
 
     written = write_deploy_files(out, Deployment(server_name, list(app_ports), http_port, https_port, cert=cert,
                                                  key=key, user=user, workers=workers))

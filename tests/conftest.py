@@ -169,8 +169,8 @@ def replication(stanford_dir, stanford_meshes) -> Path:
 def demo_resources():
     """The demo study, with the server's own priors and model library for it (built here when missing or made
     by other engine code, as `make demo` builds them)."""
-    from study_server.prepare import prepare
-    from study_server.study_file import load_study
+    from study_server.studies.prepare import prepare
+    from study_server.studies.study_file import load_study
 
     prepare(load_study(DEMO_STUDY), lambda items, label="": items, lambda message: None)
     return DEMO_STUDY

@@ -7,8 +7,8 @@ from __future__ import annotations
 from conftest import DEMO_STUDY
 from flowhelp import auth
 
-from study_server.extensions import db
-from study_server.models import Participant
+from study_server.base.extensions import db
+from study_server.base.models import Participant
 
 PASSWORD = "correct horse battery staple"
 PID, STUDY, SESSION = "5f3a" + "0" * 20, "6a1b" + "1" * 20, "7c2d" + "2" * 20

@@ -9,9 +9,9 @@ from conftest import make_app
 from flowhelp import EXIT, auth, csrf, finish_all_trials, to_trials
 from werkzeug.security import generate_password_hash
 
-from study_server.extensions import db
-from study_server.models import Participant
-from study_server.replays import scene_after
+from study_server.base.extensions import db
+from study_server.base.models import Participant
+from study_server.trials.replays import scene_after
 
 PASSWORD = "correct horse battery staple"
 
@@ -81,8 +81,8 @@ def test_progress_timeline_exclusion_and_xss(admin_app):
     with admin_app.app_context():
         p = db.session.get(Participant, second.id)
         assert p.status == "excluded" and p.excluded_reason == "bot-like"
-        from study_server.assignment import row_counts
-        from study_server.models import utcnow
+        from study_server.base.models import utcnow
+        from study_server.participants.assignment import row_counts
 
         assert row_counts(admin_app.extensions["studies"]["demo"].study, utcnow())[second.row] == 0
     assert c.post(f"/admin/demo/participants/{pid}/exclude", data={"reason": "x"}).status_code == 400  # CSRF
@@ -170,7 +170,7 @@ def test_the_replay_of_a_trial_in_progress_and_of_one_without_states(monkeypatch
     assert c.get(f"/admin/demo/participants/{pid}/trials/-1/replay").status_code == 200
     assert c.get(f"/admin/demo/participants/{pid}/trials/7/replay.json").status_code == 200
     assert c.get(f"/admin/demo/participants/{pid}/trials/42/replay.json").status_code == 404
-    from study_server import replays
+    from study_server.trials import replays
 
     with monkeypatch.context() as m:
         m.setattr(replays, "MAX_SHOWN_STATES", 2)  # the start's room, then 1 object: the second is too many

@@ -13,9 +13,9 @@ import pytest
 from flowhelp import csrf
 from integrityhelp import PASSWORD
 
-from study_server.extensions import db
-from study_server.models import AdminLink, utcnow
-from study_server.security import new_admin_link
+from study_server.base.extensions import db
+from study_server.base.models import AdminLink, utcnow
+from study_server.base.security import new_admin_link
 
 
 def link_for(app, lifetime=timedelta(minutes=15)) -> str:
@@ -25,7 +25,7 @@ def link_for(app, lifetime=timedelta(minutes=15)) -> str:
 
 def crowd_locks_out_anonymous_logins(app, monkeypatch) -> None:
     """Ten addresses guessing until every browser without a device cookie gets 429 for the right password."""
-    from study_server import security
+    from study_server.base import security
 
     monkeypatch.setattr(security, "ANONYMOUS_LOGIN_LIMIT", 10)
     for i in range(12):

@@ -175,7 +175,7 @@ def test_bad_exports_get_messages_and_the_report_keeps_what_it_can(synthetic, tm
 
 
 def test_report_reads_the_database_directly_like_the_export(app, tmp_path):
-    from study_server.export import export_to
+    from study_server.experimenter.export import export_to
 
     assert Bot(FlaskTransport(app.test_client()), "demo", "bot-a", np.random.default_rng(1)).run().code
     url = app.config["SQLALCHEMY_DATABASE_URI"]

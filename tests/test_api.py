@@ -7,8 +7,8 @@ import pytest
 from flowhelp import auth, next_trial, to_trials
 
 from scenesuggest.scenes import scene_json
-from study_server.extensions import db
-from study_server.models import Event, Participant, ShownList, Trial
+from study_server.base.extensions import db
+from study_server.base.models import Event, Participant, ShownList, Trial
 
 
 def ev(seq, kind="focus", trial=None, **payload):
@@ -197,7 +197,7 @@ def test_trial_done_is_idempotent_and_keeps_the_final_scene(client, app):
 
 
 def test_preview_tokens_work_and_write_nothing(app):
-    from study_server.security import preview_token
+    from study_server.base.security import preview_token
 
     c = app.test_client()
     with app.test_request_context():

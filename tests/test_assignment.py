@@ -13,9 +13,9 @@ from conftest import DEMO_STUDY, make_app
 
 from simulation.transport import FlowError, HttpTransport
 from simulation.walker import Walker
-from study_server.assignment import arrive, assign, row_counts
-from study_server.extensions import db
-from study_server.models import Participant, Trial, utcnow
+from study_server.base.extensions import db
+from study_server.base.models import Participant, Trial, utcnow
+from study_server.participants.assignment import arrive, assign, row_counts
 
 
 def study_of(app):

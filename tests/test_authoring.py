@@ -133,7 +133,7 @@ def test_bad_images_are_refused(admin, study_copy, value, status):
 
 def test_a_study_that_ships_with_the_installed_package_is_read_only(tmp_path, demo_resources, monkeypatch):
     """Installed, the built-in demo lives in site-packages, which a reinstall overwrites: its targets are not saved."""
-    from study_server import config
+    from study_server.base import config
 
     app = make_app(tmp_path, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
     c = app.test_client()

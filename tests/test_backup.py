@@ -12,8 +12,8 @@ from conftest import make_app
 from sqlalchemy import create_engine, text
 
 from simulation.run import simulate
-from study_server.backup import BackupError, backup, restore
-from study_server.export import export_to
+from study_server.experimenter.backup import BackupError, backup, restore
+from study_server.experimenter.export import export_to
 
 
 def fresh_database(request, backend_url, tmp_path):

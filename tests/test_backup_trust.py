@@ -13,9 +13,9 @@ import pytest
 from conftest import make_app
 from sqlalchemy import create_engine, inspect, text
 
-from study_server.assignment import arrive, assign
-from study_server.backup import BackupError, backup, restore
-from study_server.backup_archive import MANIFEST, write_archive
+from study_server.experimenter.backup import BackupError, backup, restore
+from study_server.experimenter.backup_archive import MANIFEST, write_archive
+from study_server.participants.assignment import arrive, assign
 
 
 def run(url: str, *statements: str) -> None:
@@ -130,7 +130,7 @@ def test_a_forged_page_count_is_refused_before_the_rest_is_written(study_db, tmp
 
 
 def test_a_sparse_file_claiming_gigabytes_is_refused_before_anything_is_written(tmp_path):
-    from study_server.backup_schema import known_revisions
+    from study_server.experimenter.backup_schema import known_revisions
 
     manifest = json.dumps({"format": "scenesuggest-backup/1", "kind": "sqlite", "payload": "database.sqlite3",
                            "revision": sorted(known_revisions())[0], "participants": 0, "events": 0, "app_version": "0",
@@ -205,7 +205,7 @@ def test_a_trigger_named_like_an_index_of_the_migrations_is_refused(study_db, tm
 def test_nothing_of_a_backups_schema_reaches_the_restored_database_even_unchecked(study_db, tmp_path, monkeypatch):
     """The migrations build the restored schema and only rows are copied in: were the schema check ever to miss
     one, no trigger or view of a backup would come across, and a new participant's token is the app's own."""
-    import study_server.backup as backup_module
+    import study_server.experimenter.backup as backup_module
 
     backdoored(study_db)
     run(study_db, "CREATE TRIGGER ix_participants_row AFTER INSERT ON participants BEGIN "
@@ -220,8 +220,8 @@ def test_nothing_of_a_backups_schema_reaches_the_restored_database_even_unchecke
     app = make_app(tmp_path / "served", f"sqlite:///{target}")
     with app.app_context():
         participant, _ = arrive(app.extensions["studies"]["demo"].study, "link", "p2")
-        from study_server.extensions import db
-        from study_server.models import Participant
+        from study_server.base.extensions import db
+        from study_server.base.models import Participant
 
         assert db.session.get(Participant, participant.id).token not in ("known", "backdoor-4")
 
@@ -304,7 +304,7 @@ def test_a_sparse_backup_is_refused_before_its_payload_is_expanded(tmp_path, stu
         f.write(bytes(1024))
     assert out.stat().st_blocks * 512 < claimed // 100  # holes
     scratch_sizes = []
-    import study_server.backup_archive as archive
+    import study_server.experimenter.backup_archive as archive
 
     real_extract = archive.extract_payload
 
@@ -314,7 +314,7 @@ def test_a_sparse_backup_is_refused_before_its_payload_is_expanded(tmp_path, stu
         finally:
             scratch_sizes.append(into.stat().st_size)
 
-    import study_server.backup as backup_module
+    import study_server.experimenter.backup as backup_module
 
     backup_module.extract_payload = watched
     try:

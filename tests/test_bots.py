@@ -137,8 +137,8 @@ def test_every_trial_of_a_20_bot_study_with_mixed_behaviours_replays_to_its_fina
     """Reloads, second tabs, repeated arrivals, resent batches, lossy requests and drop-outs (``--mix``): the
     server's replay of every finished trial gives the scene the bot submitted."""
     from simulation.participant import Behaviours
-    from study_server.extensions import db
-    from study_server.models import Trial
+    from study_server.base.extensions import db
+    from study_server.base.models import Trial
 
     app = make_app(tmp_path)
     summary = simulate(20, seed=0, study="demo", app=app, behaviours=Behaviours.mixed())

@@ -14,9 +14,9 @@ from scenesuggest.contract.events import validate_batch
 from simulation.page import read_page
 from simulation.transport import FlaskTransport
 from simulation.walker import Walker, fixed_answer
-from study_server.extensions import db
-from study_server.models import Event, Participant, SessionLog, Trial
-from study_server.replays import label
+from study_server.base.extensions import db
+from study_server.base.models import Event, Participant, SessionLog, Trial
+from study_server.trials.replays import label
 
 
 def _walk_to_briefing(client, headers=None):
@@ -134,7 +134,7 @@ def test_the_briefing_is_an_event_of_the_trial_that_the_replay_shows():
 def test_the_export_says_how_long_each_briefing_was_open(client, app, tmp_path):
     import pandas as pd
 
-    from study_server.export import export_to
+    from study_server.experimenter.export import export_to
 
     walker, page = _walk_to_briefing(client)
     page = walker.submit("briefing", {"go": "start"}, page)

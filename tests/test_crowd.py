@@ -37,7 +37,7 @@ def test_capacity_keeps_the_headroom():
 
 
 def test_the_crowds_study_keeps_the_practice_and_one_scene_and_lets_the_crowd_in(tmp_path):
-    from study_server.study_file import load_study
+    from study_server.studies.study_file import load_study
 
     study = load_study(crowd.bench_study(tmp_path / "short", arrivals=5000))
     assert study.arrivals_per_address_per_hour == 5000
@@ -106,7 +106,7 @@ def test_an_empty_schedule_row_counts_against_the_balance():
     from demostudy import rows_balance
     from serverproc import DEMO_STUDY
 
-    from study_server.study_file import load_study
+    from study_server.studies.study_file import load_study
 
     study = load_study(DEMO_STUDY)
     rows, balanced = rows_balance([0, 1, 2, 3, 4, 5] * 2, study)

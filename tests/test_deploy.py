@@ -17,7 +17,7 @@ def test_healthz_says_ok_and_names_what_is_wrong_without_secrets(tmp_path, demo_
     from sqlalchemy import text
 
     from study_server import MIGRATIONS
-    from study_server.extensions import db
+    from study_server.base.extensions import db
 
     app = make_app(tmp_path)
     c = app.test_client()
@@ -42,7 +42,7 @@ def test_healthz_names_a_study_whose_priors_cannot_be_loaded(tmp_path, demo_reso
 
     from conftest import DEMO_STUDY
 
-    from study_server.config import data_home
+    from study_server.base.config import data_home
 
     folder = tmp_path / "study"
     shutil.copytree(DEMO_STUDY.parent, folder)
@@ -91,7 +91,7 @@ def test_only_an_ip_address_keys_a_quota_and_only_the_server_name_is_answered(tm
     SCENESUGGEST_SERVER_NAME set, a request naming another host is refused and links name the server."""
     from flask import url_for
 
-    from study_server.security import client_ip
+    from study_server.base.security import client_ip
 
     app = make_app(tmp_path, PROXY_HOPS=1, TRUSTED_HOSTS=["study.example", "localhost", "127.0.0.1"])
     app.add_url_rule("/whoami", "whoami", lambda: f"{url_for('health.healthz', _external=True)} {client_ip()}")
@@ -120,7 +120,7 @@ def test_serve_refuses_believed_proxies_on_an_address_beyond_loopback(tmp_path, 
         assert done.exit_code == 2 and "SCENESUGGEST_PROXY_HOPS=1" in done.output and "--host" in done.output, (
             host, done.output)
     monkeypatch.setenv("SCENESUGGEST_SERVER_NAME", "bad name")
-    from study_server.config import ConfigError, from_environment
+    from study_server.base.config import ConfigError, from_environment
 
     with pytest.raises(ConfigError) as info:
         from_environment(tmp_path / "instance")
@@ -128,7 +128,7 @@ def test_serve_refuses_believed_proxies_on_an_address_beyond_loopback(tmp_path, 
 
 
 def test_proxy_hops_must_be_a_small_number(monkeypatch, tmp_path):
-    from study_server.config import ConfigError, from_environment
+    from study_server.base.config import ConfigError, from_environment
 
     for bad in ("one", "-1", "9"):
         monkeypatch.setenv("SCENESUGGEST_PROXY_HOPS", bad)
@@ -140,7 +140,7 @@ def test_proxy_hops_must_be_a_small_number(monkeypatch, tmp_path):
 
 
 def test_warm_defaults_on_in_production_only_and_must_be_0_or_1(monkeypatch, tmp_path):
-    from study_server.config import ConfigError, from_environment
+    from study_server.base.config import ConfigError, from_environment
 
     monkeypatch.delenv("SCENESUGGEST_WARM", raising=False)
     assert from_environment(tmp_path / "instance")["WARM_STUDIES"] is False
@@ -163,7 +163,7 @@ def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_
     from flowhelp import auth, to_trials
 
     from scenesuggest.learning.priors import Priors
-    from study_server import studies
+    from study_server.studies import served as studies
 
     loads = []
     for owner, name in ((Priors, "load"), (studies, "load_index")):
@@ -199,7 +199,7 @@ def test_a_warmed_app_with_priors_it_cannot_load_stops_at_start_naming_the_file(
     import numpy as np
     from conftest import DEMO_STUDY, copy_demo_study
 
-    from study_server.study_file import StudyFileError, load_study
+    from study_server.studies.study_file import StudyFileError, load_study
 
     demo = load_study(DEMO_STUDY)
     with np.load(demo.priors) as good:
@@ -236,7 +236,7 @@ def test_healthz_says_when_the_database_cannot_be_reached(tmp_path, demo_resourc
 def test_deploy_files_are_filled_in_private_where_secret_and_never_overwritten(tmp_path, monkeypatch):
     import stat
 
-    from study_server.deployment import DeployError, Deployment, write_deploy_files
+    from study_server.experimenter.deployment import DeployError, Deployment, write_deploy_files
 
     monkeypatch.setenv("SCENESUGGEST_STUDIES", str(tmp_path / "my-study" / "study.toml"))
     monkeypatch.setenv("SCENESUGGEST_HOME", str(tmp_path / "home"))
@@ -286,8 +286,8 @@ HOSTILE = [  # (Deployment's keyword, value, the option named): each would have 
                                   "a_b.org", "a b", "ä.org", "x." * 127 + "x"])
 def test_a_server_name_that_is_no_host_name_is_refused_by_deploy_files_and_the_app(tmp_path, monkeypatch, name):
     """A leading '.' is a wildcard to Flask's trusted hosts and to nginx; '-' and empty labels name no host."""
-    from study_server.config import ConfigError, from_environment
-    from study_server.deployment import DeployError, Deployment, write_deploy_files
+    from study_server.base.config import ConfigError, from_environment
+    from study_server.experimenter.deployment import DeployError, Deployment, write_deploy_files
 
     with pytest.raises(DeployError) as info:
         write_deploy_files(tmp_path / "out", Deployment(name))
@@ -302,7 +302,7 @@ def test_a_server_name_that_is_no_host_name_is_refused_by_deploy_files_and_the_a
 
 @pytest.mark.parametrize(("key", "value", "option"), HOSTILE)
 def test_deploy_files_refuse_a_value_that_would_change_a_files_meaning(tmp_path, key, value, option):
-    from study_server.deployment import DeployError, Deployment, write_deploy_files
+    from study_server.experimenter.deployment import DeployError, Deployment, write_deploy_files
 
     with pytest.raises(DeployError) as info:
         write_deploy_files(tmp_path / "out", Deployment("study.example.org", **{key: value}))
@@ -313,7 +313,7 @@ def test_deploy_files_refuse_a_value_that_would_change_a_files_meaning(tmp_path,
 @pytest.mark.parametrize("studies", ["/srv/my study/study.toml", "/srv/a/study.toml\nSCENESUGGEST_ENV=development",
                                      "/srv/$(id)/study.toml", "/srv/it's/study.toml"])
 def test_deploy_files_refuse_study_paths_a_unit_or_a_shell_would_split(tmp_path, monkeypatch, studies):
-    from study_server.deployment import DeployError, Deployment, write_deploy_files
+    from study_server.experimenter.deployment import DeployError, Deployment, write_deploy_files
 
     monkeypatch.setenv("SCENESUGGEST_STUDIES", studies)
     with pytest.raises(DeployError) as info:
@@ -340,7 +340,7 @@ def test_the_written_files_pass_nginx_and_systemds_own_checks(tmp_path, monkeypa
         unit = (proxy.prefix / "deploy" / "systemd" / "scenesuggest@.service").read_text()
         env_file = proxy.prefix / "deploy" / "scenesuggest.env"
     else:
-        from study_server.deployment import Deployment, write_deploy_files
+        from study_server.experimenter.deployment import Deployment, write_deploy_files
 
         write_deploy_files(tmp_path / "out", Deployment("study.example.org"))
         unit = (tmp_path / "out" / "systemd" / "scenesuggest@.service").read_text()
@@ -371,7 +371,7 @@ def test_postgresql_without_its_driver_says_how_to_install_it(tmp_path, monkeypa
     from conftest import DEMO_STUDY
 
     from study_server import create_app
-    from study_server.config import ConfigError
+    from study_server.base.config import ConfigError
 
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "psycopg" else real(name, *a))
@@ -501,7 +501,7 @@ def test_the_access_log_shows_only_its_allowance_whatever_format_is_asked_for(ca
 
     from gunicorn.config import Config
 
-    from study_server.gunicorn_settings import AccessLog
+    from study_server.base.gunicorn_settings import AccessLog
 
     secret = "5ec2e75ec2e75ec2e75ec2e7"
     cfg = Config()

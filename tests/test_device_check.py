@@ -1,6 +1,6 @@
-"""The device check on the server (study_server.device): a browser that cannot run the trial is screened out before
-consent, with its reasons, holding no schedule row; a report no browser sends is refused (422, naming the field)
-and stores nothing; nobody gets past the check by posting to the steps after it."""
+"""The device check on the server (study_server.participants.device): a browser that cannot run the trial is screened
+out before consent, with its reasons, holding no schedule row; a report no browser sends is refused (422, naming the
+field) and stores nothing; nobody gets past the check by posting to the steps after it."""
 
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ from integrityhelp import PASSWORD
 from werkzeug.security import generate_password_hash
 
 from simulation.walker import CAPABLE_DEVICE
-from study_server.extensions import db
-from study_server.models import Participant, SessionLog
+from study_server.base.extensions import db
+from study_server.base.models import Participant, SessionLog
 
 
 def _arrive(app, pid: str):

@@ -20,8 +20,8 @@ from conftest import lacking, make_app
 from analysis.load import read_export
 from simulation.participant import Bot
 from simulation.transport import FlaskTransport
-from study_server.export import export_to
-from study_server.export_schema import TABLES
+from study_server.experimenter.export import export_to
+from study_server.experimenter.export_schema import TABLES
 
 
 def validate(folder: Path) -> dict:
@@ -86,8 +86,8 @@ def test_allowed_ids_are_the_studys_and_the_datas_as_the_cells_hold_them(demo_re
     as a formula is allowed as the cell writes it (escaped)."""
     from conftest import DEMO_STUDY
 
-    from study_server.export_schema import data_package
-    from study_server.study_file import load_study
+    from study_server.experimenter.export_schema import data_package
+    from study_server.studies.study_file import load_study
 
     study = load_study(DEMO_STUDY)
     files = {f"{t.name}.csv": "0" * 64 for t in TABLES}

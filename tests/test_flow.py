@@ -4,8 +4,8 @@ import pytest
 from flowhelp import DEMOGRAPHICS, EXIT, auth, boot, csrf, enter, finish_all_trials, to_trials
 
 from simulation.walker import CAPABLE_DEVICE
-from study_server.extensions import db
-from study_server.models import Event, Participant, SessionLog, SurveyResponse, Trial
+from study_server.base.extensions import db
+from study_server.base.models import Event, Participant, SessionLog, SurveyResponse, Trial
 
 
 def test_a_whole_run_of_the_demo_study(client, app):
@@ -220,7 +220,7 @@ def test_mturk_preview_mode_creates_nobody(platform_app):
 
 
 def test_failures_show_a_friendly_page_and_are_logged(client, app, monkeypatch):
-    from study_server import flow
+    from study_server.participants import flow
 
     to_trials(client)
 

@@ -8,8 +8,8 @@ from flowhelp import auth, to_trials
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from study_server.extensions import db
-from study_server.models import Event, ShownList, SurveyResponse, Trial
+from study_server.base.extensions import db
+from study_server.base.models import Event, ShownList, SurveyResponse, Trial
 
 JSON = st.recursive(
     st.none() | st.booleans() | st.integers(-2**40, 2**40) | st.sampled_from([2**64, -10**400, 10**400])
@@ -117,7 +117,7 @@ FUZZED = {"/api/events", "/api/suggest", "/api/trial/done", "/api/search", "/api
 def test_every_route_of_the_api_is_documented_and_fuzzed(app):
     import re
 
-    from study_server.openapi import openapi_document
+    from study_server.base.openapi import openapi_document
 
     routes = {re.sub(r"<(?:\w+:)?(\w+)>", r"{\1}", rule.rule) for rule in app.url_map.iter_rules()
               if rule.rule.startswith("/api/")}

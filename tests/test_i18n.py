@@ -17,10 +17,10 @@ from analysis.load import read_database
 from analysis.measures import trials_table
 from simulation.run import simulate
 from simulation.walker import CAPABLE_DEVICE
-from study_server.extensions import db
-from study_server.i18n import TRANSLATIONS, CatalogueError, check_catalogue, shipped
-from study_server.models import Participant
-from study_server.study_file import StudyFileError, load_study
+from study_server.base.extensions import db
+from study_server.base.i18n import TRANSLATIONS, CatalogueError, check_catalogue, shipped
+from study_server.base.models import Participant
+from study_server.studies.study_file import StudyFileError, load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 GERMAN = {"Accept-Language": "de-DE,de;q=0.9,en;q=0.5"}
@@ -129,7 +129,7 @@ def test_the_browsers_preference_decides_by_quality_and_primary_language(tmp_pat
     from werkzeug.datastructures import LanguageAccept
     from werkzeug.http import parse_accept_header
 
-    from study_server.i18n import choose
+    from study_server.base.i18n import choose
 
     study = load_study(DEMO_STUDY)
     for header, language in (("de-CH,en;q=0.9", "de"), ("de-AT,en-US;q=0.7,en;q=0.3", "de"), ("fr,en;q=0.5", "en"),
@@ -155,7 +155,7 @@ def test_pages_without_a_participant_speak_the_browsers_language_and_a_stored_on
 def test_a_lone_percent_sign_or_a_catalogue_copied_with_an_older_time_is_caught(tmp_path):
     import os
 
-    from study_server.i18n import compile_catalogues
+    from study_server.base.i18n import compile_catalogues
 
     po = tmp_path / "messages.po"
     po.write_text('msgid "Fine"\nmsgstr "50 % fertig"\n')
@@ -175,7 +175,7 @@ def test_the_corpus_speaks_german_too_on_tiles_and_in_search(tmp_path, demo_reso
     own names."""
     from flowhelp import auth, boot, finish_all_trials  # noqa: F401 (the walk's helpers)
 
-    from study_server.i18n import category_names
+    from study_server.base.i18n import category_names
 
     app = make_app(tmp_path)
     rt = app.extensions["studies"]["demo"]

@@ -13,9 +13,9 @@ from flowhelp import csrf, enter, to_trials
 from integrityhelp import PASSWORD, study_copy
 from werkzeug.security import generate_password_hash
 
-from study_server.assignment import row_counts
-from study_server.extensions import db
-from study_server.models import AdminSession, Trial, utcnow
+from study_server.base.extensions import db
+from study_server.base.models import AdminSession, Trial, utcnow
+from study_server.participants.assignment import row_counts
 
 
 def test_logout_ends_the_session_on_the_server_and_sessions_expire(app_on):
@@ -111,7 +111,7 @@ def test_mturk_submit_hosts_and_login_next_and_asset_paths(tmp_path, demo_resour
 
 
 def test_database_files_and_admin_secrets_are_private(tmp_path, demo_resources):
-    from study_server.config import ensure_admin_password
+    from study_server.base.config import ensure_admin_password
 
     os.umask(0o022)
     app = make_app(tmp_path)
@@ -127,7 +127,7 @@ def test_database_files_and_admin_secrets_are_private(tmp_path, demo_resources):
 
 
 def test_login_limits_count_an_ipv6_block_as_one_client_and_cap_all_anonymous_clients(app_on, monkeypatch):
-    from study_server import security
+    from study_server.base import security
 
     def guess(address, password="guess"):
         c = app_on.test_client()
@@ -143,7 +143,7 @@ def test_login_limits_count_an_ipv6_block_as_one_client_and_cap_all_anonymous_cl
 
 
 def test_a_forged_or_foreign_device_cookie_buys_no_extra_guesses(app_on):
-    from study_server.security import DEVICE_COOKIE
+    from study_server.base.security import DEVICE_COOKIE
 
     def guesses(cookie):
         c = app_on.test_client()

@@ -14,8 +14,8 @@ from flowhelp import auth, csrf, to_trials
 from integrityhelp import PASSWORD, event, post_events, study_copy
 
 from scenesuggest.contract.cells import safe_cell, unescape_cell
-from study_server.extensions import db
-from study_server.models import Event, Participant, SessionLog, Trial
+from study_server.base.extensions import db
+from study_server.base.models import Event, Participant, SessionLog, Trial
 
 
 def test_a_batch_racing_a_later_one_is_acknowledged_up_to_everything_stored(app_on):
@@ -23,7 +23,8 @@ def test_a_batch_racing_a_later_one_is_acknowledged_up_to_everything_stored(app_
     participant's event count says more are stored: then they are counted. A batch of later seqs that commits
     between reading the participant and storing (a race no sequential test can make) leaves neither the answer
     nor the participant's acked seq short of what is stored."""
-    from study_server import flow, ingest
+    from study_server.participants import flow
+    from study_server.trials import ingest
 
     c = app_on.test_client()
     b = to_trials(c)
@@ -138,7 +139,7 @@ def test_the_export_never_crashes_on_what_is_stored(app_on, tmp_path):
 
 def test_export_cells_cannot_run_as_formulas_and_load_back_unchanged(client, app, tmp_path):
     from analysis.load import read_export
-    from study_server.export import export_to
+    from study_server.experimenter.export import export_to
 
     hostile = ["=HYPERLINK(\"http://evil\",\"x\")", "+cmd|' /C calc'!A0", "-2+3", "@SUM(A1)", "\tx", "\rx",
                "'quoted", "\uff1dSUM(A1)", " =1+1", "\u00a0=1+1", "\ufeff=1+1", "|cmd", "\u200b=1", "\u202e=1",

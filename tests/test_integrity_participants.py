@@ -14,9 +14,9 @@ from integrityhelp import PASSWORD, PID, SESSION, STUDY, event, participant_of, 
 from werkzeug.security import generate_password_hash
 
 from simulation.walker import CAPABLE_DEVICE
-from study_server.assignment import row_counts
-from study_server.extensions import db
-from study_server.models import Participant, Trial, utcnow
+from study_server.base.extensions import db
+from study_server.base.models import Participant, Trial, utcnow
+from study_server.participants.assignment import row_counts
 
 
 # --- takeover -----------------------------------------------------------------------------------------------------
@@ -55,7 +55,7 @@ def test_a_refused_attempt_on_an_id_says_who_raised_it_and_the_experimenter_can_
     """Someone else opening a participant's link is refused (409); the owner's flag says from which (keyed)
     address and how often, the decision turns to review, and once the experimenter has looked and cleared it,
     the participant is approved again (the flag stays on record, cleared)."""
-    from study_server.outcomes import decision
+    from study_server.participants.outcomes import decision
 
     app = make_app(tmp_path, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
     owner = app.test_client()
@@ -229,7 +229,7 @@ def test_a_study_without_its_prolific_id_configured_takes_links_without_study_id
 
 
 def test_an_exclusion_committed_while_the_exit_survey_is_submitted_wins(app_on):
-    from study_server import flow
+    from study_server.participants import flow
 
     c = app_on.test_client()
     to_trials(c)

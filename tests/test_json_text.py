@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from study_server.extensions import json_text, json_value
+from study_server.base.extensions import json_text, json_value
 
 
 @pytest.mark.parametrize("value", [
@@ -47,7 +47,7 @@ def test_the_apps_answers_are_orjsons_and_flasks_where_orjson_cannot(tmp_path):
 
     from flask import Flask
 
-    from study_server.extensions import Answers
+    from study_server.base.extensions import Answers
 
     app = Flask(__name__)
     app.json = Answers(app)

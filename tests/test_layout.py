@@ -68,8 +68,9 @@ def test_the_simulation_drives_the_server_from_outside():
     the ones that score simulated studies, as an analyst would, use the analysis: the calibration and the power
     analysis."""
     factory = {"study_server", "study_server.create_app", "study_server.upgrade_database"}
-    offline = {"study_server.offline", "study_server.offline.OfflineAnswers"}
-    pilots = {"study_server.pilots"}  # entry links signed as pilots', and the pilot database
+    offline = {"study_server.studies", "study_server.studies.offline", "study_server.studies.offline.OfflineAnswers"}
+    # entry links signed as pilots', and the pilot database
+    pilots = {"study_server.participants", "study_server.participants.pilots"}
     roots = {"cli.py": factory | offline | pilots, "calibrate.py": offline, "power.py": factory}
     readers = {"calibrate.py", "power.py"}
     for path in (ROOT / "simulation").rglob("*.py"):
@@ -80,12 +81,35 @@ def test_the_simulation_drives_the_server_from_outside():
             assert not {m for m in found if m.split(".")[0] == "analysis"}, path
 
 
+#: The server's rooms, each importing only those before it; blueprints (routes) stand on all of them and the package's
+#: faces — ``__init__.py`` (the app factory) and ``cli.py`` (the ``study`` commands) — are composition roots.
+ROOMS = ("base", "studies", "participants", "trials", "experimenter")
+#: What else the server's folder holds: routes, and folders of data (templates, scripts, migrations, study files).
+SERVER_FOLDERS = {"blueprints", "templates", "static", "translations", "migrations", "demo", "starter", "deploy"}
+
+
+def test_the_server_root_holds_its_faces_and_rooms_only():
+    server = ROOT / "study_server"
+    assert {p.name for p in server.glob("*.py")} == {"__init__.py", "cli.py"}
+    folders = {p.name for p in server.iterdir() if p.is_dir() and p.name != "__pycache__"}
+    assert folders == set(ROOMS) | SERVER_FOLDERS
+    assert all((server / room / "__init__.py").is_file() for room in ROOMS)
+
+
+def test_the_server_rooms_point_down():
+    server = ROOT / "study_server"
+    for room in ROOMS:
+        below = set(ROOMS[:ROOMS.index(room) + 1])
+        for path in (server / room).rglob("*.py"):
+            reached = {m.split(".")[1] for m in imports(path) if m.startswith("study_server.")}
+            assert reached <= below, (path, reached - below)
+
+
 def test_server_layers_point_down_only():
     blueprints = ROOT / "study_server" / "blueprints"
-    for path in (ROOT / "study_server").glob("*.py"):
-        if path.name in ("__init__.py", "cli.py"):  # the composition roots
-            continue
-        assert not {m for m in imports(path) if m.startswith("study_server.blueprints")}, path
+    for room in ROOMS:
+        for path in (ROOT / "study_server" / room).rglob("*.py"):
+            assert not {m for m in imports(path) if m.startswith("study_server.blueprints")}, path
     for path in blueprints.glob("*.py"):
         others = {m for m in imports(path) if m.startswith("study_server.blueprints.")
                   and m.split(".")[2] != path.stem}

@@ -9,9 +9,9 @@ from datetime import timedelta
 import pytest
 from flowhelp import auth, to_trials
 
-from study_server import lists
-from study_server.extensions import db
-from study_server.models import Participant, SessionLog, ShownList, utcnow
+from study_server.base.extensions import db
+from study_server.base.models import Participant, SessionLog, ShownList, utcnow
+from study_server.trials import lists
 
 
 class Clock:

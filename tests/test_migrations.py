@@ -9,7 +9,7 @@ from flask_migrate import downgrade, upgrade
 from sqlalchemy import inspect
 
 from study_server import MIGRATIONS
-from study_server.extensions import db
+from study_server.base.extensions import db
 
 
 def revisions():
@@ -53,7 +53,7 @@ def test_a_waiting_replay_check_written_as_prose_moves_into_its_column(tmp_path,
     it from there, on both databases."""
     from flowhelp import auth, to_trials
 
-    from study_server.models import Trial
+    from study_server.base.models import Trial
 
     app = make_app(tmp_path, backend_url)
     c = app.test_client()

@@ -8,8 +8,8 @@ import pytest
 from conftest import DEMO_STUDY, make_app
 
 from simulation.run import simulate
-from study_server.new_study import InitError, init_study
-from study_server.study_file import load_study
+from study_server.studies.new_study import InitError, init_study
+from study_server.studies.study_file import load_study
 
 LANGUAGES = {"en", "de"}
 
@@ -110,7 +110,7 @@ def test_what_init_writes_is_safe_whatever_the_folder_and_title(tmp_path):
     import subprocess
     import sys
 
-    from study_server.new_study import study_id_for
+    from study_server.studies.new_study import study_id_for
 
     for title in ("A\x7fpilot", "A\x85pilot", "two\nlines"):
         with pytest.raises(InitError) as info:

@@ -12,8 +12,8 @@ from integrityhelp import PASSWORD
 from werkzeug.security import generate_password_hash
 
 from simulation.walker import CAPABLE_DEVICE
-from study_server.extensions import db
-from study_server.models import Participant
+from study_server.base.extensions import db
+from study_server.base.models import Participant
 
 PID = "5f3a" + "0" * 20  # Prolific ids: 24 hex digits
 PROLIFIC = "https://app.prolific.com/submissions/complete?cc="

@@ -139,8 +139,8 @@ def _open_in_chromium(base: str, http: HttpTransport) -> tuple[set[str], list[st
 
 def test_serving_from_the_checkout_needs_no_copy_of_three(tmp_path):
     """In a checkout the server reads node_modules/three as npm installed it; installed, its bundled copy."""
-    from study_server.config import checkout
-    from study_server.importmap import three_folder
+    from study_server.base.config import checkout
+    from study_server.base.importmap import three_folder
 
     assert checkout() == ROOT and three_folder() == ROOT / "node_modules" / "three"
 
@@ -151,9 +151,9 @@ def test_prepare_builds_only_the_servers_own_resources(tmp_path, demo_resources)
     import shutil
 
     from scenesuggest.learning.priors import Priors
-    from study_server.config import data_home
-    from study_server.prepare import prepare, problems
-    from study_server.study_file import StudyFileError, load_study
+    from study_server.base.config import data_home
+    from study_server.studies.prepare import prepare, problems
+    from study_server.studies.study_file import StudyFileError, load_study
 
     default = load_study(demo_resources)
     assert default.server_resources and default.priors == data_home() / "priors" / "ai2thor.npz"

@@ -24,10 +24,11 @@ from analysis.report import PILOTS_ONLY, build_report
 from simulation.run import simulate
 from simulation.transport import FlaskTransport, FlowError
 from simulation.walker import Walker
-from study_server import authoring, outcomes, pilots
-from study_server.assignment import row_counts
-from study_server.extensions import db
-from study_server.models import Event, Participant, SessionLog, Trial
+from study_server.base.extensions import db
+from study_server.base.models import Event, Participant, SessionLog, Trial
+from study_server.participants import outcomes, pilots
+from study_server.participants.assignment import row_counts
+from study_server.trials import posted_scenes as authoring
 
 UA = {"User-Agent": "Mozilla/5.0 (X11; Linux x86_64) Chrome/150"}
 
@@ -154,7 +155,7 @@ def _walk_pilot_and_real(app):
 
 
 def test_the_export_marks_pilots_and_the_report_leaves_them_out(app, tmp_path):
-    from study_server.export import export_to
+    from study_server.experimenter.export import export_to
 
     _walk_pilot_and_real(app)
     with app.app_context():

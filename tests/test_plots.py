@@ -12,9 +12,9 @@ from flowhelp import csrf
 from werkzeug.security import generate_password_hash
 
 from simulation.run import simulate
-from study_server import plots
-from study_server.extensions import db
-from study_server.models import Participant
+from study_server.base.extensions import db
+from study_server.base.models import Participant
+from study_server.experimenter import plots
 
 PASSWORD = "plots password"
 SVG = "{http://www.w3.org/2000/svg}"
@@ -87,7 +87,7 @@ def test_a_study_without_data_draws_empty_plots(tmp_path, demo_resources):
 def test_the_plots_draw_early_in_collection_and_flags_count_when_they_change(studied):
     """While a condition has no trial done yet (the first participants of a Williams design) its boxes are
     missing, not the plot; a flag is open from when it was raised until it was cleared."""
-    from study_server.models import Trial
+    from study_server.base.models import Trial
 
     with studied.app_context():
         db.session.query(Trial).filter(Trial.condition != "none").update({"done_at": None})

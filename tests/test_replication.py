@@ -151,8 +151,8 @@ def test_prepare_names_a_missing_corpus(tmp_path, monkeypatch):
 
 
 def test_the_study_file_loads_with_two_periods_in_a_williams_design(replication):
-    from study_server.studies import StudyRuntime
-    from study_server.study_file import load_study
+    from study_server.studies.served import StudyRuntime
+    from study_server.studies.study_file import load_study
 
     study = load_study(replication)
     StudyRuntime(study).validate_scenes()  # every target parses
@@ -172,8 +172,8 @@ def test_simulated_participants_complete_the_replication(replication, tmp_path):
     app = make_app(tmp_path, studies=[replication])
     report = simulate(3, seed=1, app=app, study="scenesuggest-2015")
     assert report["completed"] == 3 and report["trials"] == 27, report
-    from study_server.extensions import db
-    from study_server.models import Trial
+    from study_server.base.extensions import db
+    from study_server.base.models import Trial
 
     with app.app_context():  # every trial's events rebuild the scene the bot submitted, close to its target
         done = db.session.query(Trial).filter(Trial.done_at.isnot(None)).all()

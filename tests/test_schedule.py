@@ -8,7 +8,7 @@ from collections import Counter
 
 import pytest
 
-from study_server.schedule import latin_square, plan, williams_square
+from study_server.studies.schedule import latin_square, plan, williams_square
 
 
 @pytest.mark.parametrize("n", range(1, 9))

@@ -10,7 +10,7 @@ from conftest import make_app
 from flowhelp import auth, boot, enter, to_trials
 
 from study_server import create_app
-from study_server.config import ConfigError
+from study_server.base.config import ConfigError
 
 
 @pytest.mark.parametrize("path", [
@@ -104,8 +104,8 @@ def test_a_planted_session_cookie_does_not_make_the_victim_the_attacker(app):
     victim_boot = to_trials(victim, query="pid=victim")
     assert victim_boot["token"] != attacker_boot["token"]
     with app.app_context():
-        from study_server.extensions import db
-        from study_server.models import Participant
+        from study_server.base.extensions import db
+        from study_server.base.models import Participant
 
         people = {p.platform_id: p.token for p in db.session.query(Participant)}
     assert people == {"attacker": attacker_boot["token"], "victim": victim_boot["token"]}

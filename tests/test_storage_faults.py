@@ -7,7 +7,7 @@ from conftest import make_app
 from flowhelp import auth, to_trials
 from sqlalchemy import event, text
 
-from study_server.extensions import db
+from study_server.base.extensions import db
 
 
 def _events(b, first, n):

@@ -9,7 +9,7 @@ import sys
 import pytest
 from conftest import DEMO_STUDY
 
-from study_server.study_file import StudyFileError, load_study
+from study_server.studies.study_file import StudyFileError, load_study
 
 #: Lines of the demo study the mistakes below are made in.
 TITLE = 'title = { en = "Furnish a room", de = "Ein Zimmer einrichten" }'
@@ -199,7 +199,7 @@ def test_a_relative_database_url_keeps_its_meaning_and_a_command_lines_is_relati
 
     monkeypatch.chdir(tmp_path)
     instance = tmp_path / "instance"
-    from study_server.extensions import db
+    from study_server.base.extensions import db
 
     configured = create_app({"INSTANCE_PATH": str(instance), "SQLALCHEMY_DATABASE_URI": "sqlite:///rel.sqlite3",
                              "STUDY_FILES": [DEMO_STUDY], "CHECK_RESOURCES": False, "WARM_STUDIES": False})

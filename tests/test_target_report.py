@@ -11,8 +11,8 @@ from analysis.load import read_export
 from analysis.report import build_report
 from scenesuggest.contract.events import SCENE_CHANGES
 from simulation.run import simulate
-from study_server.export import export_to
-from study_server.extensions import db
+from study_server.base.extensions import db
+from study_server.experimenter.export import export_to
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ from __future__ import annotations
 def arrive_many(args) -> list[tuple[str, int, int]]:
     database_url, instance, study_file, pids = args
     from study_server import create_app
-    from study_server.assignment import arrive, assign
+    from study_server.participants.assignment import arrive, assign
 
     app = create_app({"INSTANCE_PATH": instance, "SQLALCHEMY_DATABASE_URI": database_url,
                       "STUDY_FILES": [study_file], "SECRET_KEY": "x", "CHECK_RESOURCES": False})

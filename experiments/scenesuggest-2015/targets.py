@@ -17,7 +17,7 @@ from collections.abc import Callable
 from scenesuggest.library.authoring import SceneAuthor
 from scenesuggest.scenes.scene import Scene
 from scenesuggest.scenes.scene_types import infer_scene_type
-from study_server.new_study import side_table  # the practice scene of every new Stanford study
+from study_server.studies.new_study import side_table  # the practice scene of every new Stanford study
 
 ROOM = (5.0, 2.7, 4.0)
 BACK = -ROOM[2] / 2

@@ -22,17 +22,10 @@ from sqlalchemy import select
 
 from scenesuggest.contract.events import MAX_SEQ
 
-from .. import authoring, decisions, pilots, plots
-from ..assignment import fresh_after
-from ..authoring import image_path
-from ..boot import trial_boot
-from ..errors import RequestError
-from ..export import csv_text, export_stream
-from ..extensions import db
-from ..models import Event, Participant, SessionLog, SurveyResponse, Trial, utcnow
-from ..outcomes import APPROVAL_COLUMNS, approval_rows, issued_codes
-from ..replays import replay_document
-from ..security import (
+from ..base.errors import RequestError
+from ..base.extensions import db
+from ..base.models import Event, Participant, SessionLog, SurveyResponse, Trial, utcnow
+from ..base.security import (
     DEVICE_COOKIE,
     DEVICE_LIFETIME,
     LoginBlocked,
@@ -46,7 +39,16 @@ from ..security import (
     preview_token,
     use_admin_link,
 )
-from ..studies import runtime
+from ..experimenter import decisions, plots
+from ..experimenter.export import csv_text, export_stream
+from ..participants import pilots
+from ..participants.assignment import fresh_after
+from ..participants.boot import trial_boot
+from ..participants.outcomes import APPROVAL_COLUMNS, approval_rows, issued_codes
+from ..studies.served import runtime
+from ..trials import posted_scenes as authoring
+from ..trials.posted_scenes import image_path
+from ..trials.replays import replay_document
 
 bp = Blueprint("admin", __name__, url_prefix="/admin")
 
@@ -123,8 +125,8 @@ def dashboard():
 @bp.get("/<study_id>/plots/<name>.svg")
 @admin_required
 def plot(study_id: str, name: str):
-    """One of the dashboard's plots (:mod:`study_server.plots`), drawn now. An SVG shown as an image runs no
-    script; its own inline styles are all it may use."""
+    """One of the dashboard's plots (:mod:`study_server.experimenter.plots`), drawn now. An SVG shown as an image runs
+    no script; its own inline styles are all it may use."""
     study = runtime(study_id).study
     if name not in plots.DRAW:
         abort(404)
@@ -348,7 +350,7 @@ def export(study_id: str):
 @admin_required
 def approvals(study_id: str):
     """Every participant with their platform id, session, status, code and the decision to take on the platform
-    (:mod:`study_server.outcomes`)."""
+    (:mod:`study_server.participants.outcomes`)."""
     runtime(study_id)
     stamp = utcnow().strftime("%Y%m%dT%H%M%SZ")
     return Response(csv_text(approval_rows(study_id), list(APPROVAL_COLUMNS)), mimetype="text/csv",

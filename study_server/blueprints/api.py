@@ -16,14 +16,16 @@ from scenesuggest.contract.event_schema import json_schema
 from scenesuggest.contract.events import MAX_SEQ, EventError, text_problem
 from scenesuggest.scenes import scene_json
 
-from .. import flow, i18n, ingest, lists, replays, trial_check
-from ..authoring import live_scene
-from ..errors import RequestError
-from ..extensions import db, json_value
-from ..models import Participant, Trial, log_again, utcnow
-from ..openapi import openapi_document
-from ..security import read_preview_token
-from ..studies import runtime
+from ..base import i18n
+from ..base.errors import RequestError
+from ..base.extensions import db, json_value
+from ..base.models import Participant, Trial, log_again, utcnow
+from ..base.openapi import openapi_document
+from ..base.security import read_preview_token
+from ..participants import flow
+from ..studies.served import runtime
+from ..trials import ingest, lists, replays, trial_check
+from ..trials.posted_scenes import live_scene
 
 bp = Blueprint("api", __name__, url_prefix="/api")
 

@@ -1,11 +1,11 @@
 """``/healthz``: 200 when the server can take participants, 503 with the failing check otherwise
-(:mod:`study_server.health`). Open to anyone (it tells nothing secret) and never cached."""
+(:mod:`study_server.base.health_checks`). Open to anyone (it tells nothing secret) and never cached."""
 
 from __future__ import annotations
 
 from flask import Blueprint, jsonify
 
-from ..health import health
+from ..base.health_checks import health
 
 bp = Blueprint("health", __name__)
 

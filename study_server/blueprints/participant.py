@@ -25,13 +25,15 @@ from flask_babel import gettext as _
 from sqlalchemy import select
 from werkzeug.exceptions import NotFound
 
-from .. import assignment, flow, i18n, pilots, trial_check
-from .. import device as device_check
-from ..boot import trial_boot
-from ..extensions import db
-from ..models import Participant, SessionLog, flag, log, log_again, utcnow
-from ..security import address_key, check_csrf
-from ..studies import runtime
+from ..base import i18n
+from ..base.extensions import db
+from ..base.models import Participant, SessionLog, flag, log, log_again, utcnow
+from ..base.security import address_key, check_csrf
+from ..participants import assignment, flow, pilots
+from ..participants import device as device_check
+from ..participants.boot import trial_boot
+from ..studies.served import runtime
+from ..trials import trial_check
 
 bp = Blueprint("participant", __name__, url_prefix="/study/<study_id>")
 MTURK_PREVIEW = "ASSIGNMENT_ID_NOT_AVAILABLE"
@@ -128,7 +130,7 @@ def _platform_identity(study, args) -> tuple[str, dict]:
 
 
 def _pilot(study, platform_id: str, args) -> bool:
-    """Whether the entry link is a pilot's (signed with the server's key: study_server.pilots); a ``pilot``
+    """Whether the entry link is a pilot's (signed with the server's key: study_server.participants.pilots); a ``pilot``
     parameter that is not this id's signature is refused (:class:`EntryError`), never taken for a participant's."""
     given = args.get(pilots.PARAM)
     if given is None:

@@ -1,15 +1,15 @@
-"""three.js as the npm registry ships it, at the version package-lock.json pins (:mod:`study_server.importmap`).
+"""three.js as the npm registry ships it, at the version package-lock.json pins (:mod:`study_server.base.importmap`).
 
 Served under /vendor/three/: ``build/`` (three.module.js imports ./three.core.js) and ``examples/jsm/`` (the
 loaders and controls, which import the bare specifier ``three`` — resolved by the page's import map,
-:mod:`study_server.importmap`)."""
+:mod:`study_server.base.importmap`)."""
 
 from __future__ import annotations
 
 from flask import Blueprint, send_from_directory
 from werkzeug.exceptions import NotFound
 
-from ..importmap import three_folder
+from ..base.importmap import three_folder
 
 bp = Blueprint("vendor", __name__, url_prefix="/vendor")
 

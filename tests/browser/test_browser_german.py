@@ -10,8 +10,8 @@ import re
 import pytest
 
 from scenesuggest.library.search import split_camel
-from study_server.i18n import TRANSLATIONS, category_names, check_catalogue
-from study_server.study_file import load_study
+from study_server.base.i18n import TRANSLATIONS, category_names, check_catalogue
+from study_server.studies.study_file import load_study
 
 from .conftest import new_context
 from .pagehelp import place_with_suggestions, ready, screenshot, until, walked, walked_to_exit

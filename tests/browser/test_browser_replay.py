@@ -12,7 +12,7 @@ from conftest import DEMO_STUDY, make_app
 from scenesuggest.contract.replay import replay
 from simulation.participant import Bot
 from simulation.transport import HttpTransport
-from study_server.studies import load_studies
+from study_server.studies.served import load_studies
 
 from .conftest import _require_browser
 from .pagehelp import screenshot, until

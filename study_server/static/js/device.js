@@ -1,9 +1,9 @@
-// The device check (study_server/device.py): tests for real what the trial page needs — the import map, storage,
+// The device check (study_server/participants/device.py): tests for real what the trial page needs — the import map, storage,
 // pointer events, ResizeObserver, dialogs, a WebGL 2 context like the editor's, its shaders compiling — then draws a
 // small scene with the editor's renderer and materials and measures the frame rate; reports it all, and continues.
 // This module imports nothing statically, so it runs even where the import map does not (that is then reported).
 const form = document.getElementById("device-form");
-const PROBE_MS = 2000;  // the longest the frame-rate probe draws (study_server.device.PROBE_SECONDS)
+const PROBE_MS = 2000;  // the longest the frame-rate probe draws (study_server.participants.device.PROBE_SECONDS)
 const PROBE_FRAMES = 30;  // … or until it has timed this many frames, after a few to warm up
 const WARM_UP = 3;
 
@@ -33,7 +33,7 @@ const visible = () => new Promise((resolve) => {
   document.addEventListener("visibilitychange", shown);
 });
 const RETRIES_KEY = "scenesuggest-device-retries";
-const MAX_FPS = 1000;  // study_server.device.MAX_FPS
+const MAX_FPS = 1000;  // study_server.participants.device.MAX_FPS
 
 /** A small room with the editor's materials, drawn by a renderer made as the editor makes it: what is missing
  * ("webgl2", "shaders") and the frames per second it drew, with the GPU's name where the browser gives it. */

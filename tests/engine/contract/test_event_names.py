@@ -19,9 +19,9 @@ TYPE = re.compile(r"\[['\"]type['\"]\]|\.type\b|\bkinds\b")
 #: Calls whose first argument is the type of the event they log (simulation/actions.py).
 LOGGERS = ("event", "change")
 #: Modules whose "type" is something else's, with what it is.
-OTHER_TYPES = {"study_server/backup.py": "a database column's type",
+OTHER_TYPES = {"study_server/experimenter/backup.py": "a database column's type",
                "scenesuggest/learning/priors.py": "the entries of a priors file",
-               "study_server/export_schema.py": "an export column's Table Schema type"}
+               "study_server/experimenter/export_schema.py": "an export column's Table Schema type"}
 
 
 def _literals(node) -> list[str]:

@@ -11,8 +11,8 @@ from scenesuggest.contract.event_schema import json_schema
 from scenesuggest.contract.events import EventError, validate_batch
 from scenesuggest.contract.replay import ReplayUnavailable, differences, final_scene, replay, scene_at
 from scenesuggest.contract.scoring import BACKOFF_CREDIT, category_credit, closeness
-from study_server.extensions import db
-from study_server.models import Event, Participant, Trial
+from study_server.base.extensions import db
+from study_server.base.models import Event, Participant, Trial
 
 
 def test_replay_follows_inserts_moves_deletes_and_undos():
@@ -169,7 +169,8 @@ def test_the_export_gives_the_closeness_found_at_done_and_scores_older_trials_it
     """What the database holds and what an export gives cannot drift apart when the scoring code changes: the whole
     closeness result is stored at "done" and exported as stored; a trial done before it was stored (no result) is
     scored by the export."""
-    from study_server import export, trial_check
+    from study_server.experimenter import export
+    from study_server.trials import trial_check
 
     b = to_trials(client)
     rt = app.extensions["studies"]["demo"]
@@ -193,7 +194,7 @@ def test_the_export_gives_the_closeness_found_at_done_and_scores_older_trials_it
 
 
 def test_a_check_that_fails_never_holds_the_participant_up(client, app, monkeypatch):
-    from study_server import trial_check
+    from study_server.trials import trial_check
 
     def broken(*_):
         raise RuntimeError("a mesh that cannot be read")
@@ -213,7 +214,7 @@ def test_a_check_waiting_for_events_that_never_come_is_made_at_completion(client
     """A page that says it logged more than it ever sends (or loses its last events for good) cannot keep its
     trial's check pending: at completion the check is made on what is stored, and says so; a check that fails
     there does not stop the participant completing."""
-    from study_server import trial_check
+    from study_server.trials import trial_check
 
     b = to_trials(client)
     rt = app.extensions["studies"]["demo"]

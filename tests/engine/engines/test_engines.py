@@ -301,7 +301,7 @@ def learned_study(tmp_path: Path, learned: Path) -> Path:
 
 
 def test_a_condition_served_by_the_learned_engine(tmp_path, learned_file, demo_resources):
-    from study_server.export import export_files
+    from study_server.experimenter.export import export_files
 
     app = make_app(tmp_path, studies=[learned_study(tmp_path, learned_file)])
     client = app.test_client()
@@ -324,9 +324,9 @@ def test_a_condition_served_by_the_learned_engine(tmp_path, learned_file, demo_r
 
 
 def test_a_missing_learned_file_stops_the_server_naming_the_condition(tmp_path, demo_resources):
-    from study_server.prepare import prepare
-    from study_server.studies import load_studies
-    from study_server.study_file import load_study
+    from study_server.studies.prepare import prepare
+    from study_server.studies.served import load_studies
+    from study_server.studies.study_file import load_study
 
     path = learned_study(tmp_path, tmp_path / "nowhere.npz")
     assert prepare(load_study(path), lambda items, label="": items, print) == []  # a file it names is not built

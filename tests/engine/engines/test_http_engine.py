@@ -43,7 +43,7 @@ def external(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def demo_priors(demo_resources):
-    from study_server.study_file import load_study
+    from study_server.studies.study_file import load_study
 
     return load_study(DEMO_STUDY).priors
 
@@ -239,8 +239,8 @@ def test_a_condition_served_by_a_hostile_engine_still_suggests_and_logs_why(tmp_
     from sqlalchemy import select
     from werkzeug.security import generate_password_hash
 
-    from study_server.extensions import db
-    from study_server.models import SessionLog, ShownList
+    from study_server.base.extensions import db
+    from study_server.base.models import SessionLog, ShownList
 
     app = make_app(tmp_path, studies=[http_study(tmp_path, f"{external}/slow")],
                    ADMIN_PASSWORD_HASH=generate_password_hash("admin-password"))
@@ -277,8 +277,8 @@ def test_an_open_circuit_answers_participants_at_once_and_the_admin_sees_it(tmp_
     from sqlalchemy import select
     from werkzeug.security import generate_password_hash
 
-    from study_server.extensions import db
-    from study_server.models import SessionLog
+    from study_server.base.extensions import db
+    from study_server.base.models import SessionLog
 
     app = make_app(tmp_path, studies=[http_study(tmp_path, f"{external}/hang")],
                    ADMIN_PASSWORD_HASH=generate_password_hash("admin-password"))
@@ -315,7 +315,7 @@ def test_the_reference_engine_server_and_the_http_engine_keep_the_published_sche
     import jsonschema
     import orjson
 
-    from study_server.openapi import openapi_document
+    from study_server.base.openapi import openapi_document
 
     schemas = openapi_document()["components"]["schemas"]
     with socket.socket() as s:
@@ -467,10 +467,10 @@ def test_waits_on_engines_take_at_most_their_share_of_a_servers_workers(external
 
 
 def test_served_workers_share_one_folder_of_wait_slots(tmp_path, monkeypatch):
-    """gunicorn's on_starting (study_server.gunicorn_settings) gives the workers a folder and their number; an app
+    """gunicorn's on_starting (study_server.base.gunicorn_settings) gives the workers a folder and their number; an app
     then bounds its http engines' waits to half of them."""
-    from study_server import gunicorn_settings
-    from study_server.studies import engine_wait_slots
+    from study_server.base import gunicorn_settings
+    from study_server.studies.served import engine_wait_slots
 
     monkeypatch.delenv(gunicorn_settings.WAITS, raising=False)
     assert engine_wait_slots() is None  # one process: no bound
