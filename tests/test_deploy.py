@@ -163,10 +163,10 @@ def test_a_warmed_app_answers_the_first_suggestion_without_loading_anything(tmp_
     from flowhelp import auth, to_trials
 
     from scenesuggest.learning.priors import Priors
-    from study_server.studies import served as studies
+    from study_server.studies import served
 
     loads = []
-    for owner, name in ((Priors, "load"), (studies, "load_index")):
+    for owner, name in ((Priors, "load"), (served, "load_index")):
         real = getattr(owner, name)
         monkeypatch.setattr(owner, name, lambda *a, real=real, name=name, **k: (loads.append(name), real(*a, **k))[1])
     try:

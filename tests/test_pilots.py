@@ -28,7 +28,7 @@ from study_server.base.extensions import db
 from study_server.base.models import Event, Participant, SessionLog, Trial
 from study_server.participants import outcomes, pilots
 from study_server.participants.assignment import row_counts
-from study_server.trials import posted_scenes as authoring
+from study_server.trials import posted_scenes
 
 UA = {"User-Agent": "Mozilla/5.0 (X11; Linux x86_64) Chrome/150"}
 
@@ -78,14 +78,14 @@ def test_pilots_take_no_part_in_the_balance_the_freeze_or_the_approvals(app):
         now = pd.Timestamp.now("UTC").tz_localize(None)
         assert row_counts(rt.study, now) == [0] * rt.study.n_rows
         assert row_counts(rt.study, now, pilot=True) == [1, 1, 1] + [0] * (rt.study.n_rows - 3)  # balanced apart
-        authoring.may_author(rt)  # three pilots consented: the targets can still change
+        posted_scenes.may_author(rt)  # three pilots consented: the targets can still change
         rows = [r["decision"] for r in outcomes.approval_rows("demo")]
         assert rows == ["pilot"] * 3
     _consent(app, {"pid": "real-1"})
     people = _people(app)
     assert people["real-1"].row == 0  # the least-filled row, pilots not counted
-    with app.app_context(), pytest.raises(authoring.TargetsFrozen, match="1 participant"):
-        authoring.may_author(rt)
+    with app.app_context(), pytest.raises(posted_scenes.TargetsFrozen, match="1 participant"):
+        posted_scenes.may_author(rt)
 
 
 def test_the_dashboard_counts_pilots_and_visitors_apart_and_gives_a_test_link(tmp_path, demo_resources):

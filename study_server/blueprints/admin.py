@@ -46,7 +46,7 @@ from ..participants.assignment import fresh_after
 from ..participants.boot import trial_boot
 from ..participants.outcomes import APPROVAL_COLUMNS, approval_rows, issued_codes
 from ..studies.served import runtime
-from ..trials import posted_scenes as authoring
+from ..trials import posted_scenes
 from ..trials.posted_scenes import image_path
 from ..trials.replays import replay_document
 
@@ -294,7 +294,7 @@ def author(study_id: str, scene_id: str):
     target = study.scenes[scene_id].target
     boot["author"] = {"save": url_for(".author_save", study_id=study_id, scene_id=scene_id),
                       "image": url_for(".author_image", study_id=study_id, scene_id=scene_id),
-                      "csrf": csrf_token(), "file": target.name, "frozen": authoring.started(study_id)}
+                      "csrf": csrf_token(), "file": target.name, "frozen": posted_scenes.started(study_id)}
     return render_template("trial.html", study=study, p=None, trial=None, condition=study.condition(condition),
                            boot=boot, scene_title=study.scenes[scene_id].title, preview=True, author=True)
 
@@ -305,7 +305,7 @@ def _authoring_request(study_id: str, scene_id: str, key: str):
     rt = runtime(study_id)
     if scene_id not in rt.study.scenes:
         raise RequestError(404, f"no scene {scene_id!r} in study {study_id!r}", "scene_id")
-    authoring.may_author(rt)
+    posted_scenes.may_author(rt)
     doc = request.get_json(silent=True)
     if not isinstance(doc, dict) or key not in doc:
         raise RequestError(400, f"expected a JSON object with {key!r}", key)
@@ -316,7 +316,7 @@ def _authoring_request(study_id: str, scene_id: str, key: str):
 @admin_required
 def author_save(study_id: str, scene_id: str):
     rt, doc = _authoring_request(study_id, scene_id, "scene")
-    target, objects = authoring.save_target(rt, scene_id, doc)
+    target, objects = posted_scenes.save_target(rt, scene_id, doc)
     current_app.logger.info("target scene %s of %s saved by the admin", scene_id, study_id)
     return jsonify({"saved": str(target), "objects": objects})
 
@@ -332,7 +332,7 @@ def author_image(study_id: str, scene_id: str):
             abort(404)
         return send_file(path, mimetype="image/png", max_age=0)
     rt, data_url = _authoring_request(study_id, scene_id, "png")
-    path, width, height = authoring.save_image(rt, scene_id, data_url)
+    path, width, height = posted_scenes.save_image(rt, scene_id, data_url)
     return jsonify({"saved": str(path), "width": width, "height": height})
 
 
