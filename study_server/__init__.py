@@ -115,6 +115,7 @@ def create_app(config: dict | None = None) -> Flask:
     from .base.security import CookieSessions, csrf_token, security_headers
     from .base.urls import RowNumber
     from .blueprints import admin, api, health, participant, vendor
+    from .participants.arrival import MTURK_SUBMIT
     from .participants.boot import api_base
 
     app.url_map.converters["row"] = RowNumber
@@ -131,7 +132,7 @@ def create_app(config: dict | None = None) -> Flask:
     app.jinja_env.globals["csrf_token"] = csrf_token
     app.jinja_env.globals["api_base"] = api_base
     app.jinja_env.globals["import_map"] = IMPORT_MAP
-    app.jinja_env.globals["mturk_submit_hosts"] = participant.MTURK_SUBMIT
+    app.jinja_env.globals["mturk_submit_hosts"] = MTURK_SUBMIT
     app.register_error_handler(errors.StudyError, errors.answer)
     app.register_error_handler(HTTPException, errors.http_error)
     app.register_error_handler(Exception, errors.unexpected)

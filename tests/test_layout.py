@@ -116,6 +116,17 @@ def test_server_layers_point_down_only():
         assert not others, (path, others)
 
 
+#: What records a participant's history (the session log and the flags): services' business, never a route's.
+RECORDERS = {"flag", "log", "log_again"}
+
+
+def test_routes_record_nothing_themselves():
+    """A route parses, calls one service and answers: it writes no session log and raises no flag."""
+    for path in (ROOT / "study_server" / "blueprints").glob("*.py"):
+        recorded = {m.rsplit(".", 1)[1] for m in imports(path) if m.startswith("study_server.base.models.")}
+        assert not recorded & RECORDERS, (path, recorded & RECORDERS)
+
+
 PACKAGES = ("scenesuggest", "study_server", "simulation", "analysis")
 
 

@@ -7,6 +7,7 @@ import hmac
 import ipaddress
 import re
 import secrets
+from dataclasses import dataclass
 from datetime import timedelta
 from functools import wraps
 
@@ -102,14 +103,23 @@ def preview_token(study_id: str, condition: str, scene: str) -> str:
     return "preview." + _signer(PREVIEW_SALT).dumps([study_id, condition, scene])
 
 
-def read_preview_token(token: str) -> tuple[str, str, str] | None:
-    """(study, condition, scene) of a valid preview token, else None."""
+@dataclass(frozen=True)
+class Preview:
+    """An admin's look at one condition × scene of a study: everything works, nothing is stored."""
+
+    study_id: str
+    condition: str
+    scene: str
+
+
+def read_preview_token(token: str) -> Preview | None:
+    """The preview a valid preview token grants, else None."""
     try:
         study_id, condition, scene = _signer(PREVIEW_SALT).loads(token.removeprefix("preview."),
                                                                  max_age=PREVIEW_LIFETIME.total_seconds())
     except (BadSignature, ValueError, TypeError):
         return None
-    return study_id, condition, scene
+    return Preview(study_id, condition, scene)
 
 
 class LoginBlocked(StudyError):

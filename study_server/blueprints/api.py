@@ -7,36 +7,24 @@ preview token and writes nothing. Errors are ``{"error": message, "field": name}
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 
 from flask import Blueprint, current_app, g, jsonify, request, url_for
 from sqlalchemy import bindparam, select
 
 from scenesuggest.contract.event_schema import json_schema
 from scenesuggest.contract.events import MAX_SEQ, EventError, text_problem
-from scenesuggest.scenes import scene_json
 
 from ..base import i18n
 from ..base.errors import RequestError
 from ..base.extensions import db, json_value
-from ..base.models import Participant, Trial, log_again, utcnow
+from ..base.models import Participant, Trial, utcnow
 from ..base.openapi import openapi_document
-from ..base.security import read_preview_token
+from ..base.security import Preview, read_preview_token
 from ..participants import flow
 from ..studies.served import runtime
 from ..trials import ingest, lists, replays, trial_check
-from ..trials.posted_scenes import live_scene
 
 bp = Blueprint("api", __name__, url_prefix="/api")
-
-
-@dataclass
-class Preview:
-    """An admin's look at one condition × scene: everything works, nothing is stored."""
-
-    study_id: str
-    condition: str
-    scene: str
 
 
 _BY_TOKEN = select(Participant).where(Participant.token == bindparam("token"))
@@ -51,7 +39,6 @@ def caller() -> Participant | Preview:
         preview = read_preview_token(token)
         if preview is None:
             raise RequestError(401, "invalid preview token", "Authorization")
-        preview = Preview(*preview)
         _speak(preview.study_id, None)
         return preview
     p = db.session.scalar(_BY_TOKEN, {"token": token}) if len(token) <= 64 else None
@@ -190,28 +177,13 @@ def heartbeat():
 def events():
     who = caller()
     data = body()
-    if isinstance(who, Preview):
-        from scenesuggest.contract.events import check_version, validate_batch
-
-        try:
-            batch = validate_batch(data.get("events"), check_version(data.get("vocabulary")))
-        except EventError as e:
-            raise RequestError(422, e.message, e.field) from None
-        return jsonify({"acked_seq": max((e["seq"] for e in batch), default=-1), "stored": False})
     _open(who)
-    study = runtime(who.study_id).study
-    quota = (study.max_events_per_participant, int(study.max_mb_per_participant * 1024 * 1024))
     try:
-        acked = ingest.store(who, data.get("page_id"), data.get("events"), quota, request.content_length,
-                             data.get("vocabulary"))
+        answer = ingest.take(who, runtime(who.study_id).study, data, request.content_length)
     except EventError as e:
         db.session.rollback()
         raise RequestError(422, e.message, e.field) from None
-    except ingest.OverQuota:
-        log_again("quota", who, what="events")
-        db.session.commit()
-        raise
-    return jsonify({"acked_seq": acked, "stored": True})
+    return jsonify(answer)
 
 
 def _participant(who) -> Participant | None:
@@ -289,22 +261,12 @@ def trial_done():
     index = data.get("trial")
     if isinstance(index, bool) or not isinstance(index, int) or not -1 <= index <= MAX_SEQ:
         raise RequestError(400, "expected the trial index", "trial")
-    _open(who)
-    t = db.session.scalar(select(Trial).where(Trial.participant_id == who.id, Trial.index == index))
-    if t is None:
-        raise RequestError(409, f"trial {index} is not in this session", "trial")
     last_seq = data.get("last_seq")  # the last event the page logged (pages of vocabulary 1 do not say)
     if last_seq is not None and (isinstance(last_seq, bool) or not isinstance(last_seq, int)
                                  or not -1 <= last_seq <= MAX_SEQ):
         raise RequestError(400, f"expected the seq of the page's last event (-1 to {MAX_SEQ})", "last_seq")
-    rt = runtime(who.study_id)
-    final = data.get("scene")
-    if final is not None:
-        final = scene_json.scene_to_dict(live_scene(final, rt.scene_type(t.scene_id)))
-    finished = flow.finish_trial(who, rt.study, index, final)
-    trial_check.settle(rt, who)
-    if finished.replay is None:  # just finished (a retried request finds it checked)
-        trial_check.check_trial(rt, who, finished, last_seq)
+    _open(who)
+    trial_check.done(runtime(who.study_id), who, index, data.get("scene"), last_seq)
     db.session.commit()
     return jsonify({"step": who.step, "position": who.position, "trial": trial_json(flow.current_trial(who)),
                     "next": url_for("participant.current", study_id=who.study_id)})

@@ -4,11 +4,8 @@ the back button and second tabs resume where they were (logged as ``resume``).""
 
 from __future__ import annotations
 
-import hmac
 import posixpath
 import re
-import secrets
-import unicodedata
 
 from flask import (
     Blueprint,
@@ -27,16 +24,15 @@ from werkzeug.exceptions import NotFound
 
 from ..base import i18n
 from ..base.extensions import db
-from ..base.models import Participant, SessionLog, flag, log, log_again, utcnow
+from ..base.models import Participant
 from ..base.security import address_key, check_csrf
-from ..participants import assignment, flow, pilots
+from ..participants import arrival, assignment, flow
 from ..participants import device as device_check
 from ..participants.boot import trial_boot
 from ..studies.served import runtime
 from ..trials import trial_check
 
 bp = Blueprint("participant", __name__, url_prefix="/study/<study_id>")
-MTURK_PREVIEW = "ASSIGNMENT_ID_NOT_AVAILABLE"
 
 
 @bp.before_request
@@ -72,152 +68,22 @@ def _remember(study_id: str, p: Participant) -> None:
     session.permanent = True
 
 
-#: Ids as the platforms issue them: Prolific's are 24 hex digits, MTurk's upper-case letters and digits.
-PROLIFIC_ID = re.compile(r"[0-9a-fA-F]{24}")
-MTURK_ID = re.compile(r"[A-Z0-9]{10,64}")
-#: The only hosts an MTurk HIT may be submitted to (``turkSubmitTo``).
-MTURK_SUBMIT = ("https://www.mturk.com", "https://workersandbox.mturk.com")
-#: A plain link's ``pid``: up to LINK_ID_MAX visible characters — no control or format character (bidi overrides,
-#: zero-width spaces, byte-order marks), line or paragraph separator, surrogate, private-use or unassigned code
-#: point, any of which would let one id read as another on the admin pages and in the export.
-LINK_ID_MAX = 128
-INVISIBLE = frozenset(("Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp"))
-#: Code points Unicode says to ignore in display that are not of those categories (Hangul fillers, the combining
-#: grapheme joiner, Mongolian and standard variation selectors).
-IGNORABLE = re.compile("[\u034f\u115f\u1160\u17b4\u17b5\u180b-\u180f\u3164\ufe00-\ufe0f\uffa0"
-                       "\U000e0100-\U000e01ef]")
-
-
-def link_id(value: str) -> bool:
-    """Whether ``value`` may be a plain link's ``pid`` (see INVISIBLE and IGNORABLE), written in Unicode's composed
-    form (NFC: an id that looks like another is that other)."""
-    return (0 < len(value) <= LINK_ID_MAX and not any(unicodedata.category(c) in INVISIBLE for c in value)
-            and not IGNORABLE.search(value) and unicodedata.normalize("NFC", value) == value)
-
-
-class EntryError(Exception):
-    """An entry link whose parameters this study cannot accept; the message names the parameter."""
-
-
-def _platform_identity(study, args) -> tuple[str, dict]:
-    """(platform id, platform metadata) from the entry URL's parameters ("" for an anonymous link); raises
-    :class:`EntryError` naming a missing or malformed parameter."""
-    def value(name: str, valid, required: bool = True) -> str:
-        v = args.get(name, "")
-        if not v and not required:
-            return ""
-        if not valid(v):
-            raise EntryError(_("%(name)s is missing", name=name) if not v
-                             else _("%(name)s is not a valid %(platform)s id", name=name, platform=study.platform))
-        return v
-
-    if study.platform == "prolific":
-        meta = {"PROLIFIC_PID": value("PROLIFIC_PID", PROLIFIC_ID.fullmatch),
-                "STUDY_ID": value("STUDY_ID", PROLIFIC_ID.fullmatch, required=bool(study.platform_study_id)),
-                "SESSION_ID": value("SESSION_ID", PROLIFIC_ID.fullmatch, required=False)}
-        if study.platform_study_id and meta["STUDY_ID"] != study.platform_study_id:
-            raise EntryError(_("STUDY_ID is not this study's Prolific id"))
-        return meta["PROLIFIC_PID"], meta
-    if study.platform == "mturk":
-        meta = {k: value(k, MTURK_ID.fullmatch) for k in ("workerId", "assignmentId", "hitId")}
-        submit = args.get("turkSubmitTo", "").rstrip("/")
-        if submit not in MTURK_SUBMIT:
-            raise EntryError(_("turkSubmitTo is not one of MTurk's submit hosts"))
-        meta["turkSubmitTo"] = submit
-        return meta["workerId"], meta
-    pid = value("pid", link_id, required=False)
-    return pid, ({"pid": pid} if pid else {})
-
-
-def _pilot(study, platform_id: str, args) -> bool:
-    """Whether the entry link is a pilot's (signed with the server's key: study_server.participants.pilots); a ``pilot``
-    parameter that is not this id's signature is refused (:class:`EntryError`), never taken for a participant's."""
-    given = args.get(pilots.PARAM)
-    if given is None:
-        return False
-    if not platform_id or not pilots.is_pilot(current_app.config["SECRET_KEY"], study.id, platform_id, given):
-        raise EntryError(_("%(name)s is not a test link of this study", name=pilots.PARAM))
-    return True
-
-
-def _proves(p: Participant, meta: dict) -> bool:
-    """Whether an entry link carries what only this participant's platform session has: Prolific's
-    SESSION_ID or MTurk's assignmentId, as first seen. A bare id (or a plain link's pid) proves nothing."""
-    key = {"prolific": "SESSION_ID", "mturk": "assignmentId"}.get(p.platform)
-    mine = (p.platform_meta or {}).get(key) if key else None
-    return bool(mine) and hmac.compare_digest(str(mine).encode(), (meta.get(key) or "").encode())
-
-
 def _entry_page(study, message: str, status: int):
     return render_template("message.html", title=study.title, message=message), status
 
 
 @bp.get("/start")
 def start(study_id: str):
-    rt = runtime(study_id)
-    study = rt.study
-    if study.platform == "mturk" and request.args.get("assignmentId") == MTURK_PREVIEW:
+    study = runtime(study_id).study
+    if arrival.is_preview(study, request.args):
         return render_template("mturk_preview.html", study=study)
     try:
-        platform_id, meta = _platform_identity(study, request.args)
-        pilot = _pilot(study, platform_id, request.args)
-    except EntryError as e:  # the application log, not the database: anyone can send these
-        current_app.logger.info("entry refused for study %s: %s", study_id, e)
-        return _entry_page(study, _("This link cannot start the study: %(problem)s. Please open the study from the "
-                                    "link on your crowdsourcing platform.", problem=str(e)), 422)
-    if study.platform != "link" and not platform_id:
-        return _entry_page(study, _("Please open this study from the link on your crowdsourcing platform."), 400)
-    mine = _participant(study_id)
-    if mine is not None and (not platform_id or mine.platform_id == platform_id):
-        log_again("resume", mine, via="entry link")
-        db.session.commit()
-        return redirect(url_for(".current", study_id=study_id))
-    if not platform_id:  # an anonymous link: a new id, remembered by this browser
-        platform_id = "link-" + secrets.token_hex(8)
-    try:
-        p, created = assignment.arrive(study, study.platform, platform_id, meta,
-                                       request.headers.get("User-Agent", ""), address_key(),
-                                       language=i18n.choose(study, request.accept_languages), pilot=pilot)
-    except assignment.QuotaExceeded:
-        current_app.logger.warning("arrival quota reached for an address in study %s", study_id)
-        return _entry_page(study, _("Too many people have started this study from your network in the last hour. "
-                                    "Please try again later."), 429)
-    if created and mine is not None and not (pilot or mine.pilot):  # one browser, a second id: flag both
-        reason = (f"this browser already took part as participant {mine.id} ({mine.status}, id "
-                  f"{mine.platform_id[:40]!r})")
-        flag(p, reason)
-        flag(mine, f"this browser came back as participant {p.id} under another id")
-        db.session.commit()
-    elif not created:  # the id has a session already (begun in another browser, or a moment ago in another tab)
-        return _resume_elsewhere(study, p, meta)
+        p = arrival.enter(study, request.args, _participant(study_id), request.headers.get("User-Agent", ""),
+                          address_key(), i18n.choose(study, request.accept_languages), current_app.config["SECRET_KEY"])
+    except arrival.EntryRefused as e:  # the entry page, with the study's title
+        return _entry_page(study, e.message, e.status)
     _remember(study_id, p)
     return redirect(url_for(".current", study_id=study_id))
-
-
-def _resume_elsewhere(study, existing: Participant, meta: dict):
-    """A browser without this participant's cookie: it resumes only with the platform's session id."""
-    if not _proves(existing, meta):  # someone else's id, or the participant in a new browser: never a takeover
-        flag(existing, "the study was opened with this participant's id in another browser without the "
-                       "platform's session id (refused)", by=address_key())
-        db.session.commit()
-        return _entry_page(study, _("This study is already in progress in another browser. Please continue there; "
-                                    "if you cannot, contact the researcher through your platform."), 409)
-    log("resume", existing, via="platform session")
-    db.session.commit()
-    _remember(study.id, existing)
-    return redirect(url_for(".current", study_id=study.id))
-
-
-def _log_view(p: Participant) -> None:
-    """A view of the same place as the last one is a resume (reload, back button, second tab)."""
-    where = {"step": p.step, "position": p.position, "page": p.instruction_page}
-    last = db.session.scalar(select(SessionLog).where(SessionLog.participant_id == p.id,
-                                                      SessionLog.kind.in_(("view", "resume")))
-                             .order_by(SessionLog.id.desc()).limit(1))
-    if last is not None and last.detail.get("where") == where:
-        log_again("resume", p, where=where)  # reloads count on one row
-    else:
-        log("view", p, where=where)
 
 
 @bp.get("/")
@@ -228,9 +94,7 @@ def current(study_id: str):
     if p is None:
         return render_template("message.html", title=study.title,
                                message=_("Please start this study from the link you were given.")), 200
-    flow.check_session_time(p, study)
-    _log_view(p)
-    p.last_seen_at = utcnow()
+    flow.visit(p, study)
     # the page is made before the commit (which would expire what it reads) and its writes wait for the commit
     # (SQLite's write lock, taken by the first, is held until then)
     with db.session.no_autoflush:
@@ -311,12 +175,7 @@ def _post_participant(study_id: str) -> Participant | None:
     p = _participant(study_id)
     if p is None:
         raise NotFound()
-    if not flow.is_open(p):
-        log_again("refused", p, path=request.path, status=p.status)
-        db.session.commit()
-        return None
-    p.last_seen_at = utcnow()
-    return p
+    return p if flow.takes_posts(p, request.path) else None
 
 
 @bp.post("/device")

@@ -19,7 +19,7 @@ from sqlalchemy import case, func, select, update
 
 from ..base.errors import StudyError
 from ..base.extensions import db
-from ..base.models import Event, Participant, SurveyResponse, Trial, flag, log, utcnow
+from ..base.models import Event, Participant, SessionLog, SurveyResponse, Trial, flag, log, log_again, utcnow
 from ..studies.study_file import Question, Study
 from . import device
 
@@ -246,6 +246,33 @@ def check_session_time(p: Participant, study: Study) -> None:
             utcnow() - p.created_at > timedelta(minutes=study.session_minutes):  # None: unreadable (column_types)
         log("session_time_limit", p, position=p.position)
         p.step = "exit"
+
+
+def visit(p: Participant, study: Study) -> None:
+    """A view of the participant's current page: past the session time limit the trials end
+    (:func:`check_session_time`); a view of the same place as the last one is a resume (a reload, the back button, a
+    second tab), counted on one row; the participant was seen now."""
+    check_session_time(p, study)
+    where = {"step": p.step, "position": p.position, "page": p.instruction_page}
+    last = db.session.scalar(select(SessionLog).where(SessionLog.participant_id == p.id,
+                                                      SessionLog.kind.in_(("view", "resume")))
+                             .order_by(SessionLog.id.desc()).limit(1))
+    if last is not None and last.detail.get("where") == where:
+        log_again("resume", p, where=where)
+    else:
+        log("view", p, where=where)
+    p.last_seen_at = utcnow()
+
+
+def takes_posts(p: Participant, path: str) -> bool:
+    """Whether the participant's session still takes a form posted to ``path``: an ended one does not (the refusal
+    is logged and committed, on one row however often it comes); one that does was seen now."""
+    if not is_open(p):
+        log_again("refused", p, path=path, status=p.status)
+        db.session.commit()
+        return False
+    p.last_seen_at = utcnow()
+    return True
 
 
 #: Attempts the exit page makes to get the last events acknowledged before completing anyway.

@@ -19,7 +19,9 @@ from scenesuggest.contract.events import MAX_SEQ, EventError, check_version, val
 
 from ..base.errors import StudyError
 from ..base.extensions import db, json_text
-from ..base.models import Event, Participant, log, utcnow
+from ..base.models import Event, Participant, log, log_again, utcnow
+from ..base.security import Preview
+from ..studies.study_file import Study
 from .bulk_insert import COUNT, COUNT_WITH_QUOTA, insert_events
 
 PAGE_ID_MAX = 64
@@ -145,6 +147,24 @@ def store(participant: Participant, page_id: str, events: list, quota: tuple[int
         acked = connection.execute(COUNT, recount).first()[0]
     db.session.commit()
     return acked  # the row's: a parallel batch may have moved it further
+
+
+def take(who: Participant | Preview, study: Study, data: dict, nbytes: int | None) -> dict:
+    """A batch posted to the API (``data``: ``page_id``, ``events``, ``vocabulary``; ``nbytes``: the request's
+    size), answered as ``{"acked_seq", "stored"}``. An admin's preview's batch is validated and stored nowhere; a
+    participant's is stored (:func:`store`) under the study's quotas of events and bytes per participant, and a
+    batch over them is refused (:class:`OverQuota`) with the refusal logged, on one row however often it comes."""
+    if isinstance(who, Preview):
+        batch = validate_batch(data.get("events"), check_version(data.get("vocabulary")))
+        return {"acked_seq": max((e["seq"] for e in batch), default=-1), "stored": False}
+    quota = (study.max_events_per_participant, int(study.max_mb_per_participant * 1024 * 1024))
+    try:
+        acked = store(who, data.get("page_id"), data.get("events"), quota, nbytes, data.get("vocabulary"))
+    except OverQuota:
+        log_again("quota", who, what="events")
+        db.session.commit()
+        raise
+    return {"acked_seq": acked, "stored": True}
 
 
 def _refuse_conflict(participant: Participant, page_id: str, batch: list[dict], positions: list[int]):

@@ -8,20 +8,49 @@ from __future__ import annotations
 import re
 
 from flask import current_app
+from sqlalchemy import select
 from sqlalchemy.exc import SQLAlchemyError
 
 from scenesuggest.contract.replay import ReplayUnavailable, differences, final_scene
 from scenesuggest.contract.scoring import Closeness, closeness
+from scenesuggest.scenes import scene_json
 
+from ..base.errors import StudyError
+from ..base.extensions import db
 from ..base.models import Participant, Trial
-from ..participants.flow import below_target, trials
+from ..participants.flow import below_target, finish_trial, trials
 from ..studies.served import StudyRuntime
+from .posted_scenes import live_scene
 from .replays import trial_events
 
 #: How many differences a mismatch names.
 SHOWN = 3
 #: How a check waiting for the trial's last events begins (then the seq it waits for).
 PENDING = "pending: events up to seq"
+
+
+class UnknownTrial(StudyError):
+    """A trial index that names no trial of the session."""
+
+    def __init__(self, index: int):
+        super().__init__(f"trial {index} is not in this session", "trial")
+
+
+def done(rt: StudyRuntime, p: Participant, index: int, scene: dict | None, last_seq: int | None) -> None:
+    """Trial ``index`` of ``p`` is done, with its final ``scene`` as the editor posts it (None: none submitted) and
+    ``last_seq`` the seq of the last event the page logged (None: the page does not say): the trial finishes
+    (:func:`~study_server.participants.flow.finish_trial`; a retry for a finished trial changes nothing), the checks
+    waiting for events that have arrived since are made (:func:`settle`), and the trial just finished is checked
+    (:func:`check_trial`). Raises :class:`UnknownTrial`, the flow's refusals and the posted scene's. The caller
+    commits."""
+    t = db.session.scalar(select(Trial).where(Trial.participant_id == p.id, Trial.index == index))
+    if t is None:
+        raise UnknownTrial(index)
+    final = None if scene is None else scene_json.scene_to_dict(live_scene(scene, rt.scene_type(t.scene_id)))
+    finished = finish_trial(p, rt.study, index, final)
+    settle(rt, p)
+    if finished.replay is None:  # just finished (a retried request finds it checked)
+        check_trial(rt, p, finished, last_seq)
 
 
 def replay_check(rt: StudyRuntime, t: Trial, events: list[dict]) -> str:
