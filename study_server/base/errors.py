@@ -10,8 +10,8 @@ and turn the engine's :class:`scenesuggest.errors.SceneSuggestError` and
 :class:`scenesuggest.contract.events.EventError` into it where a request carries engine input. ``create_app`` answers
 every StudyError in one place (:func:`answer`): ``{"error": message, "field": name, …}`` as JSON under ``/api/``
 and for JSON requests (the admin's scene editor), the calm message page everywhere else; what the request had
-changed is rolled back. A route catches a StudyError only to do more than answer it (log a refusal, show a
-page of its own).
+changed is rolled back. A route catches a StudyError only to show a page of its own; what a refusal records, the
+service records (and commits) before it raises.
 
 The same place answers HTTP errors and unexpected failures (never a stack trace; participant pages get a reference
 that is in the session log). A database that cannot store anything right now (read-only, full, locked or
