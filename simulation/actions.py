@@ -32,7 +32,6 @@ from .transport import FlowError
 #: Where a click for a new object lands: the intended contact point plus a random error in the surface plane
 #: (standard deviation, m), at most a tenth of the support's smaller side; the object is then dragged into place.
 CLICK_ERROR_M = 0.15
-BATCH = 200  # events per request, as the outbox sends them
 MAX_DRAGS = 6  # corrections a person makes before leaving an object where it is
 ORBIT_S = 2.0  # seconds of looking round per logged camera orbit
 
@@ -85,6 +84,7 @@ class Trial:
         self.who, self.human = who, who.human
         self.token, self.trial, self.page_id = boot["token"], boot["trial"], boot["page_id"]
         self.vocabulary = boot["vocabulary"]  # the event vocabulary's version the page logs in
+        self.per_request = boot["batch"]  # events per request, as the page's outbox sends them
         self.batch: list[dict] = []
         factor = who.speed * who.scene_factor(self.trial["scene"]) * self.human.practice_factor(who.played)
         self.clock = Clock(who.rng, factor, time.time() * 1000.0)
@@ -188,8 +188,8 @@ class Trial:
         self.event("resume", {"reason": "reload"})
 
     def flush(self) -> None:
-        for i in range(0, len(self.batch), BATCH):
-            chunk = self.batch[i:i + BATCH]
+        for i in range(0, len(self.batch), self.per_request):
+            chunk = self.batch[i:i + self.per_request]
             body = {"page_id": self.page_id, "vocabulary": self.vocabulary, "events": chunk}
             if self.who.chance(self.who.does.resend):
                 self.api("POST", "/events", body)

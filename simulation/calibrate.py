@@ -31,6 +31,7 @@ import pandas as pd
 from scipy.optimize import minimize
 
 from scenesuggest.atomic import write_atomically
+from scenesuggest.contract.events import SEND_BATCH
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.npz import read_npz
 
@@ -161,7 +162,7 @@ class Rehearsal:
                 if planned.kind != "trial" or planned.condition != "none":
                     continue
                 bot.played = position
-                boot = {"token": "", "page_id": "rehearsal", "vocabulary": 2,
+                boot = {"token": "", "page_id": "rehearsal", "vocabulary": 2, "batch": SEND_BATCH,
                         "trial": {"index": planned.index, "kind": "trial", "condition": "none",
                                   "scene": planned.scene}}
                 Trial(bot, boot).play()

@@ -110,6 +110,8 @@ def create_app(config: dict | None = None) -> Flask:
 
     i18n.init_app(app)
 
+    from scenesuggest.contract.events import SEND_BATCH
+
     from .base import errors
     from .base.importmap import IMPORT_MAP
     from .base.security import CookieSessions, csrf_token, security_headers
@@ -133,6 +135,7 @@ def create_app(config: dict | None = None) -> Flask:
     app.jinja_env.globals["api_base"] = api_base
     app.jinja_env.globals["import_map"] = IMPORT_MAP
     app.jinja_env.globals["mturk_submit_hosts"] = MTURK_SUBMIT
+    app.jinja_env.globals["event_batch"] = SEND_BATCH
     app.register_error_handler(errors.StudyError, errors.answer)
     app.register_error_handler(HTTPException, errors.http_error)
     app.register_error_handler(Exception, errors.unexpected)

@@ -25,6 +25,9 @@ MAX_LIST = 500
 #: is about 200 kB, within a batch's body limit).
 MAX_STRINGS = 5000
 MAX_BATCH = 500
+#: Events a client sends per request (the browser's outbox, whose pages get it from the server, and the simulated
+#: participants): well within MAX_BATCH, so that a batch cut short by size still fits.
+SEND_BATCH = 200
 #: Largest seq (the column is a 32-bit integer on PostgreSQL).
 MAX_SEQ = 2**31 - 1
 #: Largest string in an object state (ids, model ids, categories, surface types are tens of characters): every

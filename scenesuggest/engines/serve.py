@@ -18,6 +18,7 @@ from ..scenes.scene_json import from_dict
 from ..suggestion.query import ContextQuery
 from ..suggestion.suggest import MODES
 from .protocol import SuggestionEngine
+from .wire import answer_item
 
 #: The largest query read (bytes): a scene of a few hundred objects is well below it.
 MAX_QUERY_BYTES = 8 << 20
@@ -41,9 +42,7 @@ def answer(engine: SuggestionEngine, doc) -> dict:
     scene = from_dict({"format": "scenesuggest-scene", "version": 1, "id": "query", **doc["scene"]})
     query = ContextQuery(scene, doc.get("parent"), doc.get("point"), doc.get("normal"), doc.get("scene_type"))
     found = engine.suggest(query, mode, top, only=categories)
-    return {"suggestions": [{"category": s.category, "score": s.score, "terms": s.terms,
-                             "placement": s.to_dict()["placement"], "attachment_face": s.attachment_face,
-                             "heading_deg": s.heading_deg, "models": list(s.models[:ANSWER_MODELS])} for s in found]}
+    return {"suggestions": [answer_item(s, ANSWER_MODELS) for s in found]}
 
 
 def make_server(engine: SuggestionEngine, host: str = "127.0.0.1", port: int = 0) -> ThreadingHTTPServer:

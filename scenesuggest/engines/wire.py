@@ -81,6 +81,14 @@ ANSWER_SCHEMA = {
 }
 
 
+def answer_item(s: Suggestion, models: int = MAX_MODELS) -> dict:
+    """A suggestion as an engine's answer carries it (ANSWER_SCHEMA): :meth:`Suggestion.to_dict` without the rank
+    (the answer's order is the ranking) and the notes, naming at most ``models`` of its models."""
+    d = s.to_dict()
+    return {k: d[k] for k in ANSWER_SCHEMA["properties"]["suggestions"]["items"]["properties"]} | {
+        "models": d["models"][:models]}
+
+
 class EngineUnavailable(Exception):
     """The external engine gave no usable answer; ``str()`` is the reason, without the URL."""
 

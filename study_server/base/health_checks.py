@@ -55,7 +55,7 @@ def _engines(rt) -> dict[str, dict]:
     loaded = rt.loaded_engines()
     out: dict[str, dict] = {}
     for c in rt.study.conditions:
-        if c.id == "none":
+        if c.mode is None:
             continue
         entry = out.setdefault(c.engine.name, {"version": c.engine.kind.version, "status": "not loaded yet"})
         if c.id in rt.engine_failures:

@@ -120,6 +120,12 @@ class Trial(db.Model):
     #: when the check failed, None before "done" or for trials done before it was stored (the export computes those).
     closeness: Mapped[dict | None] = mapped_column(Document, nullable=True)
 
+    def describe(self) -> dict:
+        """The trial as every page and answer names it: index, kind, condition, scene and block (each adds what it
+        needs besides)."""
+        return {"index": self.index, "kind": self.kind, "condition": self.condition, "scene": self.scene_id,
+                "block": self.block}
+
 
 class Event(db.Model):
     __tablename__ = "events"

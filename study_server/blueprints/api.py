@@ -107,8 +107,7 @@ def trial_json(t: Trial | None, preview: Preview | None = None) -> dict | None:
         return {"index": 0, "kind": "preview", "condition": preview.condition, "scene": preview.scene}
     if t is None:
         return None
-    return {"index": t.index, "kind": t.kind, "condition": t.condition, "scene": t.scene_id, "block": t.block,
-            "started": t.started_at is not None}
+    return {**t.describe(), "started": t.started_at is not None}
 
 
 def _open(who) -> None:
@@ -196,8 +195,6 @@ def suggest():
     who = caller()
     data = body()
     condition, scene_id, index = _check_trial(who, data)
-    if condition == "none":
-        raise RequestError(403, "this trial's interface has no suggestions", "trial")
     answer = lists.suggest(runtime(who.study_id), _participant(who), condition, scene_id, index, data)
     db.session.commit()
     return jsonify(answer)

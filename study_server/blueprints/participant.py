@@ -152,9 +152,7 @@ def _trial_page(rt, p: Participant):
                                first=t.position == 0, of=len(plan))
     flow.start_trial(p, t)
     seconds = flow.briefing_seconds(t)
-    boot = trial_boot(rt.study, p.token, {"index": t.index, "kind": t.kind, "condition": t.condition,
-                                          "scene": t.scene_id, "block": t.block, "number": t.index + 1,
-                                          "of": len(plan),
+    boot = trial_boot(rt.study, p.token, {**t.describe(), "number": t.index + 1, "of": len(plan),
                                           "briefing": None if seconds is None else round(seconds, 3)},
                       url_for(".current", study_id=p.study_id))
     return render_template("trial.html", study=rt.study, p=p, trial=t, condition=condition,

@@ -85,7 +85,7 @@ def engine_use(study: Study) -> list[dict]:
              "fallback": c.engine.config.fallback.name if c.engine.name == "http" else None,
              "fallbacks": sum(reasons.get(c.id, Counter()).values()),
              "reasons": reasons.get(c.id, Counter()).most_common(3),
-             "circuit": _circuit(circuits.get(c.id))} for c in study.conditions if c.id != "none"]
+             "circuit": _circuit(circuits.get(c.id))} for c in study.conditions if c.mode]
 
 
 def _circuit(row: SessionLog | None) -> str | None:

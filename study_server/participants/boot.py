@@ -8,6 +8,7 @@ import secrets
 
 from flask import url_for
 
+from scenesuggest.contract.events import SEND_BATCH
 from scenesuggest.contract.events import VERSION as EVENT_VOCABULARY
 
 from ..studies.study_file import Study
@@ -23,4 +24,4 @@ def trial_boot(study: Study, token: str, trial: dict, next_url: str, preview: bo
     """``trial``: index, kind, condition, scene, block, number and of (the trial's place among the trials)."""
     return {"study": study.id, "token": token, "preview": preview, "trial": trial, "page_id": secrets.token_hex(8),
             "api": api_base(), "next": next_url,
-            "limits": {"trial_minutes": study.trial_minutes}, "vocabulary": EVENT_VOCABULARY}
+            "limits": {"trial_minutes": study.trial_minutes}, "vocabulary": EVENT_VOCABULARY, "batch": SEND_BATCH}

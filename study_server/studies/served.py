@@ -125,7 +125,7 @@ class StudyRuntime:
                                      field=f"resources.{key}") from None
         _ = self.taxonomy  # a cached property: loaded on first read
         for i, c in enumerate(s.conditions):
-            if c.id != "none":
+            if c.mode:
                 try:
                     self.placeable(c.id)
                 except EngineUnavailable as e:
@@ -183,7 +183,7 @@ class StudyRuntime:
         """Per condition that suggests: its engine's name, version and trained file (the manifest's record)."""
         out = {}
         for c in self.study.conditions:
-            if c.id == "none":
+            if c.mode is None:
                 continue
             spec = c.engine
             out[c.id] = {"engine": spec.name, "version": spec.kind.version,

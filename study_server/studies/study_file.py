@@ -41,6 +41,12 @@ class Condition:
     instructions: str
     engine: engines.EngineSpec
 
+    @property
+    def mode(self) -> str | None:
+        """The engine's mode in this interface — ``basic`` (placed as geometry says) or ``full`` (placed and turned
+        as the priors say) — or None: ``none`` has no suggestions."""
+        return None if self.id == "none" else self.id
+
 
 @dataclass(frozen=True)
 class TargetScene:

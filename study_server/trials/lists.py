@@ -15,8 +15,7 @@ from flask import current_app
 from sqlalchemy import func, insert, select, update
 
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.scenes import frames
-from scenesuggest.suggestion.suggest import ContextQuery, SuggestionList
+from scenesuggest.suggestion.suggest import ContextQuery, Suggestion, SuggestionList
 
 from ..base import i18n
 from ..base.errors import StudyError
@@ -34,6 +33,15 @@ MODELS_PER_CATEGORY = 12
 #: for with a click), far below a script's. Beyond it: 429 with Retry-After, which the page waits out.
 LIST_RATE = 300
 LIST_WINDOW = timedelta(minutes=2)
+
+
+class NoSuggestions(StudyError):
+    """A click for suggestions in a trial whose interface has none (``none``)."""
+
+    status = 403
+
+    def __init__(self):
+        super().__init__("this trial's interface has no suggestions", "trial")
 
 
 class QueryRejected(StudyError):
@@ -79,6 +87,21 @@ def check_room(who: Participant, size: int, quota_bytes: int) -> None:
         raise TooManyLists("this session has stored as much as a study allows", 300)
 
 
+def shown_item(s: Suggestion, rank: int, label: str, models: list[dict]) -> dict:
+    """A suggestion as the API shows it: the engine's (:meth:`~scenesuggest.suggestion.suggest.Suggestion.to_dict`)
+    without its terms, ranked among the suggestions shown, with the category's ``label`` and its ``models``
+    described (:meth:`StudyRuntime.describe`)."""
+    d = s.to_dict()
+    del d["terms"]
+    return {**d, "rank": rank, "label": label, "models": models}
+
+
+def stored_item(item: dict) -> dict:
+    """A shown suggestion (:func:`shown_item`) as a stored list keeps it: rank, category, score and model ids."""
+    return {"rank": item["rank"], "category": item["category"], "score": item["score"],
+            "models": [m["id"] for m in item["models"]]}
+
+
 def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal) -> tuple[list[dict], SuggestionList]:
     """(items, the engine's answer) for a click on ``parent`` at ``point`` (metres, world frame) with ``normal``:
     ranked categories that this study's library can place, each with its placement (4×4, column-major, world
@@ -87,18 +110,15 @@ def context_list(rt: StudyRuntime, condition: str, scene, parent, point, normal)
     :class:`scenesuggest.errors.SceneSuggestError` for a query the engine cannot answer."""
     engine = rt.engine(condition)
     query = ContextQuery(scene, parent, point, normal)
-    found = engine.suggest(query, "full" if condition == "full" else "basic", top=SUGGESTIONS_SHOWN,
+    found = engine.suggest(query, rt.study.condition(condition).mode, top=SUGGESTIONS_SHOWN,
                            only=rt.placeable(condition))
     items, language = [], i18n.page_language()
     for s in found:
         models = [rt.library[m] for m in s.models if m in rt.library] or rt.by_category.get(s.category, [])
         if not models:
             continue  # a category without a model in this study's library cannot be placed
-        items.append({"rank": len(items) + 1, "category": s.category, "score": s.score,
-                      "label": i18n.category_label(s.category, language),
-                      "placement": frames.to_column_major(s.placement), "attachment_face": s.attachment_face,
-                      "heading_deg": s.heading_deg, "notes": list(s.notes),
-                      "models": [rt.describe(m, language) for m in models[:MODELS_PER_CATEGORY]]})
+        items.append(shown_item(s, len(items) + 1, i18n.category_label(s.category, language),
+                                [rt.describe(m, language) for m in models[:MODELS_PER_CATEGORY]]))
         if len(items) >= SUGGESTIONS_SHOWN:
             break
     return items, found
@@ -151,6 +171,8 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
     participant over the list rate or quota before the engine runs (:class:`TooManyLists`), a query the engine
     cannot answer (:class:`QueryRejected`) and an engine that cannot be loaded (:class:`SuggestionsUnavailable`).
     The caller commits."""
+    if rt.study.condition(condition).mode is None:
+        raise NoSuggestions()
     with _refusals_logged(who, "context"):
         if who is not None:
             check_rate(who)
@@ -167,13 +189,12 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
         query = {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),
                  "surface_type": found.surface_type, "engine": found.engine,
                  **({"fallback": found.fallback} if found.fallback else {})}
-        shown = [{"rank": i["rank"], "category": i["category"], "score": i["score"],
-                  "models": [m["id"] for m in i["models"]]} for i in items]
+        shown = [stored_item(i) for i in items]
         list_id = _store(who, trial, "context", query, shown, _quota_bytes(rt)) if who else uuid.uuid4().hex
     if who is not None and found.fallback:
         log("engine_fallback", who, condition=condition, trial=trial, engine=rt.study.condition(condition).engine.name,
             answered_by=found.engine, reason=found.fallback, list_id=list_id)
-    return {"list_id": list_id, "condition": condition, "mode": "full" if condition == "full" else "basic",
+    return {"list_id": list_id, "condition": condition, "mode": rt.study.condition(condition).mode,
             "surface_type": found.surface_type, "engine": found.engine, "suggestions": items}
 
 

@@ -81,8 +81,7 @@ def replay_document(rt: StudyRuntime, t: Trial) -> dict:
     the events changed, not with the scene's size times the number of changes."""
     start = rt.scene(t.scene_id, "start")["objects"]
     events = trial_events(t.participant_id, t.index)
-    doc = {"trial": {"participant": t.participant_id, "index": t.index, "kind": t.kind, "condition": t.condition,
-                     "scene": t.scene_id, "title": rt.study.scenes[t.scene_id].title,
+    doc = {"trial": {"participant": t.participant_id, **t.describe(), "title": rt.study.scenes[t.scene_id].title,
                      "done": t.done_at is not None, "replay": t.replay, "score": t.score},
            "target": rt.scene(t.scene_id, "target")["objects"], "start": start, "steps": [], "events": [],
            "problem": None}

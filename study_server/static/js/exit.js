@@ -5,7 +5,8 @@ import { Outbox } from "./outbox.js";
 
 const form = document.getElementById("exit-form");
 if (form) {
-  const outbox = new Outbox({ api: form.dataset.api, token: form.dataset.token, pageId: "exit", study: form.dataset.study });
+  const outbox = new Outbox({ api: form.dataset.api, token: form.dataset.token, pageId: "exit", study: form.dataset.study,
+    batch: Number(form.dataset.batch) });
   const finish = async () => {
     await Promise.race([outbox.flush(), new Promise((r) => setTimeout(r, 4000))]);
     form.last_seq.value = String(outbox.lastSeq);

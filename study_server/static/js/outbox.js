@@ -7,7 +7,6 @@
 // page renumbers its own at once, and when the server already holds a different event under a seq (409), the
 // events are sent again under the seqs the server hands out. An ended session (410) stops the outbox.
 
-const MAX_BATCH = 200;
 // A batch's events in JSON at most this many characters (the server takes bodies up to 1 MiB; one event may be a
 // whole library's fixed list, about 200 kB): a batch is cut short before it, always holding at least one event.
 const MAX_BATCH_CHARS = 256 * 1024;
@@ -22,8 +21,9 @@ const wire = ({ uid, v, ...event }) => event;
 const versionOf = (e) => e.v ?? 1;
 
 export class Outbox {
-  constructor({ api, token, pageId, study, vocabulary = 1, onStatus = () => {} }) {
+  constructor({ api, token, pageId, study, batch, vocabulary = 1, onStatus = () => {} }) {
     this.api = api;
+    this.batch = batch;  // events per request, as the server says (its boot data, the exit form's data-batch)
     this.vocabulary = vocabulary;  // the version of the event vocabulary this page logs in
     this.token = token;
     this.pageId = pageId;
@@ -161,7 +161,7 @@ export class Outbox {
     }
   }
 
-  /** The first pending events, of one vocabulary version, within MAX_BATCH and MAX_BATCH_CHARS (at least one). */
+  /** The first pending events, of one vocabulary version, within this.batch and MAX_BATCH_CHARS (at least one). */
   nextBatch() {
     const state = this.read();
     // one batch, one vocabulary: events an older page left behind are sent in the version they were logged in
@@ -169,7 +169,7 @@ export class Outbox {
     const run = state.pending.findIndex((e) => versionOf(e) !== version);
     const batch = [];
     let chars = 0;
-    for (const e of state.pending.slice(0, Math.min(MAX_BATCH, run < 0 ? MAX_BATCH : run))) {
+    for (const e of state.pending.slice(0, Math.min(this.batch, run < 0 ? this.batch : run))) {
       chars += JSON.stringify(wire(e)).length;
       if (batch.length && chars > MAX_BATCH_CHARS) break;
       batch.push(e);

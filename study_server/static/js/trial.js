@@ -39,7 +39,7 @@ function show(text, action, onAction) {
 
 const sayEnded = () => say(strings.ended, { action: strings.continue, onAction: () => location.assign(boot.next) });
 const outbox = new Outbox({ api: boot.api, token: boot.token, pageId: boot.page_id, study: boot.study,
-  vocabulary: boot.vocabulary,
+  batch: boot.batch, vocabulary: boot.vocabulary,
   onStatus: (s) => {
     if (s === "offline") say(strings.offline, { transient: true });
     else if (s === "ended") sayEnded();
