@@ -6,31 +6,13 @@ progress goes to stderr. User errors print ``Error: FILE:LINE: field 'F': messag
 
 from __future__ import annotations
 
-import json
-import sys
-from collections.abc import Iterable
 from pathlib import Path
 
 import click
 
 from . import __version__
+from .console import SOURCE_HELP, emit, meshes_option, progress
 from .errors import SceneSuggestError
-
-SOURCE_HELP = "stanford:DIR, ai2thor (the installed procthor package data) or json:DIR"
-
-
-def progress(items: Iterable, label: str = "") -> Iterable:
-    """Show a progress bar on stderr while iterating (just the label when stderr is not a terminal)."""
-    items = list(items)
-    with click.progressbar(items, label=label, file=sys.stderr, show_pos=True) as bar:
-        yield from bar
-
-
-def emit(data: dict, as_json: bool, human: str) -> None:
-    if as_json:
-        click.echo(json.dumps(data, indent=1))
-    else:
-        click.echo(human)
 
 
 class _Group(click.Group):
@@ -74,11 +56,6 @@ def _load(source: str, meshes: str | None):
     from .corpora import load_corpus
 
     return load_corpus(source, meshes=meshes, progress=progress)
-
-
-meshes_option = click.option("--meshes", type=click.Path(file_okay=False), default=None,
-                             help="Folder of Stanford OBJ meshes (default: DIR/models, ../stanford_models/models "
-                                  "or $SCENESUGGEST_STANFORD_MESHES).")
 
 
 @main.group()

@@ -36,11 +36,6 @@ MAX_DRAGS = 6  # corrections a person makes before leaving an object where it is
 ORBIT_S = 2.0  # seconds of looking round per logged camera orbit
 
 
-def rotation_of(transform: list[float]) -> np.ndarray:
-    """The 3×3 rotation of a column-major 4×4 rigid transform."""
-    return np.asarray(transform, dtype=float).reshape(4, 4).T[:3, :3]
-
-
 def canonical_pose(obj: dict) -> tuple[np.ndarray, np.ndarray]:
     """Where the list and search place an object at its click point: its attachment face on the surface, not
     turned (α = 0); returns the origin (metres, world) and the 3×3 rotation."""
@@ -51,7 +46,7 @@ def canonical_pose(obj: dict) -> tuple[np.ndarray, np.ndarray]:
 def turned(transform: list[float], normal, degrees: float, position) -> list[float]:
     """A column-major transform turned by ``degrees`` about the unit ``normal`` and moved to ``position``."""
     m = np.eye(4)
-    m[:3, :3] = poses.axis_rotations(normal, [math.radians(degrees)])[0] @ rotation_of(transform)
+    m[:3, :3] = poses.axis_rotations(normal, [math.radians(degrees)])[0] @ frames.from_column_major(transform)[:3, :3]
     m[:3, 3] = position
     return m.T.reshape(-1).tolist()
 
@@ -77,7 +72,7 @@ def box_of(state: dict) -> tuple[np.ndarray, np.ndarray]:
     return frames.world_bbox(np.asarray(state["transform"], dtype=float).reshape(4, 4).T, state["size"])
 
 
-class Trial:
+class BotTrial:
     """One trial of participant ``who`` (a :class:`~.participant.Bot`), from the trial page's boot data."""
 
     def __init__(self, who, boot: dict):
@@ -430,7 +425,8 @@ class Trial:
         normal = obj["contact_normal"]
         for _ in range(MAX_DRAGS):
             placed = self.objects[obj["id"]]
-            turn = math.degrees(poses.turn_about(rotation_of(placed["transform"]), rotation_of(obj["transform"]),
+            turn = math.degrees(poses.turn_about(frames.from_column_major(placed["transform"])[:3, :3],
+                                                 frames.from_column_major(obj["transform"])[:3, :3],
                                                  normal))
             if abs(normal[1]) > 0.9:  # on a floor or a table: only a visible difference is turned
                 turn = visible_turn_deg(turn, self.period_of(placed["model_id"]))

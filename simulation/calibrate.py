@@ -150,7 +150,7 @@ class Rehearsal:
     def events(self, human: Human) -> pd.DataFrame:
         """Every event the bots' ``none`` trials would send, with columns participant, trial, seq, type,
         client_t_ms and payload."""
-        from .actions import Trial
+        from .actions import BotTrial
         from .participant import Bot
 
         rows = []
@@ -165,7 +165,7 @@ class Rehearsal:
                 boot = {"token": "", "page_id": "rehearsal", "vocabulary": 2, "batch": SEND_BATCH,
                         "trial": {"index": planned.index, "kind": "trial", "condition": "none",
                                   "scene": planned.scene}}
-                Trial(bot, boot).play()
+                BotTrial(bot, boot).play()
             rows.extend({**e, "participant": i} for e in self.local.events)
         frame = pd.DataFrame(rows)
         return frame.rename(columns={"t": "client_t_ms"})

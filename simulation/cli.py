@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from scenesuggest.cli import emit
+from scenesuggest.console import emit
 from scenesuggest.errors import SceneSuggestError
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.stats
 
-from .actions import Trial
+from .actions import BotTrial
 from .human import Human
 from .page import Page
 from .transport import LossyTransport
@@ -121,7 +121,7 @@ class Bot:
         return self.result
 
     def do_trial(self, boot: dict) -> None:
-        seconds = Trial(self, boot).play()
+        seconds = BotTrial(self, boot).play()
         self.played += 1
         if boot["trial"]["kind"] == "trial":
             self.result.trials += 1

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import click
 
-from scenesuggest.cli import emit
+from scenesuggest.console import emit
 from scenesuggest.errors import SceneSuggestError
 
 from . import create_app, upgrade_database
@@ -118,7 +118,7 @@ def study_migrate_cmd() -> None:
 
 def _prepare(files: list[Path]) -> list[str]:
     """Build the server's own priors and libraries that the studies of ``files`` use, where missing or stale."""
-    from scenesuggest.cli import progress
+    from scenesuggest.console import progress
 
     from .studies.prepare import prepare
 

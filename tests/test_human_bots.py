@@ -77,9 +77,9 @@ def test_people_search_with_their_own_words_and_reformulate(rehearsal, demo_reso
               human=Human(category_words=0.0))
     bot.library = {"m": {"id": "m", "name": "Tall Lamp 3000", "tags": ["light"],
                          "category_path": ["Lighting", "FloorLamp"]}}
-    from simulation.actions import Trial
+    from simulation.actions import BotTrial
 
-    trial = Trial(bot, {"token": "", "page_id": "p", "vocabulary": 2, "batch": 200,
+    trial = BotTrial(bot, {"token": "", "page_id": "p", "vocabulary": 2, "batch": 200,
                         "trial": {"index": 0, "scene": "desk", "condition": "none", "kind": "trial"}})
     texts = trial.search_texts({"model_id": "m", "category": "FloorLamp"})
     assert texts[0] in ("tall", "tall lamp") and "floor lamp" in texts and "lighting" in texts

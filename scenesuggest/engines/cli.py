@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ..cli import SOURCE_HELP, _load, emit, meshes_option, progress
+from ..console import SOURCE_HELP, emit, meshes_option, progress
 from ..errors import SceneSuggestError
 from . import configure, kind, names
 
@@ -45,7 +45,9 @@ def train_cmd(name: str, source: str, out: str, seed: int, meshes: str | None, a
     if not kind(name).trainable:  # before its options: an engine that needs some (http) is not trained here
         raise SceneSuggestError(f"the {name!r} engine is not trained by this project", field="name")
     spec = configure({"name": name})
-    corpus = _load(source, meshes)
+    from ..corpora import load_corpus
+
+    corpus = load_corpus(source, meshes=meshes, progress=progress)
     periods = corpus_periods(corpus.models.values(), progress)
     started = time.perf_counter()
     info = spec.kind.train(spec.config, corpus.scenes, corpus.taxonomy, Path(out), seed=seed, progress=progress,

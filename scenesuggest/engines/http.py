@@ -47,7 +47,7 @@ from ..scenes.taxonomy import Taxonomy
 from ..suggestion.query import ContextQuery, prepare
 from ..suggestion.suggest import MODES, SuggestionList
 from .protocol import EngineKind, LoadContext, SuggestionEngine, WaitSlots
-from .wire import ANSWER_SCHEMA, QUERY_SCHEMA, EngineUnavailable, parse_answer, query_document
+from .wire import ANSWER_SCHEMA, QUERY_SCHEMA, NoUsableAnswer, parse_answer, query_document
 
 DEFAULT_TIMEOUT_MS = 300
 #: The longest a participant may wait for the engine (each sync server worker waits as long).
@@ -56,7 +56,7 @@ DEFAULT_MAX_SUGGESTIONS = 40
 DEFAULT_MAX_BYTES = 1 << 20
 OPTIONS = ("url", "timeout_ms", "fallback", "max_suggestions", "max_bytes")
 
-__all__ = ["ANSWER_SCHEMA", "Breaker", "EngineUnavailable", "HttpEngine", "KIND", "QUERY_SCHEMA", "WaitSlots",
+__all__ = ["ANSWER_SCHEMA", "Breaker", "NoUsableAnswer", "HttpEngine", "KIND", "QUERY_SCHEMA", "WaitSlots",
            "parse_answer"]
 
 
@@ -296,11 +296,11 @@ class HttpEngine:
         try:
             with self.slots.held() if self.slots is not None else contextlib.nullcontext(True) as free:
                 if not free:  # asked before the breaker: a query that never reaches the engine never probes it
-                    raise EngineUnavailable(f"the engine is busy: {self.slots.count} queries of this server "
+                    raise NoUsableAnswer(f"the engine is busy: {self.slots.count} queries of this server "
                                             "already wait on engines")
                 refused = self.breaker.refusal()
                 if refused is not None:
-                    raise EngineUnavailable(refused)
+                    raise NoUsableAnswer(refused)
                 outcome = "the query never reached the engine"  # until it has an outcome (a probe then ends)
                 try:
                     body = orjson.dumps(query_document(prep, mode, limit, allowed),
@@ -308,16 +308,16 @@ class HttpEngine:
                     try:
                         doc = orjson.loads(self._exchange(body))
                     except orjson.JSONDecodeError:  # NaN, Infinity and 1e999 are not JSON either
-                        raise EngineUnavailable("invalid answer: not JSON") from None
+                        raise NoUsableAnswer("invalid answer: not JSON") from None
                     found = parse_answer(doc, allowed, self.categories, prep.point, prep.normal,
                                          self.options.max_suggestions)
                     outcome = None
-                except EngineUnavailable as e:
+                except NoUsableAnswer as e:
                     outcome = str(e)
                     raise
                 finally:
                     self.breaker.record(outcome)
-        except EngineUnavailable as e:
+        except NoUsableAnswer as e:
             with self._count:
                 self.fallbacks += 1
             return replace(self.fallback.suggest(query, mode, top, only), fallback=str(e))
@@ -363,7 +363,7 @@ class HttpEngine:
     def _exchange(self, body: bytes) -> bytes:
         """POST ``body``; the answer's bytes. Everything within the timeout (urllib3's timeouts bound each step;
         the watchdog shuts a connection at the deadline however the engine dribbles its bytes), or
-        :class:`EngineUnavailable`."""
+        :class:`NoUsableAnswer`."""
         local = self._local
         local.deadline, local.key = time.monotonic() + self.options.timeout_ms / 1000, threading.get_ident()
         local.server_ms = None
@@ -381,7 +381,7 @@ class HttpEngine:
             else:
                 self._discard(response)
             return answer
-        except EngineUnavailable:
+        except NoUsableAnswer:
             self._watchdog.disarm(local.key)
             self._discard(response)
             raise
@@ -389,9 +389,9 @@ class HttpEngine:
             self._watchdog.disarm(local.key)
             self._discard(response)
             if time.monotonic() >= local.deadline - 1e-3 or isinstance(e, urllib3.exceptions.TimeoutError):
-                raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms") from None
+                raise NoUsableAnswer(f"no answer within {self.options.timeout_ms} ms") from None
             cause = getattr(e, "reason", None) or e
-            raise EngineUnavailable(f"connection failed ({type(cause).__name__})") from None
+            raise NoUsableAnswer(f"connection failed ({type(cause).__name__})") from None
 
     def _discard(self, response) -> None:
         """After a failure: the answer's connection closed, never reused."""
@@ -404,7 +404,7 @@ class HttpEngine:
     def _remaining(self) -> float:
         left = self._local.deadline - time.monotonic()
         if left <= 0:
-            raise EngineUnavailable(f"no answer within {self.options.timeout_ms} ms")
+            raise NoUsableAnswer(f"no answer within {self.options.timeout_ms} ms")
         return left
 
     def _connect(self) -> socket.socket:
@@ -433,17 +433,17 @@ class HttpEngine:
         """The answer's body, at most ``max_bytes``, within the deadline."""
         self._local.server_ms = _server_ms(response.headers.get("Server-Timing"))
         if response.status != 200:
-            raise EngineUnavailable(f"HTTP {response.status}")
+            raise NoUsableAnswer(f"HTTP {response.status}")
         cap = self.options.max_bytes
         length = response.headers.get("Content-Length")
         if length is not None and (not (length.isascii() and length.isdigit()) or int(length) > cap):
-            raise EngineUnavailable(f"answer larger than {cap} bytes")
+            raise NoUsableAnswer(f"answer larger than {cap} bytes")
         chunks, size = [], 0
         for chunk in response.stream(65536, decode_content=False):
             chunks.append(chunk)
             size += len(chunk)
             if size > cap:
-                raise EngineUnavailable(f"answer larger than {cap} bytes")
+                raise NoUsableAnswer(f"answer larger than {cap} bytes")
             self._remaining()
         self._remaining()
         return b"".join(chunks)

@@ -3,7 +3,7 @@ their JSON Schemas (published in the study API's OpenAPI document) and the stric
 
 An answer is read by the rules of :mod:`.http`'s docstring (a placeholder category is refused, as
 :mod:`scenesuggest.suggestion.suggestable` decides for every engine); a broken one raises
-:class:`EngineUnavailable` naming the first broken rule (``invalid answer: suggestions[3].placement is not a rigid
+:class:`NoUsableAnswer` naming the first broken rule (``invalid answer: suggestions[3].placement is not a rigid
 transform``) — never the engine's address or its bytes.
 """
 
@@ -89,7 +89,7 @@ def answer_item(s: Suggestion, models: int = MAX_MODELS) -> dict:
         "models": d["models"][:models]}
 
 
-class EngineUnavailable(Exception):
+class NoUsableAnswer(Exception):
     """The external engine gave no usable answer; ``str()`` is the reason, without the URL."""
 
 
@@ -141,20 +141,20 @@ def _placements(items: list, point: np.ndarray) -> np.ndarray:
     for i, item in enumerate(items):
         value = item.get("placement")
         if not isinstance(value, list) or len(value) != 16 or not all(type(v) in numbers for v in value):
-            raise EngineUnavailable(f"invalid answer: suggestions[{i}].placement is not 16 finite numbers")
+            raise NoUsableAnswer(f"invalid answer: suggestions[{i}].placement is not 16 finite numbers")
     m = np.array([item["placement"] for item in items], dtype=float).reshape(-1, 4, 4).transpose(0, 2, 1)
     if not np.isfinite(m).all():
-        raise EngineUnavailable("invalid answer: a placement is not 16 finite numbers")
+        raise NoUsableAnswer("invalid answer: a placement is not 16 finite numbers")
     r = m[:, :3, :3]
     bad = ((np.abs(m[:, 3] - [0, 0, 0, 1]).max(axis=1) > RIGID_TOLERANCE)
            | (np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max(axis=(1, 2)) > RIGID_TOLERANCE)
            | (np.linalg.det(r) <= 0)) if len(m) else np.zeros(0, dtype=bool)
     if bad.any():
-        raise EngineUnavailable(f"invalid answer: suggestions[{int(np.argmax(bad))}].placement is not a rigid "
+        raise NoUsableAnswer(f"invalid answer: suggestions[{int(np.argmax(bad))}].placement is not a rigid "
                                 "transform")
     far = np.linalg.norm(m[:, :3, 3] - point, axis=1) > MAX_DISTANCE_M if len(m) else np.zeros(0, dtype=bool)
     if far.any():
-        raise EngineUnavailable(f"invalid answer: suggestions[{int(np.argmax(far))}].placement is more than "
+        raise NoUsableAnswer(f"invalid answer: suggestions[{int(np.argmax(far))}].placement is more than "
                                 f"{MAX_DISTANCE_M:g} m from the click")
     return m
 
@@ -162,15 +162,15 @@ def _placements(items: list, point: np.ndarray) -> np.ndarray:
 def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, ...]], point, normal,
                  max_suggestions: int) -> list[Suggestion]:
     """The suggestions of an answer document, checked by the rules of the module docstring; raises
-    :class:`EngineUnavailable` naming the first broken rule (``suggestions[3].placement: …``)."""
+    :class:`NoUsableAnswer` naming the first broken rule (``suggestions[3].placement: …``)."""
     if not isinstance(doc, dict) or not isinstance(doc.get("suggestions"), list):
-        raise EngineUnavailable("invalid answer: expected {\"suggestions\": [...]}")
+        raise NoUsableAnswer("invalid answer: expected {\"suggestions\": [...]}")
     items = doc["suggestions"]
     if len(items) > max_suggestions:
-        raise EngineUnavailable(f"invalid answer: {len(items)} suggestions, at most {max_suggestions}")
+        raise NoUsableAnswer(f"invalid answer: {len(items)} suggestions, at most {max_suggestions}")
     for i, item in enumerate(items):
         if not isinstance(item, dict):
-            raise EngineUnavailable(f"invalid answer: suggestions[{i}] is not an object")
+            raise NoUsableAnswer(f"invalid answer: suggestions[{i}] is not an object")
     placements = _placements(items, np.asarray(point, dtype=float))
     # the face each placement turns to the clicked surface: its outward normal closest to −normal (canonical frame)
     inward = np.einsum("nji,j->ni", placements[:, :3, :3], -np.asarray(normal, dtype=float))
@@ -180,38 +180,38 @@ def parse_answer(doc, allowed: Collection[str], models: Mapping[str, tuple[str, 
         where = f"suggestions[{i}]"
         category = item.get("category")
         if isinstance(category, str) and not suggestable(category):
-            raise EngineUnavailable(f"invalid answer: {where}.category {category!r} is a placeholder, which no one "
+            raise NoUsableAnswer(f"invalid answer: {where}.category {category!r} is a placeholder, which no one "
                                     "can place")
         if not isinstance(category, str) or category not in allowed:
-            raise EngineUnavailable(f"invalid answer: {where}.category is not one the query allows")
+            raise NoUsableAnswer(f"invalid answer: {where}.category is not one the query allows")
         if category in seen:
-            raise EngineUnavailable(f"invalid answer: {where}.category appears twice")
+            raise NoUsableAnswer(f"invalid answer: {where}.category appears twice")
         seen.add(category)
         if not finite(item.get("score")):
-            raise EngineUnavailable(f"invalid answer: {where}.score is not a finite number")
+            raise NoUsableAnswer(f"invalid answer: {where}.score is not a finite number")
         touching = frames.FACES[touching_faces[i]]
         face = item.get("attachment_face", touching)
         if face not in frames.FACES:
-            raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not one of {', '.join(frames.FACES)}")
+            raise NoUsableAnswer(f"invalid answer: {where}.attachment_face is not one of {', '.join(frames.FACES)}")
         if face != touching:
-            raise EngineUnavailable(f"invalid answer: {where}.attachment_face is not the face its placement turns to "
+            raise NoUsableAnswer(f"invalid answer: {where}.attachment_face is not the face its placement turns to "
                                     "the clicked surface")
         heading = item.get("heading_deg")
         if heading is None:
             heading = math.degrees(float(poses.wrap(poses.object_heading(placement, face, normal))))
         if not finite(heading):
-            raise EngineUnavailable(f"invalid answer: {where}.heading_deg is not a finite number (nor follows from "
+            raise NoUsableAnswer(f"invalid answer: {where}.heading_deg is not a finite number (nor follows from "
                                     "the placement)")
         known = models.get(category, ())
         chosen = item.get("models", list(known[:MAX_MODELS]))
         if not isinstance(chosen, list) or len(chosen) > MAX_MODELS:
-            raise EngineUnavailable(f"invalid answer: {where}.models is not a list of at most {MAX_MODELS} ids")
+            raise NoUsableAnswer(f"invalid answer: {where}.models is not a list of at most {MAX_MODELS} ids")
         if not all(isinstance(m, str) for m in chosen) or not set(chosen) <= set(known):
-            raise EngineUnavailable(f"invalid answer: {where}.models are not models of {category!r}")
+            raise NoUsableAnswer(f"invalid answer: {where}.models are not models of {category!r}")
         terms = item.get("terms", {})
         if (not isinstance(terms, dict) or len(terms) > MAX_TERMS
                 or not all(isinstance(k, str) and len(k) <= MAX_TEXT and finite(v) for k, v in terms.items())):
-            raise EngineUnavailable(f"invalid answer: {where}.terms must map at most {MAX_TERMS} names to numbers")
+            raise NoUsableAnswer(f"invalid answer: {where}.terms must map at most {MAX_TERMS} names to numbers")
         out.append(Suggestion(rank=i + 1, category=category, score=float(item["score"]),
                               terms={k: float(v) for k, v in terms.items()}, placement=placement,
                               attachment_face=face, heading_deg=float(heading), models=tuple(chosen) or known))

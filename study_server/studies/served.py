@@ -30,7 +30,7 @@ from ..base import i18n
 from .study_file import Study, StudyFileError, load_study
 
 
-class EngineUnavailable(Exception):
+class EngineNotLoaded(Exception):
     """A condition's engine cannot be loaded (its file is damaged, say): the server's fault, not the caller's, so no
     :class:`study_server.base.errors.StudyError` — its message names files and is for the server's log and /healthz
     (:class:`study_server.trials.lists.SuggestionsUnavailable` is what a participant is told)."""
@@ -128,7 +128,7 @@ class StudyRuntime:
             if c.mode:
                 try:
                     self.placeable(c.id)
-                except EngineUnavailable as e:
+                except EngineNotLoaded as e:
                     raise StudyFileError(str(e.__cause__ or e), file=str(s.path),
                                          field=f"conditions[{i}].engine") from None
 
@@ -139,7 +139,7 @@ class StudyRuntime:
 
     def engine(self, condition_id: str) -> SuggestionEngine:
         """The engine of a condition (:mod:`scenesuggest.engines`), loaded once. An engine that cannot be loaded
-        raises :class:`EngineUnavailable` (and is tried again at the next request); why is kept for /healthz and
+        raises :class:`EngineNotLoaded` (and is tried again at the next request); why is kept for /healthz and
         the server's log, never told to a participant."""
         with self._lock:
             if condition_id not in self._engines:
@@ -148,7 +148,7 @@ class StudyRuntime:
                     self._engines[condition_id] = self.load_engine(spec)
                 except Exception as e:  # noqa: BLE001 - any failure to read or build it
                     self.engine_failures[condition_id] = f"{type(e).__name__}: {e}"
-                    raise EngineUnavailable(f"the {spec.name} engine of the condition {condition_id!r} cannot be "
+                    raise EngineNotLoaded(f"the {spec.name} engine of the condition {condition_id!r} cannot be "
                                             f"loaded: {type(e).__name__}: {e}") from e
                 self.engine_failures.pop(condition_id, None)
                 loaded = self._engines[condition_id]

@@ -21,7 +21,7 @@ from ..base import i18n
 from ..base.errors import StudyError
 from ..base.extensions import db, json_text
 from ..base.models import Participant, ShownList, log, log_again, utcnow
-from ..studies.served import EngineUnavailable, StudyRuntime
+from ..studies.served import EngineNotLoaded, StudyRuntime
 from .posted_scenes import live_scene
 
 #: Suggestions a context list shows (the engine ranks every category; these many are placed and oriented).
@@ -183,7 +183,7 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
                                         data.get("normal"))
         except SceneSuggestError as e:
             raise QueryRejected(e.message, e.field) from None
-        except EngineUnavailable as e:
+        except EngineNotLoaded as e:
             current_app.logger.error("%s", e)
             raise SuggestionsUnavailable() from None
         query = {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),

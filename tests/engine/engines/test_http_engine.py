@@ -162,16 +162,16 @@ def test_a_bad_query_is_still_the_participants_error(external, demo_priors):
 
 
 def test_answers_are_checked_strictly():
-    from scenesuggest.engines.http import EngineUnavailable
+    from scenesuggest.engines.http import NoUsableAnswer
 
     point, normal = (1.0, 0.75, 2.0), (0.0, 1.0, 0.0)
     upright = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 1.0, 0.75, 2.0, 1]
     models = {"Mug": ("m1", "m2"), "Lamp": ("l1",)}
 
     def problem(doc) -> str:
-        from scenesuggest.engines.http import EngineUnavailable
+        from scenesuggest.engines.http import NoUsableAnswer
 
-        with pytest.raises(EngineUnavailable) as info:
+        with pytest.raises(NoUsableAnswer) as info:
             parse_answer(doc, {"Mug", "Lamp"}, models, point, normal, 3)
         return str(info.value)
 
@@ -183,7 +183,7 @@ def test_answers_are_checked_strictly():
     assert "appears twice" in problem({"suggestions": [item, item]})
     assert "4 suggestions, at most 3" in problem({"suggestions": [item] * 4})
     # a placeholder is refused even where the query would allow it (a library that named a model "Unknown")
-    with pytest.raises(EngineUnavailable, match=r"suggestions\[0\].category 'Unknown' is a placeholder"):
+    with pytest.raises(NoUsableAnswer, match=r"suggestions\[0\].category 'Unknown' is a placeholder"):
         parse_answer({"suggestions": [{**item, "category": "Unknown"}]}, {"Unknown", "Mug"},
                      {**models, "Unknown": ("u1",)}, point, normal, 3)
     assert "score" in problem({"suggestions": [{**item, "score": True}]})
