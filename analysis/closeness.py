@@ -1,7 +1,8 @@
 """How close each trial's scene came to its target: the final score of every trial (``trials.csv``, scored by the
-server with :mod:`scenesuggest.contract.scoring` when it exported) and the score over the trial's elapsed time, rebuilt
-from its events (:mod:`scenesuggest.contract.replay`) and scored the same way, so one sees how fast each interface gets
-a scene right, not only when participants stop.
+server with :mod:`scenesuggest.contract.scoring` when the trial was done and stored with it; trials done before the
+server stored scores are scored at export) and the score over the trial's elapsed time, rebuilt from its events
+(:mod:`scenesuggest.contract.replay`) and scored the same way, so one sees how fast each interface gets a scene
+right, not only when participants stop.
 
 Events of vocabulary 1 (written before the events carried object states) cannot be rebuilt: their trials have a
 final score but no score over time, which the report notes.

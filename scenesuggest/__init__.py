@@ -1,4 +1,6 @@
-"""SceneSuggest engine: scenes, corpora, taxonomy, geometry, model library, search and priors.
+"""SceneSuggest engine, in stages: scenes (with frames, poses, surfaces and the taxonomy), the trial contract, the
+model library and its search, corpora, assets, learning (the priors), suggestion, engines by name and their
+evaluation.
 
 A pure library: importing it reads no files and opens no databases.
 """

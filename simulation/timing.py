@@ -14,8 +14,6 @@ import numpy as np
 
 #: Keystroke-level model operators, seconds: K keystroke, P point, B button press or release, M mental preparation.
 K, P, B, M = 0.28, 1.1, 0.1, 1.35
-SCAN_PER_ITEM = 0.35  # looking at one thumbnail of a list, s
-LIST_VISIBLE = 24  # items a person scans before giving up on the list and searching
 FITTS_A, FITTS_B, TARGET_M = 0.2, 0.15, 0.05  # drag time = a + b log2(d / w + 1), s and m
 COARSE_DEG = 15.0  # one key press of the turning keys, degrees
 

@@ -109,9 +109,10 @@ def test_a_planted_session_cookie_does_not_make_the_victim_the_attacker(app):
 
         people = {p.platform_id: p.token for p in db.session.query(Participant)}
     assert people == {"attacker": attacker_boot["token"], "victim": victim_boot["token"]}
-    # the attacker's copy of the cookie still belongs to the attacker alone
-    assert attacker.get("/api/session", headers={"Authorization": f"Bearer {attacker_boot['token']}"}).json[
-        "position"] >= 0
+    # the attacker's copy of the cookie still belongs to the attacker alone, who is still at their own trial
+    own = attacker.get("/api/session", headers={"Authorization": f"Bearer {attacker_boot['token']}"})
+    assert own.status_code == 200 and own.json["step"] == "trial"
+    assert own.json["trial"]["index"] == attacker_boot["trial"]["index"]
     assert boot(enter(attacker, query="pid=attacker"))["token"] == attacker_boot["token"]
 
 

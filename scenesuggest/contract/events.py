@@ -17,6 +17,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..scenes.frames import FACES
+
 #: Largest accepted string, list and batch sizes (a participant's events are small).
 MAX_TEXT = 2000
 MAX_LIST = 500
@@ -39,7 +41,6 @@ VERSION = 2
 VERSIONS = (1, 2)
 #: Events that change the scene; from version 2 each carries ``objects``.
 SCENE_CHANGES = ("insert", "replace", "move_end", "rotate_end", "delete", "undo", "redo")
-FACES = ("top", "bottom", "front", "back", "left", "right")
 #: One object's state after an event: the object as a scene file lists it (:mod:`scenesuggest.scenes.scene_json`:
 #: metres, world frame, the 4×4 transform column-major), or ``{"id": …, "removed": true}`` when the event took it
 #: away. Key → (kind, nullable).

@@ -188,7 +188,6 @@ TABLES: tuple[Table, ...] = (
         _c("detail", "object", "details as JSON", required=True),
     )),
 )
-BY_NAME = {t.name: t for t in TABLES}
 #: Table → column → meaning, in the order the CSV files write them.
 DICTIONARY: dict[str, dict[str, str]] = {t.name: {c.name: c.description for c in t.columns} for t in TABLES}
 

@@ -194,13 +194,13 @@ class StudyRuntime:
     def placeable(self, condition_id: str) -> frozenset[str]:
         """The engine's categories that this study's library has a model of (the ones worth suggesting)."""
         with self._lock:
-            key = f"placeable:{condition_id}"
-            if key not in self._placeable:
+            if condition_id not in self._placeable:
                 engine = self.engine(condition_id)
-                self._placeable[key] = frozenset(  # (a plugin engine's list may hold a placeholder: never offered)
+                # a plugin engine's list may hold a placeholder: never offered
+                self._placeable[condition_id] = frozenset(
                     name for name, members in engine.categories.items() if suggestable(name)
                     and (any(m in self.library for m in members) or name in self.by_category))
-            return self._placeable[key]
+            return self._placeable[condition_id]
 
     @cached_property
     def library(self) -> dict[str, ModelInfo]:

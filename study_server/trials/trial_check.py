@@ -112,7 +112,8 @@ def check_trial(rt: StudyRuntime, p: Participant, t: Trial, last_seq: int | None
 
 def _waiting_in_prose(replay: str | None) -> int | None:
     """The seq a check waits for as an app server of the version before the column wrote it (in ``replay`` only):
-    while two versions serve one database during an upgrade, such checks are made too."""
+    while two versions serve one database during an upgrade, such checks are made too. A rolling upgrade spans
+    one version: this reading goes in version 0.2.0, when no app server that writes prose can still be serving."""
     found = re.fullmatch(rf"{PENDING} (\d+) not stored yet", replay or "")
     return int(found.group(1)) if found else None
 

@@ -112,8 +112,11 @@ def test_a_second_tab_takes_over_and_nothing_is_numbered_twice(page, server):
     until(page, "document.body.classList.contains('inactive')")
     assert "another tab" in page.inner_text("#banner")
     placed = page.evaluate("() => window.sceneSuggestTest.objects().length")
-    page.keyboard.press("Control+z")  # an undo here would change a scene the other tab now keeps
-    page.wait_for_timeout(200)
+    # an undo here would change a scene the other tab now keeps; a listener added after the editor's runs after it
+    page.evaluate("() => { window.keyHandled = new Promise((done) => addEventListener('keydown', "
+                  "() => setTimeout(done, 0), { once: true })); }")
+    page.keyboard.press("Control+z")
+    page.evaluate("() => window.keyHandled")  # the editor has had the key
     assert page.evaluate("() => window.sceneSuggestTest.objects().length") == placed
     x, y = second.evaluate("() => window.sceneSuggestTest.worldToPixel(0.8, 0, -0.5)")
     second.keyboard.down("Shift")
