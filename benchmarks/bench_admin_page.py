@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import checkout
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 
 ROOT = Path(__file__).resolve().parents[1]
 PASSWORD = "bench admin password"

@@ -27,6 +27,7 @@ import tempfile
 from pathlib import Path
 
 import checkout
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from browsers import DRIVERS, ENGINES, Display, Driver, missing
 from demostudy import to_first_trial
 from serverproc import StudyServer, demo_missing

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import checkout
 import numpy as np
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from serverproc import free_port, wait_for_port
 
 ROOT = Path(__file__).resolve().parents[1]

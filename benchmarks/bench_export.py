@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import checkout
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from demostudy import make_app
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -41,6 +41,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import checkout
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from crowd import percentile
 from demostudy import to_first_trial
 from serverproc import demo_missing, nginx_missing, own_cpu_seconds

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import checkout
 import numpy as np
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from demostudy import rows_balance
 from serverproc import DEMO_STUDY, StudyServer, demo_missing
 

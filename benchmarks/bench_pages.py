@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import checkout
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMOGRAPHICS = {"age": "31", "experience_3d": "Never", "pointing_device": "Trackpad"}

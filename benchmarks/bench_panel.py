@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 
 import checkout
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from bench_client import scene_with
 from browsers import CHROMIUM, CHROMIUM_ARGS
 from demostudy import to_first_trial

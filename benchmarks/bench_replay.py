@@ -24,6 +24,7 @@ import tracemalloc
 from pathlib import Path
 
 import checkout
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from demostudy import make_app, to_first_trial
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -33,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 
 ROOT = Path(__file__).resolve().parents[1]
 TOP = 40  # the study server's list

@@ -30,6 +30,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from demostudy import DEMOGRAPHICS, make_app
 from serverproc import DEMO_STUDY
 

@@ -16,6 +16,7 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from serverproc import DEMO_STUDY
 
 STUDY_ID = "large-library"

@@ -17,6 +17,7 @@ from collections import Counter
 from pathlib import Path
 
 import crowd
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from demostudy import rows_balance
 from serverproc import own_cpu_seconds
 from stacks import postgres_stack, sqlite_stack

@@ -11,6 +11,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import tests_path  # noqa: F401 (tests/ on the path, for the shared test infrastructure)
 from serverproc import DEMO_STUDY, NginxProxy, StudyServer
 
 

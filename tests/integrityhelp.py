@@ -4,7 +4,7 @@ fixture, the app on SQLite and on PostgreSQL with this admin password, is in con
 
 from __future__ import annotations
 
-from conftest import DEMO_STUDY
+from demostudy import DEMO_STUDY
 from flowhelp import auth
 
 from study_server.base.extensions import db

@@ -5,7 +5,7 @@ import re
 import zipfile
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from flowhelp import EXIT, auth, csrf, finish_all_trials, to_trials
 from werkzeug.security import generate_password_hash
 

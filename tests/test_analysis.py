@@ -10,8 +10,8 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import SHARED_DATA, require
 from scipy import stats
+from support import SHARED_DATA, require
 
 from analysis import AnalysisError
 from analysis.bootstrap import bootstrap_by, bootstrap_mean

@@ -9,7 +9,7 @@ from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
 
 import pytest
-from conftest import DEMO_STUDY, make_app
+from demostudy import DEMO_STUDY, make_app
 
 from simulation.transport import FlowError, HttpTransport
 from simulation.walker import Walker
@@ -98,10 +98,8 @@ def test_concurrent_arrivals_in_threads_on_postgresql(tmp_path, postgres_db, dem
     check_balanced(app, concurrent_threads(app, pids), 49)
 
 
-@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
-def test_concurrent_arrivals_in_processes(tmp_path, request, backend, demo_resources):
-    url = request.getfixturevalue("postgres_db") if backend == "postgresql" else \
-        f"sqlite:///{tmp_path / 'study.sqlite3'}"
+def test_concurrent_arrivals_in_processes(tmp_path, backend_url, demo_resources):
+    url = backend_url
     app = make_app(tmp_path, url)
     jobs = [(url, str(tmp_path / "instance"), str(DEMO_STUDY), [f"p{k}-{i}" for i in range(10)] + ["shared"])
             for k in range(4)]
@@ -124,10 +122,8 @@ def gunicorn_server(tmp_path, request, demo_resources):
     return start
 
 
-@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
-def test_concurrent_arrivals_over_http_with_several_gunicorn_workers(tmp_path, request, backend, gunicorn_server):
-    url = request.getfixturevalue("postgres_db") if backend == "postgresql" else \
-        f"sqlite:///{tmp_path / 'study.sqlite3'}"
+def test_concurrent_arrivals_over_http_with_several_gunicorn_workers(tmp_path, backend_url, gunicorn_server):
+    url = backend_url
     base, app = gunicorn_server(url)
 
     def one(pid):  # each a browser of its own: the entry link, the device check, consent

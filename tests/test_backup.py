@@ -8,7 +8,7 @@ import threading
 import time
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from sqlalchemy import create_engine, text
 
 from simulation.run import simulate

@@ -10,7 +10,7 @@ import sys
 import tarfile
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from sqlalchemy import create_engine, inspect, text
 
 from study_server.experimenter.backup import BackupError, backup, restore

@@ -12,7 +12,8 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import DEMO_STUDY, ROOT, gunicorn, make_app
+from demostudy import DEMO_STUDY, make_app
+from support import ROOT, gunicorn
 
 from analysis.load import read_database, read_export
 from analysis.measures import picks_table, trials_table

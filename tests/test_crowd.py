@@ -11,7 +11,7 @@ import sys
 import crowd
 import pytest
 import realistic
-from conftest import ROOT
+from support import ROOT
 
 
 def test_the_outbox_sends_what_was_logged_one_second_after_the_first_unsent_event():

@@ -6,9 +6,10 @@ import os
 import subprocess
 
 import pytest
-from conftest import lacking, make_app
+from demostudy import make_app
 from flowhelp import csrf
 from integrityhelp import PASSWORD
+from support import lacking
 from werkzeug.security import generate_password_hash
 
 
@@ -40,7 +41,7 @@ def test_healthz_says_ok_and_names_what_is_wrong_without_secrets(tmp_path, demo_
 def test_healthz_names_a_study_whose_priors_cannot_be_loaded(tmp_path, demo_resources):
     import shutil
 
-    from conftest import DEMO_STUDY
+    from demostudy import DEMO_STUDY
 
     from study_server.base.config import data_home
 
@@ -197,7 +198,8 @@ def test_a_warmed_app_with_priors_it_cannot_load_stops_at_start_naming_the_file(
     """Priors whose header passes the start-up check but whose arrays are gone: a warmed server says so at
     start-up (file and key); a cold one starts and /healthz reports it."""
     import numpy as np
-    from conftest import DEMO_STUDY, copy_demo_study
+    from demostudy import DEMO_STUDY
+    from support import copy_demo_study
 
     from study_server.studies.study_file import StudyFileError, load_study
 
@@ -219,7 +221,7 @@ def test_a_warmed_app_with_priors_it_cannot_load_stops_at_start_naming_the_file(
 def test_healthz_says_when_the_database_cannot_be_reached(tmp_path, demo_resources):
     import socket
 
-    from conftest import DEMO_STUDY
+    from demostudy import DEMO_STUDY
 
     from study_server import create_app
 
@@ -368,7 +370,7 @@ def test_the_written_files_pass_nginx_and_systemds_own_checks(tmp_path, monkeypa
 def test_postgresql_without_its_driver_says_how_to_install_it(tmp_path, monkeypatch):
     import importlib.util
 
-    from conftest import DEMO_STUDY
+    from demostudy import DEMO_STUDY
 
     from study_server import create_app
     from study_server.base.config import ConfigError

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import lacking, make_app
+from demostudy import make_app
+from support import lacking
 
 from analysis.load import read_export
 from simulation.participant import Bot
@@ -84,7 +85,7 @@ def test_an_export_is_a_valid_data_package_described_once(tmp_path, backend_url)
 def test_allowed_ids_are_the_studys_and_the_datas_as_the_cells_hold_them(demo_resources):
     """A scene the study file no longer names still describes the data that holds it; an id a spreadsheet would run
     as a formula is allowed as the cell writes it (escaped)."""
-    from conftest import DEMO_STUDY
+    from demostudy import DEMO_STUDY
 
     from study_server.experimenter.export_schema import data_package
     from study_server.studies.study_file import load_study

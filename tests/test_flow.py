@@ -160,7 +160,7 @@ def test_reload_back_button_and_second_tab_resume_and_are_logged(client, app):
 
 
 def test_platform_entry_parameters(app):
-    from conftest import DEMO_STUDY  # noqa: F401  (documentation of which study is used)
+    from demostudy import DEMO_STUDY  # noqa: F401  (documentation of which study is used)
 
     c = app.test_client()
     r = c.get("/study/demo/start")  # a link study without pid gets an anonymous id, remembered by the browser
@@ -177,7 +177,7 @@ def test_platform_entry_parameters(app):
 @pytest.fixture
 def platform_app(tmp_path, demo_resources):
     """The demo study as a Prolific and as an MTurk study."""
-    from conftest import make_app
+    from demostudy import make_app
 
     def make(kind):
         text = demo_resources.read_text().replace('kind = "link"', f'kind = "{kind}"\ncompletion_url = '

@@ -40,7 +40,7 @@ def counts(app):
 
 @pytest.fixture(scope="module")
 def fuzz_app(tmp_path_factory, demo_resources):
-    from conftest import make_app
+    from demostudy import make_app
 
     app = make_app(tmp_path_factory.mktemp("fuzz"))
     c = app.test_client()

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, require_node
+from support import ROOT, require_node
 
 from scenesuggest.scenes import frames, poses, surfaces
 from scenesuggest.suggestion.suggest import Engine

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import DEMO_STUDY, ROOT, make_app
+from demostudy import DEMO_STUDY, make_app
+from support import ROOT
 
 from scenesuggest.errors import SceneSuggestError
 from simulation import calibrate

@@ -8,7 +8,7 @@ import os
 import stat
 from datetime import timedelta
 
-from conftest import make_app
+from demostudy import make_app
 from flowhelp import csrf, enter, to_trials
 from integrityhelp import PASSWORD, study_copy
 from werkzeug.security import generate_password_hash

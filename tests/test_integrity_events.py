@@ -9,7 +9,7 @@ import json
 import zipfile
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from flowhelp import auth, csrf, to_trials
 from integrityhelp import PASSWORD, event, post_events, study_copy
 

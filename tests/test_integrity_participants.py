@@ -8,7 +8,7 @@ import io
 import zipfile
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from flowhelp import EXIT, auth, csrf, enter, finish_all_trials, next_trial, to_trials
 from integrityhelp import PASSWORD, PID, SESSION, STUDY, event, participant_of, post_events, study_copy
 from werkzeug.security import generate_password_hash

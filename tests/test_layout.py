@@ -127,6 +127,14 @@ def test_routes_record_nothing_themselves():
         assert not recorded & RECORDERS, (path, recorded & RECORDERS)
 
 
+def test_the_engines_tests_stand_without_the_server():
+    """tests/engine/ tests the library: no module of it imports the server or the app's test helpers."""
+    for path in (ROOT / "tests" / "engine").rglob("*.py"):
+        found = imports(path)
+        assert not {m for m in found if m.split(".")[0] in ("study_server", "flowhelp", "demostudy")}, path
+        assert not {m for m in found if m.startswith("conftest.") and m.split(".")[1] in ("make_app", "app")}, path
+
+
 PACKAGES = ("scenesuggest", "study_server", "simulation", "analysis")
 
 

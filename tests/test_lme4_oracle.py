@@ -26,7 +26,7 @@ import subprocess
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import LME4_SEED, ROOT, require_lme4
+from support import LME4_SEED, ROOT, require_lme4
 
 from analysis.design import build_design
 from analysis.mixed import fit, lr_test

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from legacy_measures import trials_table as legacy_trials_table
 
 from analysis.load import StudyData, read_database, read_export

@@ -1,10 +1,9 @@
 """The schema only changes through migrations: every revision upgrades to head, and head matches the models."""
 
-import pytest
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from alembic.script import ScriptDirectory
-from conftest import make_app
+from demostudy import make_app
 from flask_migrate import downgrade, upgrade
 from sqlalchemy import inspect
 
@@ -33,10 +32,8 @@ def assert_schema_matches_models(app):
                                                          "session_log", "studies", "login_attempts"}
 
 
-@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
-def test_upgrade_from_empty_and_from_every_revision(tmp_path, request, backend, demo_resources):
-    url = request.getfixturevalue("postgres_db") if backend == "postgresql" else \
-        f"sqlite:///{tmp_path / 'm.sqlite3'}"
+def test_upgrade_from_empty_and_from_every_revision(tmp_path, backend_url, demo_resources):
+    url = backend_url
     app = make_app(tmp_path, url)  # upgrades an empty database to head
     assert_schema_matches_models(app)
     revs = revisions()

@@ -9,9 +9,9 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import SHARED_DATA, require
 from scipy import optimize, stats
 from scipy.special import gammaln
+from support import SHARED_DATA, require
 
 from analysis import AnalysisError
 from analysis.design import build_design

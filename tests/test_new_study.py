@@ -5,7 +5,7 @@ import re
 import tomllib
 
 import pytest
-from conftest import DEMO_STUDY, make_app
+from demostudy import DEMO_STUDY, make_app
 
 from simulation.run import simulate
 from study_server.studies.new_study import InitError, init_study

@@ -10,7 +10,8 @@ import subprocess
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import make_app, require_lme4
+from demostudy import make_app
+from support import require_lme4
 from test_reproduce_r import printed
 
 from analysis import AnalysisError, tables

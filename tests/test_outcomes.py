@@ -33,7 +33,7 @@ def platform_link(page) -> str | None:
 @pytest.fixture
 def prolific(tmp_path, backend_url, demo_resources):
     """The demo study as a Prolific study (the completion URL left to its default), on SQLite and PostgreSQL."""
-    from conftest import make_app
+    from demostudy import make_app
 
     text = demo_resources.read_text().replace('kind = "link"', 'kind = "prolific"')
     text = text.replace('target = "scenes/', f'target = "{demo_resources.parent}/scenes/')
@@ -117,7 +117,7 @@ def test_the_admin_shows_the_codes_issued_and_gives_the_approval_list(prolific):
 
 
 def test_a_study_without_a_code_for_leaving_still_lets_participants_leave(tmp_path, demo_resources):
-    from conftest import make_app
+    from demostudy import make_app
 
     text = demo_resources.read_text().replace('returned = "DEMO-RETURNED"\n', "")
     text = text.replace('target = "scenes/', f'target = "{demo_resources.parent}/scenes/')

@@ -14,8 +14,8 @@ import sysconfig
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
 from serverproc import free_port
+from support import ROOT
 
 from simulation.transport import HttpTransport
 from simulation.walker import Walker

@@ -14,9 +14,10 @@ from urllib.parse import urlencode
 
 import pandas as pd
 import pytest
-from conftest import DEMO_STUDY, ROOT, make_app
+from demostudy import DEMO_STUDY, make_app
 from flowhelp import DEMOGRAPHICS, csrf
 from integrityhelp import PASSWORD, study_copy
+from support import ROOT
 from werkzeug.security import generate_password_hash
 
 from analysis.load import read_database, read_export

@@ -7,7 +7,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from flowhelp import csrf
 from werkzeug.security import generate_password_hash
 

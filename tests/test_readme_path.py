@@ -15,9 +15,9 @@ from urllib.parse import parse_qsl, urlsplit
 
 import pandas as pd
 import pytest
-from conftest import ROOT, require_lme4
 from flowhelp import DEMOGRAPHICS
 from serverproc import free_port
+from support import ROOT, require_lme4
 
 from simulation.run import simulate
 from simulation.transport import FlowError, HttpTransport

@@ -12,7 +12,8 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPLICATION, ROOT, SHARED_DATA, make_app, replication_module
+from demostudy import make_app
+from support import REPLICATION, ROOT, SHARED_DATA, replication_module
 
 from scenesuggest.corpora.representatives import read_representatives, top_representatives
 from scenesuggest.errors import SceneSuggestError

@@ -6,7 +6,8 @@ from __future__ import annotations
 import subprocess
 
 import pytest
-from conftest import make_app, require_lme4
+from demostudy import make_app
+from support import require_lme4
 
 from analysis.load import read_database
 from analysis.report import build_report

@@ -6,7 +6,7 @@ import json
 import sqlite3
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from flowhelp import auth, boot, enter, to_trials
 
 from study_server import create_app
@@ -139,7 +139,7 @@ def test_no_secret_or_instance_data_is_tracked():
     import re
     import subprocess
 
-    from conftest import ROOT
+    from support import ROOT
 
     files = subprocess.run(["git", "ls-files"], capture_output=True, text=True, cwd=ROOT).stdout.split()
     assert files, "the repository's files are listed by git (run the tests from a checkout)"

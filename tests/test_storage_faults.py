@@ -3,7 +3,7 @@ nothing, pages stay calm, and once the database recovers the same events arrive 
 
 from __future__ import annotations
 
-from conftest import make_app
+from demostudy import make_app
 from flowhelp import auth, to_trials
 from sqlalchemy import event, text
 

@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import DEMO_STUDY
+from demostudy import DEMO_STUDY
 
 from study_server.studies.study_file import StudyFileError, load_study
 

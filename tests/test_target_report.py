@@ -5,7 +5,7 @@ import json
 
 import pandas as pd
 import pytest
-from conftest import make_app
+from demostudy import make_app
 
 from analysis.load import read_export
 from analysis.report import build_report

@@ -6,9 +6,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from browsers import CHROMIUM  # benchmarks/browsers.py
+from browsers import CHROMIUM  # tests/browsers.py
 from browsers import CHROMIUM_ARGS as ARGS
-from conftest import IN_CI, copy_demo_study, gunicorn, make_app  # tests/conftest.py (this folder is a package)
+from demostudy import make_app
+from support import IN_CI, copy_demo_study, gunicorn  # tests/conftest.py (this folder is a package)
 
 
 def _require_browser():

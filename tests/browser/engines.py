@@ -1,11 +1,11 @@
 """The three browser engines, as the browser tests use them: the drivers are shared with the client benchmark
-(``benchmarks/browsers.py``); a test needing an engine this machine lacks skips, and under CI=true fails."""
+(``tests/browsers.py``); a test needing an engine this machine lacks skips, and under CI=true fails."""
 
 from __future__ import annotations
 
 import pytest
 from browsers import DRIVERS, ENGINES, XVFB, Display, FirefoxDriver, missing  # benchmarks/ (on the import path)
-from conftest import IN_CI  # tests/conftest.py
+from support import IN_CI  # tests/conftest.py
 
 __all__ = ["DRIVERS", "ENGINES", "XVFB", "Display", "FirefoxDriver", "require"]
 

@@ -8,7 +8,7 @@ import sqlite3
 import time
 from pathlib import Path
 
-from conftest import ROOT  # tests/conftest.py (this folder is a package)
+from support import ROOT  # tests/conftest.py (this folder is a package)
 
 ARTIFACTS = ROOT / "test-artifacts"
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 import re
 
 import pytest
-from conftest import ROOT
 from flowhelp import EXIT
+from support import ROOT
 
 from .conftest import new_context
 from .pagehelp import ready, screenshot, until, walked_to_exit

@@ -4,7 +4,7 @@ test-artifacts/admin-dashboard.png), and its numbers read as tables without them
 from __future__ import annotations
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 
 from simulation.run import simulate
 

@@ -12,8 +12,9 @@ from .pagehelp import floor_pixel, objects, screenshot, start, suggest_at
 @pytest.fixture(scope="module")
 def learned_server(tmp_path_factory, demo_resources):
     """gunicorn serving a copy of the demo whose 'full' condition is the learned engine."""
-    from conftest import copy_demo_study, make_app
+    from demostudy import make_app
     from serverproc import StudyServer
+    from support import copy_demo_study
 
     from scenesuggest import engines
     from scenesuggest.corpora import load_corpus

@@ -67,7 +67,7 @@ def _german_browser_at(browser, base: str, http, step: str):
 
 
 def test_a_german_participant_sees_the_demo_in_german(server, browser):
-    from conftest import DEMO_STUDY
+    from demostudy import DEMO_STUDY
 
     base, _ = server
     study = load_study(DEMO_STUDY)

@@ -21,7 +21,7 @@ RENDERED = """() => { const tiles = [...document.querySelectorAll("#model-panel 
 @pytest.fixture(scope="module")
 def large_server(tmp_path_factory, demo_resources):
     """gunicorn serving a copy of the demo with a 1,580-model library and its practice trial in `none`."""
-    from conftest import make_app
+    from demostudy import make_app
     from large_library import STUDY_ID, write_study
     from serverproc import StudyServer
 

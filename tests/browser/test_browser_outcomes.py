@@ -2,7 +2,7 @@
 page whose button takes the participant back to Prolific with that way's code."""
 
 import pytest
-from conftest import make_app
+from demostudy import make_app
 from serverproc import StudyServer
 
 from .conftest import ARGS, CHROMIUM, _require_browser, new_context

@@ -13,11 +13,12 @@ import urllib.request
 from http.client import HTTPException
 
 import pytest
-from conftest import IN_CI, make_app
+from demostudy import make_app
 from flowhelp import DEMOGRAPHICS
 from integrityhelp import PASSWORD
 from serverproc import NginxProxy, StudyServer, nginx_missing
 from sqlalchemy import create_engine, text
+from support import IN_CI
 from werkzeug.security import generate_password_hash
 
 from simulation.page import read_page

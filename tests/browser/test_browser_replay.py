@@ -7,7 +7,7 @@ import sqlite3
 
 import numpy as np
 import pytest
-from conftest import DEMO_STUDY, make_app
+from demostudy import DEMO_STUDY, make_app
 
 from scenesuggest.contract.replay import replay
 from simulation.participant import Bot

@@ -1,5 +1,5 @@
 """A participant's whole way through a study in each of the three browser engines a crowd uses — Chromium, Firefox
-and WebKit (Safari's) — driven the same way (benchmarks/browsers.py), behind a proxy that brings the field's faults
+and WebKit (Safari's) — driven the same way (tests/browsers.py), behind a proxy that brings the field's faults
 (faultproxy.py): the device check, consent, surveys, instructions, a trial in each condition with shift-click
 suggestions, another suggestion swapped in, search, a drag along the floor, Q/E, the ring, delete, undo and redo,
 a reload mid-trial, going on in a fresh browser (the scene rebuilt from the server's events), a spell without
@@ -30,8 +30,9 @@ from .pagehelp import ARTIFACTS, db_replays, heading_deg
 def walk_study(tmp_path_factory, demo_resources):
     """gunicorn serving the demo cut to one scene per condition, on a fresh SQLite database, behind a fault proxy:
     (proxy, database)."""
-    from conftest import copy_demo_study, make_app
+    from demostudy import make_app
     from serverproc import StudyServer
+    from support import copy_demo_study
 
     from .conftest import _require_browser
 

@@ -3,7 +3,7 @@
 from pathlib import Path
 
 import pytest
-from conftest import require_wordnet
+from support import require_wordnet
 
 from scenesuggest.corpora.corpus import Corpus
 from scenesuggest.corpora.crosswalk import DECISIONS, crosswalk, words

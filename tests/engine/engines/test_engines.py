@@ -1,9 +1,8 @@
-"""Engines by name: the registry and its entry points, the frequency and learned engines, and a study condition
-that names its engine — validated, served, recorded in the export's manifest and in /healthz."""
+"""Engines by name: the registry and its entry points, the frequency and learned engines (how a study's condition
+names and serves one is in tests/test_study_engines.py)."""
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import subprocess
@@ -14,8 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import synthetic
-from conftest import DEMO_STUDY, make_app
-from flowhelp import auth, to_trials
+from demostudy import DEMO_STUDY
 
 from scenesuggest import engines
 from scenesuggest.engines.learned import LearnedEngine
@@ -26,19 +24,6 @@ from scenesuggest.learning.priors import Priors
 from scenesuggest.suggestion.suggest import Engine
 
 ROOT = Path(__file__).resolve().parents[3]
-
-
-@pytest.fixture(scope="module")
-def corpus():
-    return synthetic.corpus()
-
-
-@pytest.fixture(scope="module")
-def learned_file(corpus, tmp_path_factory) -> Path:
-    """A learned engine trained on the synthetic corpus (seconds), saved."""
-    path = tmp_path_factory.mktemp("learned") / "synthetic.learned.npz"
-    engines.kind("learned").train(None, corpus.scenes, corpus.taxonomy, path, seed=0)
-    return path
 
 
 def test_the_built_in_engines_are_registered_and_described():
@@ -288,99 +273,6 @@ def test_a_plugin_may_not_take_a_built_in_name(tmp_path):
 
 
 # --- a study condition that names its engine -------------------------------------------------------------------
-def learned_study(tmp_path: Path, learned: Path) -> Path:
-    import shutil
-
-    folder = tmp_path / "demo"
-    shutil.copytree(DEMO_STUDY.parent, folder)
-    path = folder / "study.toml"
-    text = path.read_text()
-    path.write_text(text.replace('engine = { orientation = "learned" }',
-                                 f'engine = {{ name = "learned", file = "{learned}" }}', 1))
-    return path
-
-
-def test_a_condition_served_by_the_learned_engine(tmp_path, learned_file, demo_resources):
-    from study_server.experimenter.export import export_files
-
-    app = make_app(tmp_path, studies=[learned_study(tmp_path, learned_file)])
-    client = app.test_client()
-    b = to_trials(client)  # the practice trial: the 'full' condition
-    start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")
-    r = client.post("/api/suggest", headers=auth(b), json={"trial": b["trial"]["index"], "parent": "room",
-                                                           "scene": {"objects": start["objects"]},
-                                                           "point": [0.0, 0.0, 0.5], "normal": [0, 1, 0]})
-    assert r.status_code == 200 and r.json["engine"] == "learned" and r.json["suggestions"], r.json
-    assert all(s["models"] for s in r.json["suggestions"])
-    health = client.get("/healthz").json  # by engine, not by condition; nothing loaded by asking
-    assert health["ok"] and health["engines"]["demo"] == {"paper": {"version": "1", "status": "not loaded yet"},
-                                                          "learned": {"version": "1", "status": "ok"}}
-    with app.app_context():
-        manifest = json.loads(export_files(app.extensions["studies"]["demo"])["manifest.json"])
-    assert manifest["engines"]["full"] == {"engine": "learned", "version": "1", "options": {"file": str(learned_file)},
-                                           "file_sha256": hashlib.sha256(learned_file.read_bytes()).hexdigest()}
-    assert manifest["engines"]["basic"]["engine"] == "paper"
-    assert manifest["engines"]["basic"]["file_sha256"] == manifest["resources"]["priors_sha256"]
-
-
-def test_a_missing_learned_file_stops_the_server_naming_the_condition(tmp_path, demo_resources):
-    from study_server.studies.prepare import prepare
-    from study_server.studies.served import load_studies
-    from study_server.studies.study_file import load_study
-
-    path = learned_study(tmp_path, tmp_path / "nowhere.npz")
-    assert prepare(load_study(path), lambda items, label="": items, print) == []  # a file it names is not built
-    assert not (tmp_path / "nowhere.npz").exists()
-    with pytest.raises(SceneSuggestError) as info:
-        load_studies([path])
-    assert info.value.field == "conditions[2].engine" and "scenesuggest engine train learned" in info.value.message
-
-
-def test_a_damaged_engine_file_is_a_503_without_its_path_and_healthz_says_so(tmp_path, learned_file,
-                                                                             demo_resources):
-    import shutil
-
-    damaged = tmp_path / "damaged.learned.npz"
-    shutil.copy(learned_file, damaged)
-    app = make_app(tmp_path, studies=[learned_study(tmp_path, damaged)])
-    import zipfile
-
-    with zipfile.ZipFile(learned_file) as src, zipfile.ZipFile(damaged, "w") as dst:
-        for item in src.infolist():  # every entry but the ranker: the metadata still reads
-            if item.filename != "ranker.npy":
-                dst.writestr(item, src.read(item.filename))
-    client = app.test_client()
-    b = to_trials(client)
-    start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")
-    r = client.post("/api/suggest", headers=auth(b), json={"trial": b["trial"]["index"], "parent": "room",
-                                                           "scene": {"objects": start["objects"]},
-                                                           "point": [0.0, 0.0, 0.5], "normal": [0, 1, 0]})
-    assert r.status_code == 503 and r.json["field"] == "engine" and str(tmp_path) not in r.get_data(as_text=True)
-    health = client.get("/healthz")
-    assert health.status_code == 503 and health.json["engines"]["demo"]["learned"]["status"] == \
-        "unavailable (SceneSuggestError)" and str(tmp_path) not in health.get_data(as_text=True)
-
-
-@pytest.mark.parametrize(("engine", "key", "words"), [
-    ('{ name = "psychic" }', "conditions[2].engine.name", "unknown engine 'psychic': one of paper, learned"),
-    ('{ name = "learned", lambda2 = 1 }', "conditions[2].engine.lambda2", "unknown key: this engine takes name, file"),
-    ('{ name = "http", url = "ftp://x" }', "conditions[2].engine.url", "http:// or https://"),
-    ('{ name = "frequency", orientation = "sideways" }', "conditions[2].engine.orientation", "one of learned, paper"),
-])
-def test_a_study_files_engine_mistakes_name_file_line_and_key(tmp_path, engine, key, words):
-    import shutil
-
-    folder = tmp_path / "demo"
-    shutil.copytree(DEMO_STUDY.parent, folder)
-    path = folder / "study.toml"
-    text = path.read_text()
-    path.write_text(text.replace('engine = { orientation = "learned" }', f"engine = {engine}", 1))
-    line = next(n for n, t in enumerate(path.read_text().splitlines(), start=1) if t.startswith("engine = "))
-    proc = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "validate", str(path)],
-                          capture_output=True, text=True)
-    assert proc.returncode == 2 and f"{path}:{line}: field '{key}': " in proc.stderr and words in proc.stderr, \
-        proc.stderr
-    assert "Traceback" not in proc.stderr
 
 
 def test_suggest_explains_why_each_category_got_its_rank(corpus, learned_file, tmp_path):

@@ -1,63 +1,23 @@
 """The http engine: a real external engine in its own process — a good one and hostile ones (slow, garbage, a
 100 MB body, a connection that never closes, a status line dribbled out) — answered strictly, and whatever it
-does, the participant gets a list within the timeout (the fallback's, with the reason logged)."""
+does, the query gets a list within the timeout (the fallback's, with the reason). How a study's condition serves
+one is in tests/test_study_engines.py."""
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import pytest
-from conftest import DEMO_STUDY, make_app
-from flowhelp import auth, csrf, to_trials
+from enginehelp import a_query, http_engine
 
 from scenesuggest import engines
-from scenesuggest.engines.http import HttpEngine, parse_answer
+from scenesuggest.engines.http import parse_answer
 from scenesuggest.engines.protocol import LoadContext
 from scenesuggest.errors import SceneSuggestError
-from scenesuggest.scenes import scene_json
 from scenesuggest.suggestion.query import ContextQuery
-
-HERE = Path(__file__).resolve().parents[2]  # tests/, where the external engine lives
-
-
-@pytest.fixture(scope="module")
-def external(tmp_path_factory):
-    """The external engine of tests/external_engine.py in its own process; yields its base URL."""
-    port_file = tmp_path_factory.mktemp("engine") / "port"
-    proc = subprocess.Popen([sys.executable, str(HERE / "external_engine.py"), str(port_file)])
-    try:
-        deadline = time.monotonic() + 10
-        while not port_file.exists() or not port_file.read_text():
-            assert proc.poll() is None and time.monotonic() < deadline, "the external engine did not start"
-            time.sleep(0.02)
-        yield f"http://127.0.0.1:{port_file.read_text()}"
-    finally:
-        proc.kill()
-        proc.wait()
-
-
-@pytest.fixture(scope="module")
-def demo_priors(demo_resources):
-    from study_server.studies.study_file import load_study
-
-    return load_study(DEMO_STUDY).priors
-
-
-def http_engine(url: str, priors: Path, **options) -> HttpEngine:
-    spec = engines.configure({"name": "http", "url": url, **options})
-    return engines.load(spec, LoadContext(priors))
-
-
-def a_query() -> ContextQuery:
-    """A click where a target object of the demo's desk corner stands (the object removed)."""
-    scene = scene_json.load(DEMO_STUDY.parent / "scenes" / "desk-corner.json")
-    o = next(o for o in scene if o.parent is not None and o.contact_point is not None)
-    return ContextQuery(scene.without(o.id), o.parent, o.contact_point, o.contact_normal)
 
 
 def test_a_good_external_engine_answers(external, demo_priors):
@@ -223,139 +183,6 @@ def test_engine_tables_are_validated_naming_the_key(table, key, words):
 
 
 # --- through the study server ---------------------------------------------------------------------------------
-def http_study(tmp_path: Path, url: str) -> Path:
-    import shutil
-
-    folder = tmp_path / "demo"
-    shutil.copytree(DEMO_STUDY.parent, folder)
-    path = folder / "study.toml"
-    text = path.read_text()
-    path.write_text(text.replace('engine = { orientation = "learned" }',
-                                 f'engine = {{ name = "http", url = "{url}", timeout_ms = 300 }}', 1))
-    return path
-
-
-def test_a_condition_served_by_a_hostile_engine_still_suggests_and_logs_why(tmp_path, external, demo_resources):
-    from sqlalchemy import select
-    from werkzeug.security import generate_password_hash
-
-    from study_server.base.extensions import db
-    from study_server.base.models import SessionLog, ShownList
-
-    app = make_app(tmp_path, studies=[http_study(tmp_path, f"{external}/slow")],
-                   ADMIN_PASSWORD_HASH=generate_password_hash("admin-password"))
-    client = app.test_client()
-    b = to_trials(client)  # the practice trial, in the 'full' condition that the external engine serves
-    assert b["trial"]["condition"] == "full"
-    start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")
-    body = {"trial": b["trial"]["index"], "scene": {"objects": start["objects"]}, "parent": "room",
-            "point": [0.0, 0.0, 0.5], "normal": [0, 1, 0]}
-    started = time.monotonic()
-    r = client.post("/api/suggest", headers=auth(b), json=body)
-    assert r.status_code == 200 and r.json["suggestions"] and time.monotonic() - started < 1.5
-    assert r.json["engine"] == "paper"  # the fallback's list
-    with app.app_context():
-        logged = db.session.scalars(select(SessionLog).where(SessionLog.kind == "engine_fallback")).all()
-        assert len(logged) == 1 and logged[0].detail["reason"] == "no answer within 300 ms"
-        assert logged[0].detail["condition"] == "full" and logged[0].detail["engine"] == "http"
-        shown = db.session.get(ShownList, r.json["list_id"])
-        assert shown.query["engine"] == "paper" and shown.query["fallback"] == "no answer within 300 ms"
-    health = client.get("/healthz").json
-    assert health["engines"]["demo"]["http"] == {"version": "1", "status": "ok", "fallbacks": 1}
-    assert external not in client.get("/healthz").get_data(as_text=True)  # no URL in the public answer
-    admin = app.test_client()
-    page = admin.get("/admin/login")
-    admin.post("/admin/login", data={"csrf_token": csrf(page), "password": "admin-password"})
-    dashboard = admin.get("/admin/").get_data(as_text=True)
-    table = dashboard[dashboard.index('<table id="engines">'):]
-    table = table[:table.index("</table>")]
-    assert "<td>full</td><td>http" in table and "falls back to paper" in table
-    assert "<td>1</td><td>no answer within 300 ms (1)</td>" in table and external not in table
-
-
-def test_an_open_circuit_answers_participants_at_once_and_the_admin_sees_it(tmp_path, external, demo_resources):
-    from sqlalchemy import select
-    from werkzeug.security import generate_password_hash
-
-    from study_server.base.extensions import db
-    from study_server.base.models import SessionLog
-
-    app = make_app(tmp_path, studies=[http_study(tmp_path, f"{external}/hang")],
-                   ADMIN_PASSWORD_HASH=generate_password_hash("admin-password"))
-    client = app.test_client()
-    b = to_trials(client)
-    start = app.extensions["studies"]["demo"].scene(b["trial"]["scene"], "start")
-    body = {"trial": b["trial"]["index"], "scene": {"objects": start["objects"]}, "parent": "room",
-            "point": [0.0, 0.0, 0.5], "normal": [0, 1, 0]}
-    took = []
-    for _ in range(5):
-        started = time.monotonic()
-        r = client.post("/api/suggest", headers=auth(b), json=body)
-        took.append(time.monotonic() - started)
-        assert r.status_code == 200 and r.json["engine"] == "paper"
-    assert min(took[:3]) >= 0.29 and max(took[3:]) < 0.25, took  # the circuit opened after three timeouts
-    with app.app_context():
-        rows = db.session.scalars(select(SessionLog).where(SessionLog.kind == "engine_circuit")).all()
-        assert [(r.study_id, r.detail["condition"], r.detail["state"], r.detail["failures"]) for r in rows] == [
-            ("demo", "full", "open", 3)]
-    admin = app.test_client()
-    page = admin.get("/admin/login")
-    admin.post("/admin/login", data={"csrf_token": csrf(page), "password": "admin-password"})
-    dashboard = admin.get("/admin/").get_data(as_text=True)
-    assert "after 3 failures (no answer within 300 ms): asked again every 10.0 s or more" in dashboard
-
-
-def test_the_reference_engine_server_and_the_http_engine_keep_the_published_schemas(demo_priors, tmp_path):
-    """`scenesuggest engine serve` in its own process answers the http engine; the query sent and the answer
-    given validate against the schemas the API's OpenAPI document publishes, and the answer is the served
-    engine's own."""
-    import socket
-    import urllib.request
-
-    import jsonschema
-    import orjson
-
-    from study_server.base.openapi import openapi_document
-
-    schemas = openapi_document()["components"]["schemas"]
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = subprocess.Popen([sys.executable, "-m", "scenesuggest.cli", "engine", "serve", "paper", "--priors",
-                               str(demo_priors), "--port", str(port)], stderr=subprocess.PIPE, text=True)
-    try:
-        assert "serving the paper engine" in server.stderr.readline()
-        engine = http_engine(f"http://127.0.0.1:{port}/", demo_priors)
-        sent: list[bytes] = []
-        exchange = engine._exchange
-        engine._exchange = lambda body: (sent.append(body), exchange(body))[1]
-        query = a_query()
-        found = engine.suggest(query, "full", top=8)
-        assert found.engine == "http" and found.fallback is None and engine.last_server_ms() > 0
-        local = engines.load(engines.configure({}), LoadContext(demo_priors)).suggest(query, "full", top=8)
-        assert [s.category for s in found] == [s.category for s in local]
-        jsonschema.validate(orjson.loads(sent[0]), schemas["EngineQuery"])
-        request = urllib.request.Request(f"http://127.0.0.1:{port}/", data=sent[0], method="POST")
-        with urllib.request.urlopen(request) as r:
-            jsonschema.validate(orjson.loads(r.read()), schemas["EngineAnswer"])
-        import http.client
-
-        for length, status in (("999999999", 413), ("²", 411)):
-            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
-            conn.putrequest("POST", "/")
-            conn.putheader("Content-Length", length.encode("latin-1"))
-            conn.endheaders()
-            answer = conn.getresponse()
-            assert answer.status == status and b"Content-Length of at most" in answer.read()
-            conn.close()
-        for body, words in ((b"[1,", "not JSON"), (b'{"mode": "sideways"}', "expected one of basic, full")):
-            request = urllib.request.Request(f"http://127.0.0.1:{port}/", data=body, method="POST")
-            with pytest.raises(urllib.error.HTTPError) as info:
-                urllib.request.urlopen(request)
-            assert info.value.code == 400 and words in info.value.read().decode()
-    finally:
-        server.kill()
-        server.wait()
 
 
 def test_a_failing_engine_stops_costing_its_timeout_and_is_tried_again_later(external, demo_priors, monkeypatch):
@@ -464,30 +291,6 @@ def test_waits_on_engines_take_at_most_their_share_of_a_servers_workers(external
         holder.kill()
         holder.wait()
     assert engine.suggest(a_query(), "full", top=3).fallback is None
-
-
-def test_served_workers_share_one_folder_of_wait_slots(tmp_path, monkeypatch):
-    """gunicorn's on_starting (study_server.base.gunicorn_settings) gives the workers a folder and their number; an app
-    then bounds its http engines' waits to half of them."""
-    from study_server.base import gunicorn_settings
-    from study_server.studies.served import engine_wait_slots
-
-    monkeypatch.delenv(gunicorn_settings.WAITS, raising=False)
-    assert engine_wait_slots() is None  # one process: no bound
-
-    class Server:
-        class cfg:
-            workers = 5
-
-    monkeypatch.setenv(gunicorn_settings.WAITS, "")  # restored after the test, as is the next
-    monkeypatch.setenv(gunicorn_settings.WORKERS, "1")
-    gunicorn_settings.on_starting(Server)
-    try:
-        slots = engine_wait_slots()
-        assert slots.count == 2 and slots.folder == Path(os.environ[gunicorn_settings.WAITS])
-    finally:
-        gunicorn_settings.on_exit(Server)
-    assert not slots.folder.exists()
 
 
 @pytest.mark.parametrize("path", ["close", "http10"])

@@ -7,20 +7,11 @@ import numpy as np
 import pytest
 import synthetic
 
-from scenesuggest import engines
 from scenesuggest.engines.learned import LearnedEngine
 from scenesuggest.engines.learned.features import ORIENTATION, RANKING
 from scenesuggest.engines.learned.model_text import check_model_text
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.npz import npz_bytes
-
-
-@pytest.fixture(scope="module")
-def learned_file(tmp_path_factory):
-    corpus = synthetic.corpus()
-    path = tmp_path_factory.mktemp("learned") / "synthetic.learned.npz"
-    engines.kind("learned").train(None, corpus.scenes, corpus.taxonomy, path, seed=0)
-    return path
 
 
 def payload_of(path):

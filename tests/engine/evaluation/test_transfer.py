@@ -7,7 +7,7 @@ import sys
 from dataclasses import replace
 
 import pytest
-from conftest import require_wordnet
+from support import require_wordnet
 
 from scenesuggest.corpora.corpus import Corpus
 from scenesuggest.corpora.crosswalk import crosswalk

@@ -5,18 +5,12 @@ import re
 
 import numpy as np
 import pytest
-import synthetic
 
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.learning.orientation import BINS, KINDS
 from scenesuggest.learning.priors import K_MAX, Priors
 from scenesuggest.scenes.frames import FACES
 from scenesuggest.scenes.scene import SURFACE_TYPES
-
-
-@pytest.fixture(scope="module")
-def corpus():
-    return synthetic.corpus()
 
 
 @pytest.fixture(scope="module")

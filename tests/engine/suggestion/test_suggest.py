@@ -5,17 +5,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-import synthetic
 
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.learning.priors import Priors
 from scenesuggest.scenes import frames, poses
 from scenesuggest.suggestion.suggest import ContextQuery, Engine, EngineOptions
-
-
-@pytest.fixture(scope="module")
-def corpus():
-    return synthetic.corpus()
 
 
 @pytest.fixture(scope="module")
