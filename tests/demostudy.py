@@ -3,6 +3,7 @@ database (driven by its test client), and a participant walked from the entry li
 
 from __future__ import annotations
 
+import contextlib
 from collections import Counter
 from pathlib import Path
 
@@ -63,3 +64,25 @@ def rows_balance(rows_of_completed, study) -> tuple[dict[int, int], bool]:
     rows = Counter({r: 0 for r in range(study.n_rows)})
     rows.update(rows_of_completed)
     return dict(sorted(rows.items())), max(rows.values()) - min(rows.values()) <= 1 and rows.total() > 0
+
+
+def copy_demo_study(tmp: Path) -> Path:
+    """The demo study copied into ``tmp``/demo (its targets may then be written), its resources still the
+    server's own; returns the copy's study file."""
+    import shutil
+
+    folder = tmp / "demo"
+    shutil.copytree(DEMO_STUDY.parent, folder)
+    return folder / "study.toml"
+
+
+@contextlib.contextmanager
+def gunicorn(tmp: Path, workers: int = 2):
+    """The study server as `make serve` runs it (gunicorn, the demo study) on a fresh SQLite database in ``tmp``
+    and a free loopback port; yields (base URL, database path)."""
+    from serverproc import StudyServer
+
+    database = tmp / "study.sqlite3"
+    make_app(tmp, f"sqlite:///{database}")  # migrated here, before the workers start
+    with StudyServer(tmp / "instance", f"sqlite:///{database}", workers, migrate=False) as server:
+        yield server.base, database

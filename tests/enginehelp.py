@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from demostudy import DEMO_STUDY
+from support import DEMO_FOLDER
 
 from scenesuggest import engines
 from scenesuggest.engines.http import HttpEngine
@@ -21,6 +21,6 @@ def http_engine(url: str, priors: Path, **options) -> HttpEngine:
 
 def a_query() -> ContextQuery:
     """A click where a target object of the demo's desk corner stands (the object removed)."""
-    scene = scene_json.load(DEMO_STUDY.parent / "scenes" / "desk-corner.json")
+    scene = scene_json.load(DEMO_FOLDER / "scenes" / "desk-corner.json")
     o = next(o for o in scene if o.parent is not None and o.contact_point is not None)
     return ContextQuery(scene.without(o.id), o.parent, o.contact_point, o.contact_normal)

@@ -1,11 +1,10 @@
-"""What tests (and the benchmarks, which share the test infrastructure) use besides fixtures: where the shared data
-is, skipping for want of something (failing instead under CI=true), the lme4 oracle's seed, the demo study copied,
-the replication's modules, and the study server under gunicorn. Tests import it; pytest's fixtures are in
+"""What tests use besides fixtures: where the shared data is, skipping for want of something (failing instead under
+CI=true), the lme4 oracle's seed, and the replication's modules. It brings in neither the server nor the engine (the
+demo study's app, copies and served instances are demostudy.py's). Tests import it; pytest's fixtures are in
 conftest.py, which nothing imports."""
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import os
 import secrets
@@ -14,9 +13,10 @@ from pathlib import Path
 from typing import NoReturn
 
 import pytest
-from demostudy import DEMO_STUDY, make_app
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The built-in demo study's folder (its study file, scenes and target images): data, read without the server.
+DEMO_FOLDER = ROOT / "study_server" / "demo"
 SHARED_DATA = Path(os.environ.get("SCENESUGGEST_SHARED_DATA", ROOT.parent / "shared" / "data"))
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
@@ -90,16 +90,6 @@ def require(path: Path, what: str) -> Path:
     return path
 
 
-def copy_demo_study(tmp: Path) -> Path:
-    """The demo study copied into ``tmp``/demo (its targets may then be written), its resources still the
-    server's own; returns the copy's study file."""
-    import shutil
-
-    folder = tmp / "demo"
-    shutil.copytree(DEMO_STUDY.parent, folder)
-    return folder / "study.toml"
-
-
 REPLICATION = ROOT / "experiments" / "scenesuggest-2015"
 
 
@@ -112,13 +102,3 @@ def replication_module(name: str):
     return importlib.import_module(name)
 
 
-@contextlib.contextmanager
-def gunicorn(tmp: Path, workers: int = 2):
-    """The study server as `make serve` runs it (gunicorn, the demo study) on a fresh SQLite database in ``tmp``
-    and a free loopback port; yields (base URL, database path)."""
-    from serverproc import StudyServer
-
-    database = tmp / "study.sqlite3"
-    make_app(tmp, f"sqlite:///{database}")  # migrated here, before the workers start
-    with StudyServer(tmp / "instance", f"sqlite:///{database}", workers, migrate=False) as server:
-        yield server.base, database

@@ -6,10 +6,9 @@ import io
 import json
 
 import pytest
-from demostudy import make_app
+from demostudy import copy_demo_study, make_app
 from flowhelp import auth, boot, csrf, to_trials
 from PIL import Image
-from support import copy_demo_study
 from werkzeug.security import generate_password_hash
 
 from scenesuggest.scenes import scene_json

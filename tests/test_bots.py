@@ -12,8 +12,8 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from demostudy import DEMO_STUDY, make_app
-from support import ROOT, gunicorn
+from demostudy import DEMO_STUDY, gunicorn, make_app
+from support import ROOT
 
 from analysis.load import read_database, read_export
 from analysis.measures import picks_table, trials_table

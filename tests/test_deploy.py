@@ -198,8 +198,7 @@ def test_a_warmed_app_with_priors_it_cannot_load_stops_at_start_naming_the_file(
     """Priors whose header passes the start-up check but whose arrays are gone: a warmed server says so at
     start-up (file and key); a cold one starts and /healthz reports it."""
     import numpy as np
-    from demostudy import DEMO_STUDY
-    from support import copy_demo_study
+    from demostudy import DEMO_STUDY, copy_demo_study
 
     from study_server.studies.study_file import StudyFileError, load_study
 

@@ -10,9 +10,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from demostudy import DEMO_STUDY, make_app
+from demostudy import DEMO_STUDY, copy_demo_study, make_app
 from flowhelp import csrf
-from support import copy_demo_study
 
 from analysis.load import read_database
 from analysis.measures import trials_table

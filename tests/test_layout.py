@@ -127,12 +127,24 @@ def test_routes_record_nothing_themselves():
         assert not recorded & RECORDERS, (path, recorded & RECORDERS)
 
 
+#: The tests' helpers that bring the server in (its app, a participant's walk, a served instance).
+SERVER_HELPERS = ("study_server", "demostudy", "flowhelp", "serverproc", "integrityhelp")
+
+
 def test_the_engines_tests_stand_without_the_server():
-    """tests/engine/ tests the library: no module of it imports the server or the app's test helpers."""
+    """tests/engine/ tests the library: no module of it, nor a helper it imports, brings the server in."""
+    helpers = {p.stem: p for p in (ROOT / "tests").glob("*.py")}
     for path in (ROOT / "tests" / "engine").rglob("*.py"):
-        found = imports(path)
-        assert not {m for m in found if m.split(".")[0] in ("study_server", "flowhelp", "demostudy")}, path
-        assert not {m for m in found if m.startswith("conftest.") and m.split(".")[1] in ("make_app", "app")}, path
+        found = {m.split(".")[0] for m in imports(path)}
+        found |= {m.split(".")[0] for name in found & helpers.keys() for m in imports(helpers[name])}
+        assert not found & set(SERVER_HELPERS), (path, found & set(SERVER_HELPERS))
+
+
+def test_no_test_imports_a_conftest():
+    """pytest's conftest files hold hooks and fixtures; helpers live in modules of their own (support.py,
+    demostudy.py, the *help.py modules), so that no conftest can stand in for another."""
+    for path in (ROOT / "tests").rglob("*.py"):
+        assert not {m for m in imports(path) if "conftest" in m.split(".")}, path
 
 
 PACKAGES = ("scenesuggest", "study_server", "simulation", "analysis")

@@ -117,10 +117,10 @@ def test_the_wheel_installed_elsewhere_starts_a_study_prepares_migrates_and_serv
 def _open_in_chromium(base: str, http: HttpTransport) -> tuple[set[str], list[str]]:
     """The participant's trial page in Chromium (the walker's cookies, the page's test hook on): waits until the
     editor runs; returns the paths of everything it loaded and the URLs that failed."""
-    from browser.conftest import ARGS, CHROMIUM, TEST_HOOK, _require_browser
+    from browser.pagehelp import ARGS, CHROMIUM, TEST_HOOK, require_browser
     from playwright.sync_api import sync_playwright
 
-    _require_browser()
+    require_browser()
     failed = []
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)

@@ -51,6 +51,10 @@ IGNORABLE = re.compile("[\u034f\u115f\u1160\u17b4\u17b5\u180b-\u180f\u3164\ufe00
                        "\U000e0100-\U000e01ef]")
 
 
+class LinkProblem(Exception):
+    """What is wrong with an entry link's parameters, said to the participant (translated)."""
+
+
 class EntryRefused(StudyError):
     """An entry link that cannot start or resume a session here; the message is the entry page's."""
 
@@ -94,13 +98,13 @@ def is_preview(study: Study, args) -> bool:
 
 def platform_identity(study: Study, args) -> tuple[str, dict]:
     """(platform id, platform metadata) from the entry link's parameters ("" for an anonymous link); raises
-    :class:`ValueError` naming a missing or malformed parameter."""
+    :class:`LinkProblem` naming a missing or malformed parameter."""
     def value(name: str, valid, required: bool = True) -> str:
         v = args.get(name, "")
         if not v and not required:
             return ""
         if not valid(v):
-            raise ValueError(_("%(name)s is missing", name=name) if not v
+            raise LinkProblem(_("%(name)s is missing", name=name) if not v
                              else _("%(name)s is not a valid %(platform)s id", name=name, platform=study.platform))
         return v
 
@@ -109,13 +113,13 @@ def platform_identity(study: Study, args) -> tuple[str, dict]:
                 "STUDY_ID": value("STUDY_ID", PROLIFIC_ID.fullmatch, required=bool(study.platform_study_id)),
                 "SESSION_ID": value("SESSION_ID", PROLIFIC_ID.fullmatch, required=False)}
         if study.platform_study_id and meta["STUDY_ID"] != study.platform_study_id:
-            raise ValueError(_("STUDY_ID is not this study's Prolific id"))
+            raise LinkProblem(_("STUDY_ID is not this study's Prolific id"))
         return meta["PROLIFIC_PID"], meta
     if study.platform == "mturk":
         meta = {k: value(k, MTURK_ID.fullmatch) for k in ("workerId", "assignmentId", "hitId")}
         submit = args.get("turkSubmitTo", "").rstrip("/")
         if submit not in MTURK_SUBMIT:
-            raise ValueError(_("turkSubmitTo is not one of MTurk's submit hosts"))
+            raise LinkProblem(_("turkSubmitTo is not one of MTurk's submit hosts"))
         meta["turkSubmitTo"] = submit
         return meta["workerId"], meta
     pid = value("pid", link_id, required=False)
@@ -124,12 +128,12 @@ def platform_identity(study: Study, args) -> tuple[str, dict]:
 
 def is_pilot(study: Study, platform_id: str, args, key: str) -> bool:
     """Whether the entry link is a pilot's (signed with the server's ``key``: :mod:`.pilots`); a ``pilot`` parameter
-    that is not this id's signature is refused (:class:`ValueError`), never taken for a participant's."""
+    that is not this id's signature is refused (:class:`LinkProblem`), never taken for a participant's."""
     given = args.get(pilots.PARAM)
     if given is None:
         return False
     if not platform_id or not pilots.is_pilot(key, study.id, platform_id, given):
-        raise ValueError(_("%(name)s is not a test link of this study", name=pilots.PARAM))
+        raise LinkProblem(_("%(name)s is not a test link of this study", name=pilots.PARAM))
     return True
 
 
@@ -150,7 +154,7 @@ def enter(study: Study, args, mine: Participant | None, user_agent: str, address
     try:
         platform_id, meta = platform_identity(study, args)
         pilot = is_pilot(study, platform_id, args, key)
-    except ValueError as e:
+    except LinkProblem as e:
         current_app.logger.info("entry refused for study %s: %s", study.id, e)
         raise BadLink(_("This link cannot start the study: %(problem)s. Please open the study from the link on your "
                         "crowdsourcing platform.", problem=str(e))) from None

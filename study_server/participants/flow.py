@@ -5,7 +5,8 @@ when the study has one; before the first trial and wherever the condition change
 instructions, which the participant dismisses before the trial starts) → ``exit`` → ``done``. Ending early:
 declining consent (status ``no_consent``), failing the device check (``screened_out``), leaving (``returned``).
 Each way out gives its own code (the study file's ``[platform.codes]``), which the platform's completion URL takes.
-Every function takes the participant, changes it in the current transaction and leaves committing to the caller.
+Every function takes the participant, changes it in the current transaction and leaves committing to the caller,
+but :func:`takes_posts`, whose refusal is committed at once (it outlives the refused request).
 """
 
 from __future__ import annotations

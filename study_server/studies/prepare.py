@@ -2,7 +2,7 @@
 
 A study file either names its priors file and model library (made by ``scenesuggest priors train`` and ``assets
 build``, or by the study's own preparation, as the replication's) or names only its corpus and uses the server's
-own for it, in the server's data folder (:func:`.config.data_home`). The server only ever builds its own:
+own for it, in the server's data folder (:func:`..base.config.data_home`). The server only ever builds its own:
 ``scenesuggest study prepare`` (and ``study serve``, before it starts) builds them when they are missing, cannot be
 read by this engine, or were made by other engine code — so that a server installed from the package serves the
 built-in demo with no other step. What a study file names is never overwritten: a problem with it stops the server

@@ -409,7 +409,7 @@ SERVER_BUILT_CORPORA = ("ai2thor",)
 def _resources(r: Reader, doc: dict, base: Path) -> dict:
     """The corpus, and the priors file and model library: both named (paths relative to the study file), or
     neither, for a corpus the server builds them for itself (``priors/<corpus>.npz`` and ``library/<corpus>``
-    in its data folder, :func:`.config.data_home`; ``scenesuggest study prepare`` builds them)."""
+    in its data folder, :func:`..base.config.data_home`; ``scenesuggest study prepare`` builds them)."""
     res = r.table(doc, "resources", "resources")
     r.unknown(res, ("corpus", "priors", "library"), "resources")
     corpus = r.string(res, "corpus", "resources.corpus")

@@ -3,29 +3,16 @@ server run as `make serve` runs it, and the trial page's test hook."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
-from browsers import CHROMIUM  # tests/browsers.py
-from browsers import CHROMIUM_ARGS as ARGS
-from demostudy import make_app
-from support import IN_CI, copy_demo_study, gunicorn  # tests/conftest.py (this folder is a package)
+from demostudy import copy_demo_study, gunicorn, make_app
 
-
-def _require_browser():
-    try:
-        import playwright  # noqa: F401
-    except ImportError:
-        pytest.fail("playwright is not installed") if IN_CI else pytest.skip("playwright is not installed")
-    if not Path(CHROMIUM).exists():
-        message = "Chromium is not installed (apt-get install chromium)"
-        pytest.fail(message + " — required under CI=true") if IN_CI else pytest.skip(message)
+from .pagehelp import ARGS, CHROMIUM, IGNORED_CONSOLE, new_context, require_browser
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory, demo_resources):
     """gunicorn with 2 workers on a fresh SQLite database; yields (base URL, database path)."""
-    _require_browser()
+    require_browser()
     with gunicorn(tmp_path_factory.mktemp("browser")) as running:
         yield running
 
@@ -38,19 +25,6 @@ def browser(server):
         b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         yield b
         b.close()
-
-
-IGNORED_CONSOLE = ("GPU stall due to ReadPixels", "favicon", "dbus")
-TEST_HOOK = "window.sceneSuggestTestHook = true"  # set before the page's scripts: trial.js then loads test-hook.js
-
-
-def new_context(browser, test_hook: bool = True, **options):
-    """A browser context whose pages load the trial page's test hook (``window.sceneSuggestTest``) unless
-    ``test_hook`` is false, as a participant's page does not."""
-    context = browser.new_context(**{"viewport": {"width": 1280, "height": 720}, **options})
-    if test_hook:
-        context.add_init_script(TEST_HOOK)
-    return context
 
 
 @pytest.fixture
@@ -71,7 +45,7 @@ def replication_server(tmp_path_factory, replication):
     """gunicorn serving the SceneSuggest replication (Stanford representatives) on a fresh SQLite database."""
     from serverproc import StudyServer
 
-    _require_browser()
+    require_browser()
     tmp = tmp_path_factory.mktemp("replication")
     make_app(tmp, f"sqlite:///{tmp / 'study.sqlite3'}", studies=[replication])
     with StudyServer(tmp / "instance", f"sqlite:///{tmp / 'study.sqlite3'}", migrate=False, study=replication) as s:
@@ -84,7 +58,7 @@ def authoring_server(tmp_path, demo_resources):
     from serverproc import StudyServer
     from werkzeug.security import generate_password_hash
 
-    _require_browser()
+    require_browser()
     folder = copy_demo_study(tmp_path).parent
     make_app(tmp_path, f"sqlite:///{tmp_path / 'study.sqlite3'}", studies=[folder / "study.toml"])
     server = StudyServer(tmp_path / "instance", f"sqlite:///{tmp_path / 'study.sqlite3'}", migrate=False,
@@ -100,7 +74,7 @@ def replication_admin(tmp_path_factory, replication):
     from serverproc import StudyServer
     from werkzeug.security import generate_password_hash
 
-    _require_browser()
+    require_browser()
     tmp = tmp_path_factory.mktemp("replication-admin")
     make_app(tmp, f"sqlite:///{tmp / 'study.sqlite3'}", studies=[replication])
     server = StudyServer(tmp / "instance", f"sqlite:///{tmp / 'study.sqlite3'}", migrate=False, study=replication)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 from browsers import DRIVERS, ENGINES, XVFB, Display, FirefoxDriver, missing  # benchmarks/ (on the import path)
-from support import IN_CI  # tests/conftest.py
+from support import IN_CI
 
 __all__ = ["DRIVERS", "ENGINES", "XVFB", "Display", "FirefoxDriver", "require"]
 

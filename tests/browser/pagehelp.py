@@ -8,9 +8,35 @@ import sqlite3
 import time
 from pathlib import Path
 
-from support import ROOT  # tests/conftest.py (this folder is a package)
+import pytest
+from browsers import CHROMIUM
+from support import IN_CI, ROOT
 
 ARTIFACTS = ROOT / "test-artifacts"
+
+
+def require_browser():
+    """Playwright and Chromium, or a skip naming what is missing (under CI=true: a failure)."""
+    try:
+        import playwright  # noqa: F401
+    except ImportError:
+        pytest.fail("playwright is not installed") if IN_CI else pytest.skip("playwright is not installed")
+    if not Path(CHROMIUM).exists():
+        message = "Chromium is not installed (apt-get install chromium)"
+        pytest.fail(message + " — required under CI=true") if IN_CI else pytest.skip(message)
+
+
+IGNORED_CONSOLE = ("GPU stall due to ReadPixels", "favicon", "dbus")
+TEST_HOOK = "window.sceneSuggestTestHook = true"  # set before the page's scripts: trial.js then loads test-hook.js
+
+
+def new_context(browser, test_hook: bool = True, **options):
+    """A browser context whose pages load the trial page's test hook (``window.sceneSuggestTest``) unless
+    ``test_hook`` is false, as a participant's page does not."""
+    context = browser.new_context(**{"viewport": {"width": 1280, "height": 720}, **options})
+    if test_hook:
+        context.add_init_script(TEST_HOOK)
+    return context
 
 
 def until(page, expression: str, timeout: float = 20.0):

@@ -11,8 +11,7 @@ import pytest
 from flowhelp import EXIT
 from support import ROOT
 
-from .conftest import new_context
-from .pagehelp import ready, screenshot, until, walked_to_exit
+from .pagehelp import new_context, ready, screenshot, until, walked_to_exit
 
 pytestmark = pytest.mark.browser
 

@@ -8,8 +8,7 @@ from demostudy import make_app
 
 from simulation.run import simulate
 
-from .conftest import _require_browser, new_context
-from .pagehelp import screenshot, until
+from .pagehelp import new_context, require_browser, screenshot, until
 
 pytestmark = pytest.mark.browser
 
@@ -20,7 +19,7 @@ def collected(tmp_path_factory, demo_resources):
     from serverproc import StudyServer
     from werkzeug.security import generate_password_hash
 
-    _require_browser()
+    require_browser()
     tmp = tmp_path_factory.mktemp("dashboard")
     url = f"sqlite:///{tmp / 'study.sqlite3'}"
     assert simulate(20, seed=7, study="demo", app=make_app(tmp, url))["completed"] == 20

@@ -8,9 +8,8 @@ from __future__ import annotations
 import json
 import sqlite3
 
-from .conftest import ARGS, CHROMIUM, new_context
 from .engines import FirefoxDriver, require
-from .pagehelp import ARTIFACTS, hook, ready, screenshot, start, until
+from .pagehelp import ARGS, ARTIFACTS, CHROMIUM, hook, new_context, ready, screenshot, start, until
 
 
 def _stored(database, pid: str) -> tuple[str, int, dict]:

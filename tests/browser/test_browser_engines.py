@@ -12,16 +12,15 @@ from .pagehelp import floor_pixel, objects, screenshot, start, suggest_at
 @pytest.fixture(scope="module")
 def learned_server(tmp_path_factory, demo_resources):
     """gunicorn serving a copy of the demo whose 'full' condition is the learned engine."""
-    from demostudy import make_app
+    from demostudy import copy_demo_study, make_app
     from serverproc import StudyServer
-    from support import copy_demo_study
 
     from scenesuggest import engines
     from scenesuggest.corpora import load_corpus
 
-    from .conftest import _require_browser
+    from .pagehelp import require_browser
 
-    _require_browser()
+    require_browser()
     tmp = tmp_path_factory.mktemp("learned")
     corpus = load_corpus("ai2thor")
     rooms = [s for s in corpus.scenes if s.scene_type in ("Bedroom", "LivingRoom")][:16]

@@ -13,8 +13,7 @@ from scenesuggest.library.search import split_camel
 from study_server.base.i18n import TRANSLATIONS, category_names, check_catalogue
 from study_server.studies.study_file import load_study
 
-from .conftest import new_context
-from .pagehelp import place_with_suggestions, ready, screenshot, until, walked, walked_to_exit
+from .pagehelp import new_context, place_with_suggestions, ready, screenshot, until, walked, walked_to_exit
 
 pytestmark = pytest.mark.browser
 GERMAN = {"Accept-Language": "de-DE,de;q=0.9"}

@@ -25,9 +25,9 @@ def large_server(tmp_path_factory, demo_resources):
     from large_library import STUDY_ID, write_study
     from serverproc import StudyServer
 
-    from .conftest import _require_browser
+    from .pagehelp import require_browser
 
-    _require_browser()
+    require_browser()
 
     tmp = tmp_path_factory.mktemp("large-library")
     study = write_study(tmp / "study", MODELS)

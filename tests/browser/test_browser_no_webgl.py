@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import sqlite3
 
-from .conftest import ARGS, CHROMIUM
-from .pagehelp import until
+from .pagehelp import ARGS, CHROMIUM, until
 
 
 def test_a_browser_without_webgl_is_told_so(server):

@@ -7,7 +7,6 @@ from __future__ import annotations
 import sqlite3
 import time
 
-from .conftest import new_context
 from .pagehelp import (
     db_event_times,
     db_events,
@@ -15,6 +14,7 @@ from .pagehelp import (
     done,
     floor_pixel,
     hook,
+    new_context,
     objects,
     place_with_suggestions,
     ready,

@@ -5,8 +5,7 @@ import pytest
 from demostudy import make_app
 from serverproc import StudyServer
 
-from .conftest import ARGS, CHROMIUM, _require_browser, new_context
-from .pagehelp import screenshot, start
+from .pagehelp import ARGS, CHROMIUM, new_context, require_browser, screenshot, start
 
 pytestmark = pytest.mark.slow
 PROLIFIC = "https://app.prolific.com/submissions/complete?cc="
@@ -14,7 +13,7 @@ PROLIFIC = "https://app.prolific.com/submissions/complete?cc="
 
 @pytest.fixture
 def prolific_server(tmp_path, demo_resources):
-    _require_browser()
+    require_browser()
     text = demo_resources.read_text().replace('kind = "link"', 'kind = "prolific"')
     text = text.replace('target = "scenes/', f'target = "{demo_resources.parent}/scenes/')
     study = tmp_path / "prolific.toml"

@@ -26,8 +26,17 @@ from simulation.run import simulate
 from simulation.transport import HttpTransport
 from simulation.walker import Walker
 
-from .conftest import ARGS, CHROMIUM, _require_browser, new_context
-from .pagehelp import done, exit_survey, place_with_suggestions, ready, start
+from .pagehelp import (
+    ARGS,
+    CHROMIUM,
+    done,
+    exit_survey,
+    new_context,
+    place_with_suggestions,
+    ready,
+    require_browser,
+    start,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -129,7 +138,7 @@ def test_behind_nginx_over_https_on_postgresql(deployment):
     assert stored == distinct == result["events"]  # none lost, none twice
 
     # a participant in Chromium, over https, from consent to the completion code
-    _require_browser()
+    require_browser()
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:

@@ -14,8 +14,7 @@ from simulation.participant import Bot
 from simulation.transport import HttpTransport
 from study_server.studies.served import load_studies
 
-from .conftest import _require_browser
-from .pagehelp import screenshot, until
+from .pagehelp import require_browser, screenshot, until
 
 PASSWORD = "replay-password"
 
@@ -26,7 +25,7 @@ def replay_server(tmp_path_factory, demo_resources):
     from serverproc import StudyServer
     from werkzeug.security import generate_password_hash
 
-    _require_browser()
+    require_browser()
     tmp = tmp_path_factory.mktemp("replay")
     database = tmp / "study.sqlite3"
     make_app(tmp, f"sqlite:///{database}")

@@ -30,13 +30,12 @@ from .pagehelp import ARTIFACTS, db_replays, heading_deg
 def walk_study(tmp_path_factory, demo_resources):
     """gunicorn serving the demo cut to one scene per condition, on a fresh SQLite database, behind a fault proxy:
     (proxy, database)."""
-    from demostudy import make_app
+    from demostudy import copy_demo_study, make_app
     from serverproc import StudyServer
-    from support import copy_demo_study
 
-    from .conftest import _require_browser
+    from .pagehelp import require_browser
 
-    _require_browser()
+    require_browser()
     tmp = tmp_path_factory.mktemp("engines")
     study = copy_demo_study(tmp)
     text = study.read_text()

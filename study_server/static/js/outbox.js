@@ -23,7 +23,9 @@ const versionOf = (e) => e.v ?? 1;
 export class Outbox {
   constructor({ api, token, pageId, study, batch, vocabulary = 1, onStatus = () => {} }) {
     this.api = api;
-    this.batch = batch;  // events per request, as the server says (its boot data, the exit form's data-batch)
+    // events per request, as the server says (its boot data, the exit form's data-batch); a page whose script is
+    // older than the server's (a cached one) sends one at a time: slower, and nothing is lost
+    this.batch = Number.isInteger(batch) && batch > 0 ? batch : 1;
     this.vocabulary = vocabulary;  // the version of the event vocabulary this page logs in
     this.token = token;
     this.pageId = pageId;

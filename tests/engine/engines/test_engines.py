@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import synthetic
-from demostudy import DEMO_STUDY
+from support import DEMO_FOLDER
 
 from scenesuggest import engines
 from scenesuggest.engines.learned import LearnedEngine
@@ -247,7 +247,7 @@ def test_a_package_installed_beside_ours_adds_an_engine(tmp_path):
     study = (tmp_path / "demo")
     import shutil
 
-    shutil.copytree(DEMO_STUDY.parent, study)
+    shutil.copytree(DEMO_FOLDER, study)
     text = (study / "study.toml").read_text()
     (study / "study.toml").write_text(text.replace('engine = { orientation = "learned" }',
                                                    'engine = { name = "reversed", volume = 11 }'))
