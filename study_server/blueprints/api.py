@@ -215,9 +215,7 @@ def search():
         raise RequestError(400, "expected an integer", "limit") from None
     if not 1 <= limit <= 200:
         raise RequestError(400, "must be between 1 and 200", "limit")
-    participant = _participant(who)
-    trial = flow.current_trial(participant) if participant is not None else None
-    answer = lists.search(runtime(who.study_id), participant, trial.index if trial else None, text, limit)
+    answer = lists.search(runtime(who.study_id), _participant(who), text, limit)
     db.session.commit()
     return jsonify(answer)
 

@@ -26,7 +26,7 @@ from ..base import i18n
 from ..base.extensions import db
 from ..base.models import Participant
 from ..base.security import address_key, check_csrf
-from ..participants import arrival, assignment, flow
+from ..participants import arrival, flow
 from ..participants import device as device_check
 from ..participants.boot import trial_boot
 from ..studies.served import runtime
@@ -142,17 +142,14 @@ def _end_page(study, p: Participant, context: dict):
 
 def _trial_page(rt, p: Participant):
     """The current trial's page, or before it the page of its condition's instructions when they are due."""
-    everything = flow.trials(p)  # in order: a trial's position is its place here
-    t = everything[p.position]
-    plan = [x for x in everything if x.kind == "trial"]
+    shown = flow.open_trial(p)
+    t = shown.trial
     condition = rt.study.condition(t.condition)
-    if flow.briefing_due(p, t, everything):
-        flow.show_briefing(p, t)
+    if shown.briefing:
         return render_template("briefing.html", study=rt.study, p=p, trial=t, condition=condition,
-                               first=t.position == 0, of=len(plan))
-    flow.start_trial(p, t)
-    seconds = flow.briefing_seconds(t)
-    boot = trial_boot(rt.study, p.token, {**t.describe(), "number": t.index + 1, "of": len(plan),
+                               first=t.position == 0, of=shown.of)
+    seconds = shown.briefing_seconds
+    boot = trial_boot(rt.study, p.token, {**t.describe(), "number": t.index + 1, "of": shown.of,
                                           "briefing": None if seconds is None else round(seconds, 3)},
                       url_for(".current", study_id=p.study_id))
     return render_template("trial.html", study=rt.study, p=p, trial=t, condition=condition,
@@ -213,12 +210,8 @@ def leave(study_id: str):
 def consent(study_id: str):
     study = runtime(study_id).study
     p = _post_participant(study_id)
-    if p is not None and p.step == "consent":
-        agree = request.form.get("agree") == "yes"
-        if agree:
-            assignment.assign(study, p)  # a schedule row and trials only now (commits; p is fresh after it)
-        if p.step == "consent" and flow.is_open(p):  # another tab may have moved on meanwhile
-            _unless_ended(flow.give_consent, p, study, agree)
+    if p is not None:
+        flow.answer_consent(p, study, request.form.get("agree") == "yes")
     db.session.commit()
     return redirect(url_for(".current", study_id=study_id))
 
@@ -275,14 +268,11 @@ def exit_survey(study_id: str):
             attempt = int(request.form.get("attempt", "0"))
         except ValueError:
             last_seq, attempt = -1, flow.SAVE_ATTEMPTS
-        if not flow.may_complete(p, last_seq, attempt):
-            # the final events are not acknowledged yet: let the page flush its outbox and try again
-            db.session.commit()
+        done = trial_check.complete_session(runtime(study_id), p, answers, last_seq, attempt)
+        db.session.commit()
+        if not done:  # the final events are not acknowledged yet: the page flushes its outbox and tries again
             return render_template("saving.html", study=study, p=p, answers=answers, attempt=attempt + 1,
                                    last_seq=last_seq), 202
-        trial_check.settle(runtime(study_id), p, final=True)  # the pending replay checks, made now
-        _unless_ended(flow.submit_exit, p, study, answers)
-        db.session.commit()
         return redirect(url_for(".current", study_id=study_id))
     return _survey(study_id, "exit", runtime(study_id).study.exit_survey, submit, _("Almost done"))
 

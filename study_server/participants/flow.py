@@ -12,6 +12,7 @@ but :func:`takes_posts`, whose refusal is committed at once (it outlives the ref
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from datetime import timedelta
 from urllib.parse import quote
 
@@ -23,6 +24,7 @@ from ..base.extensions import db
 from ..base.models import Event, Participant, SessionLog, SurveyResponse, Trial, flag, log, log_again, utcnow
 from ..studies.study_file import Question, Study
 from . import device
+from .assignment import assign
 
 MAX_ANSWER = 5000
 
@@ -103,6 +105,21 @@ def give_consent(p: Participant, study: Study, agree: bool) -> None:
     p.consent_version = study.consent_version
     log("consent", p, agree=True, version=study.consent_version)
     p.step = "demographics" if study.demographics else "instructions"
+
+
+def answer_consent(p: Participant, study: Study, agree: bool) -> None:
+    """The participant's answer at the consent step (nothing when they are past it): agreeing first takes a
+    schedule row and the trials (:func:`.assignment.assign`, which commits), then moves on; declining ends the
+    session. A second tab that moved on meanwhile, or an exclusion committed meanwhile, is left as it is."""
+    if p.step != "consent":
+        return
+    if agree:
+        assign(study, p)  # p is fresh after it
+    if p.step == "consent" and is_open(p):
+        try:
+            give_consent(p, study, agree)
+        except SessionEnded:
+            db.session.rollback()
 
 
 def validate_answers(questions: tuple[Question, ...], form) -> tuple[dict, dict[str, str]]:
@@ -203,6 +220,30 @@ def finish_briefing(p: Participant, position: int | None) -> None:
     t.briefed_at = utcnow()
     log("briefing_read", p, position=t.position, index=t.index, condition=t.condition,
         seconds=round(briefing_seconds(t), 3))
+
+
+@dataclass(frozen=True)
+class TrialPage:
+    """What the current trial's page shows: the trial, how many trials there are, and either the page of its
+    condition's instructions (``briefing``) or the trial itself, with the seconds its briefing took (None: none)."""
+
+    trial: Trial
+    of: int
+    briefing: bool
+    briefing_seconds: float | None
+
+
+def open_trial(p: Participant) -> TrialPage:
+    """The current trial's page: the instructions of its condition when they are due (shown now), else the trial
+    (started now)."""
+    everything = trials(p)  # in order: a trial's position is its place here
+    t = everything[p.position]
+    of = sum(1 for x in everything if x.kind == "trial")
+    if briefing_due(p, t, everything):
+        show_briefing(p, t)
+        return TrialPage(t, of, True, None)
+    start_trial(p, t)
+    return TrialPage(t, of, False, briefing_seconds(t))
 
 
 def briefing_seconds(t: Trial) -> float | None:

@@ -21,6 +21,7 @@ from ..base import i18n
 from ..base.errors import StudyError
 from ..base.extensions import db, json_text
 from ..base.models import Participant, ShownList, log, log_again, utcnow
+from ..participants.flow import current_trial
 from ..studies.served import EngineNotLoaded, StudyRuntime
 from .posted_scenes import live_scene
 
@@ -198,10 +199,12 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
             "surface_type": found.surface_type, "engine": found.engine, "suggestions": items}
 
 
-def search(rt: StudyRuntime, who: Participant | None, trial: int | None, text: str, limit: int) -> dict:
+def search(rt: StudyRuntime, who: Participant | None, text: str, limit: int) -> dict:
     """A participant's text search (at most ``limit`` hits, best first), answered as the API gives it and stored
-    like a suggestion list (nothing for a preview, ``who`` None). Refuses a participant over the list rate or
-    quota before searching (:class:`TooManyLists`). The caller commits."""
+    like a suggestion list under the current trial (nothing for a preview, ``who`` None). Refuses a participant
+    over the list rate or quota before searching (:class:`TooManyLists`). The caller commits."""
+    current = current_trial(who) if who is not None else None
+    trial = current.index if current is not None else None
     with _refusals_logged(who, "search"):
         if who is not None:
             check_rate(who)

@@ -18,7 +18,7 @@ from scenesuggest.scenes import scene_json
 from ..base.errors import StudyError
 from ..base.extensions import db
 from ..base.models import Participant, Trial
-from ..participants.flow import below_target, finish_trial, trials
+from ..participants.flow import SessionEnded, below_target, finish_trial, may_complete, submit_exit, trials
 from ..studies.served import StudyRuntime
 from .posted_scenes import live_scene
 from .replays import trial_events
@@ -130,3 +130,20 @@ def settle(rt: StudyRuntime, p: Participant, final: bool = False) -> None:
         if arrived or final:
             t.replay = _replay(rt, t) + ("" if arrived else f" (events after seq {p.acked_seq} never arrived)")
             t.replay_waits_for = None
+
+
+def complete_session(rt: StudyRuntime, p: Participant, answers: dict, last_seq: int, attempt: int) -> bool:
+    """The exit survey submitted with ``answers`` (validated), on the page's ``attempt`` to get its events up to
+    ``last_seq`` acknowledged: once the server holds them (:func:`~study_server.participants.flow.may_complete`;
+    after enough attempts it completes anyway), the waiting replay checks are made on what is stored
+    (:func:`settle`) and the session completes (:func:`~study_server.participants.flow.submit_exit`; an exclusion
+    committed meanwhile is left as it is). False: not yet — the page flushes its outbox and tries again. The
+    caller commits."""
+    if not may_complete(p, last_seq, attempt):
+        return False
+    settle(rt, p, final=True)
+    try:
+        submit_exit(p, rt.study, answers)
+    except SessionEnded:
+        db.session.rollback()
+    return True
