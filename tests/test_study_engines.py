@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
-from demostudy import DEMO_STUDY, make_app
+from demostudy import copy_demo_study, make_app
 from enginehelp import a_query, http_engine
 from flowhelp import auth, csrf, to_trials
 
@@ -23,16 +23,19 @@ from scenesuggest.engines.protocol import LoadContext
 from scenesuggest.errors import SceneSuggestError
 
 
-def learned_study(tmp_path: Path, learned: Path) -> Path:
-    import shutil
-
-    folder = tmp_path / "demo"
-    shutil.copytree(DEMO_STUDY.parent, folder)
-    path = folder / "study.toml"
-    text = path.read_text()
-    path.write_text(text.replace('engine = { orientation = "learned" }',
-                                 f'engine = {{ name = "learned", file = "{learned}" }}', 1))
+def study_with_engine(tmp_path: Path, engine: str) -> Path:
+    """A copy of the demo study whose ``full`` condition names ``engine`` (a TOML inline table)."""
+    path = copy_demo_study(tmp_path)
+    path.write_text(path.read_text().replace('engine = { orientation = "learned" }', f"engine = {engine}", 1))
     return path
+
+
+def learned_study(tmp_path: Path, learned: Path) -> Path:
+    return study_with_engine(tmp_path, f'{{ name = "learned", file = "{learned}" }}')
+
+
+def http_study(tmp_path: Path, url: str) -> Path:
+    return study_with_engine(tmp_path, f'{{ name = "http", url = "{url}", timeout_ms = 300 }}')
 
 
 def test_a_condition_served_by_the_learned_engine(tmp_path, learned_file, demo_resources):
@@ -103,31 +106,13 @@ def test_a_damaged_engine_file_is_a_503_without_its_path_and_healthz_says_so(tmp
     ('{ name = "frequency", orientation = "sideways" }', "conditions[2].engine.orientation", "one of learned, paper"),
 ])
 def test_a_study_files_engine_mistakes_name_file_line_and_key(tmp_path, engine, key, words):
-    import shutil
-
-    folder = tmp_path / "demo"
-    shutil.copytree(DEMO_STUDY.parent, folder)
-    path = folder / "study.toml"
-    text = path.read_text()
-    path.write_text(text.replace('engine = { orientation = "learned" }', f"engine = {engine}", 1))
+    path = study_with_engine(tmp_path, engine)
     line = next(n for n, t in enumerate(path.read_text().splitlines(), start=1) if t.startswith("engine = "))
     proc = subprocess.run([sys.executable, "-m", "scenesuggest.cli", "study", "validate", str(path)],
                           capture_output=True, text=True)
     assert proc.returncode == 2 and f"{path}:{line}: field '{key}': " in proc.stderr and words in proc.stderr, \
         proc.stderr
     assert "Traceback" not in proc.stderr
-
-
-def http_study(tmp_path: Path, url: str) -> Path:
-    import shutil
-
-    folder = tmp_path / "demo"
-    shutil.copytree(DEMO_STUDY.parent, folder)
-    path = folder / "study.toml"
-    text = path.read_text()
-    path.write_text(text.replace('engine = { orientation = "learned" }',
-                                 f'engine = {{ name = "http", url = "{url}", timeout_ms = 300 }}', 1))
-    return path
 
 
 def test_a_condition_served_by_a_hostile_engine_still_suggests_and_logs_why(tmp_path, external, demo_resources):
