@@ -9,10 +9,12 @@ import time
 from pathlib import Path
 
 import pytest
-from browsers import CHROMIUM
+from browsers import CHROMIUM, CHROMIUM_ARGS
 from support import IN_CI, ROOT
 
 ARTIFACTS = ROOT / "test-artifacts"
+#: The flags every browser test launches Chromium with.
+ARGS = CHROMIUM_ARGS
 
 
 def require_browser():
