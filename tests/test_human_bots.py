@@ -157,6 +157,7 @@ def test_a_fit_writes_a_file_that_simulate_reads_and_refuses_when_stale(rehearsa
         read(tmp_path / "missing.json")
 
 
+@pytest.mark.slow
 def test_cli_calibrate_then_simulate_with_it(tmp_path, demo_resources):
     env = {**os.environ, "DATABASE_URL": f"sqlite:///{tmp_path / 'db.sqlite3'}",
            "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"), "SCENESUGGEST_STUDIES": str(DEMO_STUDY)}

@@ -20,8 +20,7 @@ PASSWORD = "plots password"
 SVG = "{http://www.w3.org/2000/svg}"
 
 
-@pytest.fixture
-def studied(tmp_path, demo_resources):
+def completed_study(tmp_path):
     """An app whose demo study 6 simulated participants completed; one flagged, one excluded."""
     app = make_app(tmp_path, ADMIN_PASSWORD_HASH=generate_password_hash(PASSWORD))
     assert simulate(6, seed=3, study="demo", app=app)["completed"] == 6
@@ -33,6 +32,12 @@ def studied(tmp_path, demo_resources):
         people[2].status = "excluded"
         db.session.commit()
     return app
+
+
+@pytest.fixture(scope="module")
+def studied(tmp_path_factory, demo_resources):
+    """:func:`completed_study`, shared by the tests that only read it."""
+    return completed_study(tmp_path_factory.mktemp("studied"))
 
 
 def admin(app):
@@ -84,11 +89,12 @@ def test_a_study_without_data_draws_empty_plots(tmp_path, demo_resources):
     assert "nobody yet" in c.get("/admin/").get_data(as_text=True)
 
 
-def test_the_plots_draw_early_in_collection_and_flags_count_when_they_change(studied):
+def test_the_plots_draw_early_in_collection_and_flags_count_when_they_change(tmp_path, demo_resources):
     """While a condition has no trial done yet (the first participants of a Williams design) its boxes are
     missing, not the plot; a flag is open from when it was raised until it was cleared."""
     from study_server.base.models import Trial
 
+    studied = completed_study(tmp_path)  # its own: it changes the trials
     with studied.app_context():
         db.session.query(Trial).filter(Trial.condition != "none").update({"done_at": None})
         db.session.commit()

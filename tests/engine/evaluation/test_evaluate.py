@@ -100,6 +100,7 @@ def test_evaluate_command(tmp_path):
     assert proc.returncode == 2 and "cannot make 20 folds" in proc.stderr
 
 
+@pytest.mark.slow
 def test_the_learned_engine_turns_as_the_papers_and_its_frame_classifiers_choice_is_reported_beside():
     """By default the learned engine's headings are the paper engine's (the same records, query by query); its frame
     classifier's choice is measured beside (``frames``), and is what ``frames = true`` turns by."""
