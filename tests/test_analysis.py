@@ -125,6 +125,7 @@ def test_tables_reproduce_the_reference_descriptives():
             assert t2[c][f"share_{b}"] == pytest.approx(ref[c]["rank_props"][b])
 
 
+@pytest.mark.slow
 def test_report_from_an_export_holds_every_table_and_figure(synthetic, tmp_path):
     out = tmp_path / "report"
     summary = build_report(read_export(synthetic), out, resamples=200, seed=4)
@@ -235,6 +236,7 @@ def test_cli_errors_name_the_problem(tmp_path):
     assert proc.returncode == 2 and "missing.csv" in proc.stderr
 
 
+@pytest.mark.slow
 def test_cli_report_shows_progress(synthetic, tmp_path):
     proc = _cli("report", "--export", str(synthetic), "--out", str(tmp_path / "r"), "--resamples", "100", "--json")
     assert proc.returncode == 0, proc.stderr
@@ -242,6 +244,7 @@ def test_cli_report_shows_progress(synthetic, tmp_path):
     assert json.loads(proc.stdout)["trials"]["completed"] == 12 * 9 - 1
 
 
+@pytest.mark.slow
 def test_power_resamples_pilot_participants(synthetic):
     from analysis.power import power
     from analysis.report import select

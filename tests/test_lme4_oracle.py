@@ -133,6 +133,7 @@ def lr_problems(name: str, ours, theirs_full: dict, theirs_null: dict, df: int) 
 
 
 @pytest.mark.parametrize("study", range(STUDIES))
+@pytest.mark.slow
 def test_every_model_of_the_report_matches_lme4_on_a_random_study(study, tmp_path):
     rscript = require_lme4()
     seed = [LME4_SEED, study]

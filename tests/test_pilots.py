@@ -155,6 +155,7 @@ def _walk_pilot_and_real(app):
     simulate(2, seed=5, study="demo", app=app)  # real participants (unsigned links)
 
 
+@pytest.mark.slow
 def test_the_export_marks_pilots_and_the_report_leaves_them_out(app, tmp_path):
     from study_server.experimenter.export import export_to
 

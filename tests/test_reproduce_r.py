@@ -33,6 +33,7 @@ def printed(text: str) -> tuple[dict, dict, dict]:
     return tests, not_modelled, fixed
 
 
+@pytest.mark.slow
 def test_reproduce_r_finds_the_reports_numbers(tmp_path, demo_resources):
     rscript = require_lme4()
     app = make_app(tmp_path / "server")

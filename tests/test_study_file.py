@@ -95,6 +95,7 @@ def test_invalid_toml_reports_the_line(study_dir):
     assert info.value.line == line and str(info.value).startswith(f"{path}:{line}: not valid TOML")
 
 
+@pytest.mark.slow
 def test_validate_command(study_dir, demo_resources):
     cli = [sys.executable, "-m", "scenesuggest.cli", "study", "validate"]
     ok = subprocess.run([*cli, str(DEMO_STUDY), "--json"], capture_output=True, text=True)

@@ -37,6 +37,7 @@ def result(small):
     return evaluate_transfer(train, test, specs, folds=2, explain=2, resamples=200)
 
 
+@pytest.mark.slow
 def test_every_mapped_query_is_asked_and_ranked_as_the_engine_ranks_it(small, result):
     train, test = small
     walk = crosswalk(test, train, require_wordnet())
@@ -57,6 +58,7 @@ def test_every_mapped_query_is_asked_and_ranked_as_the_engine_ranks_it(small, re
     assert result["crosswalk"]["mapped_categories"] == len(walk.matches) - len(walk.unmapped)
 
 
+@pytest.mark.slow
 def test_engines_are_compared_on_the_same_queries_and_like_for_like(result):
     frequency = result["engines"]["frequency"]
     paper = result["engines"]["paper"]
@@ -82,6 +84,7 @@ def test_engines_are_compared_on_the_same_queries_and_like_for_like(result):
     assert "ceiling" in format_transfer(result)
 
 
+@pytest.mark.slow
 def test_the_ceiling_is_the_asked_corpus_in_the_training_vocabulary_by_its_own_folds(small, result):
     """Rebuilt by hand for the paper engine: 2 grouped folds of the asked rooms, relabelled as the queries are."""
     from scenesuggest.corpora.folds import grouped_folds, similar_groups
@@ -108,6 +111,7 @@ def test_the_ceiling_is_the_asked_corpus_in_the_training_vocabulary_by_its_own_f
     assert ceiling["asked_queries"] == sum(len(r) for r in by_category.values())  # no unmapped query is asked
 
 
+@pytest.mark.slow
 def test_like_for_like_needs_a_fold_of_each_corpus(small):
     train, test = small
     one = Corpus(test.source, test.scenes[:1], test.models, test.taxonomy)
@@ -121,6 +125,7 @@ def test_like_for_like_needs_a_fold_of_each_corpus(small):
     assert evaluate_transfer(train, one, [configure({"name": "paper"})], like_for_like=False, resamples=50)["queries"]
 
 
+@pytest.mark.slow
 def test_worst_misses_are_explained(result):
     misses = result["explained_misses"]
     assert set(misses) == {"paper", "frequency"}
@@ -135,6 +140,7 @@ def test_worst_misses_are_explained(result):
     json.dumps(result, allow_nan=False)  # no Infinity in what --json prints
 
 
+@pytest.mark.slow
 def test_a_parent_the_training_corpus_never_saw_is_unknown(small):
     """Stanford scenes asked of an AI2-THOR engine: an object on an unlabelled model (Unknown) or on an unmapped one
     is on an unknown parent."""
@@ -153,6 +159,7 @@ def test_a_parent_the_training_corpus_never_saw_is_unknown(small):
     assert paper["unknown_parents"]["n"] == unknown > 0 and paper["known_parents"]["n"] > 0
 
 
+@pytest.mark.slow
 def test_held_out_means_apart(small, ai2thor):
     """The same corpus on both sides, or no query that maps, is said, not scored."""
     train, test = small
