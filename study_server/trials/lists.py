@@ -172,7 +172,8 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
     participant over the list rate or quota before the engine runs (:class:`TooManyLists`), a query the engine
     cannot answer (:class:`QueryRejected`) and an engine that cannot be loaded (:class:`SuggestionsUnavailable`).
     The caller commits."""
-    if rt.study.condition(condition).mode is None:
+    interface = rt.study.condition(condition)
+    if interface.mode is None:
         raise NoSuggestions()
     with _refusals_logged(who, "context"):
         if who is not None:
@@ -193,9 +194,9 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
         shown = [stored_item(i) for i in items]
         list_id = _store(who, trial, "context", query, shown, _quota_bytes(rt)) if who else uuid.uuid4().hex
     if who is not None and found.fallback:
-        log("engine_fallback", who, condition=condition, trial=trial, engine=rt.study.condition(condition).engine.name,
+        log("engine_fallback", who, condition=condition, trial=trial, engine=interface.engine.name,
             answered_by=found.engine, reason=found.fallback, list_id=list_id)
-    return {"list_id": list_id, "condition": condition, "mode": rt.study.condition(condition).mode,
+    return {"list_id": list_id, "condition": condition, "mode": interface.mode,
             "surface_type": found.surface_type, "engine": found.engine, "suggestions": items}
 
 

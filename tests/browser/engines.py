@@ -3,9 +3,8 @@
 
 from __future__ import annotations
 
-import pytest
-from browsers import DRIVERS, ENGINES, XVFB, Display, FirefoxDriver, missing  # benchmarks/ (on the import path)
-from support import IN_CI
+from browsers import DRIVERS, ENGINES, XVFB, Display, FirefoxDriver, missing
+from support import lacking
 
 __all__ = ["DRIVERS", "ENGINES", "XVFB", "Display", "FirefoxDriver", "require"]
 
@@ -14,4 +13,4 @@ def require(engine: str) -> None:
     """Skip (under CI=true: fail) unless ``engine`` can run here, naming what to install."""
     reason = missing(engine)
     if reason:
-        pytest.fail(f"{engine}: {reason} — required under CI=true") if IN_CI else pytest.skip(f"{engine}: {reason}")
+        lacking(f"{engine}: {reason}")

@@ -8,9 +8,8 @@ import sqlite3
 import time
 from pathlib import Path
 
-import pytest
 from browsers import CHROMIUM, CHROMIUM_ARGS
-from support import IN_CI, ROOT
+from support import ROOT, lacking
 
 ARTIFACTS = ROOT / "test-artifacts"
 #: The flags every browser test launches Chromium with.
@@ -22,10 +21,9 @@ def require_browser():
     try:
         import playwright  # noqa: F401
     except ImportError:
-        pytest.fail("playwright is not installed") if IN_CI else pytest.skip("playwright is not installed")
+        lacking("playwright is not installed (make setup installs it)")
     if not Path(CHROMIUM).exists():
-        message = "Chromium is not installed (apt-get install chromium)"
-        pytest.fail(message + " — required under CI=true") if IN_CI else pytest.skip(message)
+        lacking("Chromium is not installed (apt-get install chromium)")
 
 
 IGNORED_CONSOLE = ("GPU stall due to ReadPixels", "favicon", "dbus")
