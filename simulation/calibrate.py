@@ -1,18 +1,22 @@
-"""Calibrating the simulated participants on the paper's ``none`` condition, and only on it.
+"""Calibrating the simulated participants on some of the paper's conditions, and predicting the rest.
 
-The free parameters of :class:`~.human.Human` are fitted so that bots rebuilding the study's targets with the
-model list and keyword search (``none``) take the times, make the queries and pick at the ranks the paper's
-participants did in ``none`` (Savva, Chang, Agrawala: SceneSuggest, Table 1 and Table 2). The suggestion
-conditions are then predictions of the calibrated simulator: nothing here knows their numbers (a test reads this
-file's source to hold it so).
+The free parameters of :class:`~.human.Human` are fitted so that bots rebuilding the study's targets in the
+conditions a fold is fitted ``on`` take the times, make the queries and pick at the ranks the paper's participants
+did in those conditions (Savva, Chang, Agrawala: SceneSuggest, Table 1 and Table 2; :mod:`.paper_tables`). A fold
+fits the parameters its conditions can inform (those ``used`` in them, :func:`.human.free_parameters`); the others
+keep their defaults. The conditions left out are predictions of the calibrated simulator: the fit asks the paper's
+tables for its own conditions' cells only and never holds the held-out numbers (a test changes them and finds the
+fit unchanged).
 
-A *rehearsal* plays each bot's ``none`` trials of its schedule row, at their place in the row (the practice
-effect), in process: the study's own scenes, model list and search index answer, and the events the bot would
-send are measured with the analysis' own definitions (:func:`analysis.measures.measures_by_trial`,
+A *rehearsal* plays each bot's trials of the fold's conditions, at their place in its schedule row (the practice
+effect), in process: the study's own scenes, model list, search index and engine answer, and the events the bot
+would send are measured with the analysis' own definitions (:func:`analysis.measures.measures_by_trial`,
 :func:`scenesuggest.contract.picks.picks`). The loss is the squared distance to the paper in units of its standard
 errors (from the 95% intervals; rank shares in units of RANK_SE) plus a weak prior pulling each parameter to its
 default. It is minimised by Nelder–Mead (scipy) over the parameters mapped to their ranges, with common random
 numbers: every evaluation replays the same bots from the same seeds.
+
+:func:`explain` measures what each condition can tell: how far each cell moves when each parameter moves.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import multiprocessing
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -35,22 +40,13 @@ from scenesuggest.contract.events import SEND_BATCH
 from scenesuggest.errors import SceneSuggestError
 from scenesuggest.npz import read_npz
 
-from .human import Human, bounds, free_parameters
+from . import paper_tables
+from .human import Human, bounds, free_parameters, used_in
+from .paper_tables import Cell
 from .transport import Response
 
 FORMAT = "scenesuggest-calibration"
-VERSION = 1
-#: The paper's ``none`` condition: Table 1 means with their 95% bootstrap intervals (seconds, queries, MRR)
-#: and Table 2 rank shares (picks at rank 1, 2, 3, 4 or lower).
-PAPER_NONE = {
-    "total_time": (204.0, 177.0, 241.0),
-    "rotation_time": (23.6, 19.9, 28.7),
-    "translation_time": (40.5, 32.0, 51.1),
-    "n_text_queries": (5.2, 3.8, 7.0),
-    "mrr": (0.353, 0.318, 0.388),
-}
-PAPER_NONE_RANKS = {"1": 0.296, "2": 0.140, "3": 0.0035, "4+": 0.560}
-RANK_SE = 0.05  # the paper gives no interval for rank shares: a share off by 5 points costs one standard error
+VERSION = 2  # 2: fitted on named conditions ("on"), measured by condition
 PRIOR_SD = 1.0  # the prior: each parameter's logit-scale distance from its default, in these units
 #: The calibration's uncertainty: evaluated parameter sets whose loss is within this of the best (the loss is in
 #: squared standard errors: 4 is two standard errors along one direction), at most PLAUSIBLE_SETS of them.
@@ -91,17 +87,30 @@ def fingerprint(study) -> dict:
             "library_sha256": sha256(study.library / INDEX_FILE), "simulation_sha256": code}
 
 
+@dataclass
+class _Answer(Response):
+    """An answer given in process, not encoded: what the bot reads is ``value`` itself (never shared: it is
+    made for this request)."""
+
+    value: object = None
+
+    def json(self):
+        return self.value
+
+
 class _Local:
-    """A transport that answers a bot's ``none`` trial from the study's runtime in process (scenes, model list,
-    search, model files) and keeps the events it is sent instead of storing them."""
+    """A transport that answers a bot's trial from the study's runtime in process (scenes, model list, search,
+    suggestions, model files) and keeps the events it is sent instead of storing them. ``trial`` is the planned
+    trial being played (its condition and scene answer a click for suggestions)."""
 
     def __init__(self, app, study_id: str):
-        from study_server.studies.offline import OfflineAnswers
+        from study_server.trials.offline import OfflineAnswers
 
         self.answers = OfflineAnswers(app, study_id)
         self.client = app.test_client()
         self.cache: dict[str, Response] = {}
         self.events: list[dict] = []
+        self.trial = None
 
     def _json(self, value) -> Response:
         return Response(200, json.dumps(value).encode())
@@ -125,55 +134,99 @@ class _Local:
 
     def post(self, path, form=None, json_body=None, headers=None) -> Response:
         if path == "/api/events":
-            self.events.extend(json_body["events"])
-            return self._json({"acked_seq": json_body["events"][-1]["seq"]})
+            self.events.extend({**e, "condition": self.trial.condition} for e in json_body["events"])
+            return _Answer(200, b"", {"acked_seq": json_body["events"][-1]["seq"]})
+        if path == "/api/suggest":
+            return _Answer(200, b"", self.answers.suggest(self.trial.condition, self.trial.scene,
+                                                          json_body["trial"], json_body))
         if path == "/api/trial/done":
             return self._json({})
         raise SceneSuggestError(f"a rehearsal does not send {path}")
 
 
+#: The rehearsal a forked worker plays its share of the bots in (set in the parent just before the fork).
+_FORKED: Rehearsal | None = None
+
+
+def _play_share(human: Human, bots: range) -> list[dict]:
+    return _FORKED.play(human, bots)
+
+
 @dataclass
 class Rehearsal:
-    """The ``none`` trials of ``participants`` bots (bot i: schedule row i, generator ``[seed, i]``) of the study
-    ``study_id`` served by ``app``."""
+    """The trials in ``conditions`` of ``participants`` bots (bot i: schedule row i, generator ``[seed, i]``;
+    each trial its own generator ``[seed, i, position]``, so that a change in one trial leaves the others' draws
+    as they were) of the study ``study_id`` served by ``app``. Trials of other conditions are not played.
+    ``workers`` processes (forked from this one, the study loaded) share the bots; the events are the same
+    for any number of them."""
 
     app: object
     study_id: str
     participants: int = 40
     seed: int = 0
+    conditions: tuple[str, ...] = ("none",)
+    workers: int = 1
 
     def __post_init__(self):
         self.local = _Local(self.app, self.study_id)
         self.study = self.local.answers.study
         self.symmetry: dict[str, float] = {}
+        self.conditions = tuple(self.conditions)
+        self._pool = None
 
-    def events(self, human: Human) -> pd.DataFrame:
-        """Every event the bots' ``none`` trials would send, with columns participant, trial, seq, type,
-        client_t_ms and payload."""
+    def play(self, human: Human, bots: range) -> list[dict]:
+        """The events of bots ``bots`` behaving as ``human``, each with its participant and condition."""
         from .actions import BotTrial
         from .participant import Bot
 
         rows = []
-        for i in range(self.participants):
+        for i in bots:
             self.local.events = []
             bot = Bot(self.local, self.study_id, f"rehearsal-{i}", np.random.default_rng([self.seed, i]),
                       symmetry=self.symmetry, human=human, scene_seed=self.seed)
             for position, planned in enumerate(self.study.plan(i % self.study.n_rows)):
-                if planned.kind != "trial" or planned.condition != "none":
+                if planned.kind != "trial" or planned.condition not in self.conditions:
                     continue
-                bot.played = position
+                bot.played, self.local.trial = position, planned
+                bot.rng = np.random.default_rng([self.seed, i, position])
                 boot = {"token": "", "page_id": "rehearsal", "vocabulary": 2, "batch": SEND_BATCH,
-                        "trial": {"index": planned.index, "kind": "trial", "condition": "none",
+                        "trial": {"index": planned.index, "kind": "trial", "condition": planned.condition,
                                   "scene": planned.scene}}
                 BotTrial(bot, boot).play()
             rows.extend({**e, "participant": i} for e in self.local.events)
-        frame = pd.DataFrame(rows)
-        return frame.rename(columns={"t": "client_t_ms"})
+        return rows
+
+    def events(self, human: Human) -> pd.DataFrame:
+        """Every event the bots' trials would send, with columns participant, condition, trial, seq, type,
+        client_t_ms and payload."""
+        if self.workers <= 1:
+            rows = self.play(human, range(self.participants))
+        else:
+            if self._pool is None:
+                global _FORKED
+                _FORKED = self
+                self._pool = multiprocessing.get_context("fork").Pool(self.workers)
+            shares = np.array_split(np.arange(self.participants), self.workers)
+            rows = [row for part in self._pool.starmap(_play_share, [(human, range(int(s[0]), int(s[-1]) + 1))
+                                                                      for s in shares if len(s)])
+                    for row in part]
+        return pd.DataFrame(rows).rename(columns={"t": "client_t_ms"})
+
+    def measure(self, human: Human) -> dict[str, dict[str, float]]:
+        """The paper's measures of the bots behaving as ``human``, by condition (:func:`measure`)."""
+        events = self.events(human)
+        return {c: measure(events[events["condition"] == c]) for c in self.conditions}
+
+    def close(self) -> None:
+        """Stop the worker processes (if any)."""
+        if self._pool is not None:
+            self._pool.terminate()
+            self._pool = None
 
 
 def measure(events: pd.DataFrame) -> dict[str, float]:
-    """The paper's ``none`` measures of a rehearsal's events, by the analysis' definitions: per-trial means of
-    total, rotation and translation time and keyword queries; MRR and rank shares over final picks."""
+    """The paper's measures of one condition's events, by the analysis' definitions: per-trial means of total,
+    rotation and translation time and keyword queries; MRR and rank shares over final picks."""
     from analysis.measures import measures_by_trial
     from scenesuggest.contract.picks import picks
 
@@ -205,15 +258,11 @@ def _from_unit(name: str, u: float) -> float:
     return low + (high - low) / (1 + math.exp(-u))
 
 
-def loss(measured: dict[str, float], u: np.ndarray | None = None, u0: np.ndarray | None = None) -> float:
-    """Squared distance of ``measured`` to the paper's ``none`` row in standard errors, plus the prior on the
-    parameters' logits ``u`` (distance from the defaults ``u0``)."""
-    total = 0.0
-    for name, (mean, low, high) in PAPER_NONE.items():
-        se = (high - low) / (2 * 1.96)
-        total += ((measured[name] - mean) / se) ** 2
-    for label, share in PAPER_NONE_RANKS.items():
-        total += ((measured[f"rank_{label}"] - share) / RANK_SE) ** 2
+def loss(measured: dict[str, dict[str, float]], cells: tuple[Cell, ...], u: np.ndarray | None = None,
+         u0: np.ndarray | None = None) -> float:
+    """Squared distance of ``measured`` (condition → measure → value) to the paper's ``cells`` in their standard
+    errors, plus the prior on the parameters' logits ``u`` (distance from the defaults ``u0``)."""
+    total = sum(((measured[c.condition][c.measure] - c.mean) / c.se) ** 2 for c in cells)
     if u is not None:
         total += float(np.sum(((u - u0) / PRIOR_SD) ** 2))
     return total if math.isfinite(total) else 1e9
@@ -221,9 +270,11 @@ def loss(measured: dict[str, float], u: np.ndarray | None = None, u0: np.ndarray
 
 def fit(rehearsal: Rehearsal, evaluations: int = 300, start: Human | None = None,
         progress=lambda message: None) -> dict:
-    """Fit the free parameters (Nelder–Mead, at most ``evaluations`` rehearsals); returns the calibration
-    document (see :func:`write`)."""
-    names = free_parameters()
+    """Fit the parameters the rehearsal's conditions inform to the paper's cells of those conditions
+    (Nelder–Mead, at most ``evaluations`` rehearsals); returns the calibration document (see :func:`write`)."""
+    on = paper_tables.conditions_of(rehearsal.conditions)
+    cells = paper_tables.cells(on)
+    names = free_parameters(on)
     start = start or Human()
     u0 = np.array([_to_unit(n, getattr(Human(), n)) for n in names])
     u_start = np.array([_to_unit(n, getattr(start, n)) for n in names])
@@ -236,8 +287,8 @@ def fit(rehearsal: Rehearsal, evaluations: int = 300, start: Human | None = None
     def objective(u) -> float:
         key = tuple(np.round(u, 10))
         if key not in seen:
-            measured = measure(rehearsal.events(human_of(u)))
-            seen[key] = (loss(measured, u, u0), measured)
+            measured = rehearsal.measure(human_of(u))
+            seen[key] = (loss(measured, cells, u, u0), measured)
             best = min(v[0] for v in seen.values())
             progress(f"evaluation {len(seen)}: loss {seen[key][0]:.2f} (best {best:.2f}), "
                      f"{time.perf_counter() - started:.0f} s")
@@ -251,13 +302,63 @@ def fit(rehearsal: Rehearsal, evaluations: int = 300, start: Human | None = None
     value, measured = seen[best_u]
     plausible = _plausible(seen, best_u, value)
     return {"format": FORMAT, "version": VERSION, "fingerprint": fingerprint(rehearsal.study),
+            "on": list(on), "held_out": list(paper_tables.held_out(on)),
             "parameters": human.values(), "free": names, "loss": value,
-            "loss_without_prior": loss(measured), "measured_none": measured,
+            "loss_without_prior": loss(measured, cells), "measured": measured,
             "plausible": [{"loss": seen[u][0], "parameters": human_of(np.asarray(u)).values()} for u in plausible],
-            "paper_none": {**PAPER_NONE, **{f"rank_{k}": v for k, v in PAPER_NONE_RANKS.items()}},
+            "paper": {c.key: [c.mean, c.low, c.high] for c in cells},
             "seed": rehearsal.seed, "participants": rehearsal.participants, "evaluations": len(seen),
             "converged": bool(result.success), "seconds": round(time.perf_counter() - started, 1),
             "created": datetime.now(UTC).isoformat(timespec="seconds")}
+
+
+#: A parameter informs a condition when a one-logit move of it moves one of the condition's cells by at least
+#: this many of the cell's standard errors.
+INFORMS_SE = 0.5
+
+
+def explain(rehearsal: Rehearsal, base: Human | None = None, step: float = 0.5,
+            progress=lambda message: None) -> dict:
+    """What each condition can tell of each free parameter: every cell's change per logit unit of the
+    parameter (a central difference of ``step`` logits about ``base``, common random numbers), in the cell's
+    standard errors, for the rehearsal's conditions; a parameter informs a condition when some cell of it moves by
+    INFORMS_SE or more. Parameters a condition does not use move none of its cells (exactly: their trials do not
+    read them)."""
+    base = base or Human()
+    cells = paper_tables.cells(rehearsal.conditions)
+    rows, started = [], time.perf_counter()
+    for name in free_parameters(rehearsal.conditions):
+        u = _to_unit(name, getattr(base, name))
+        up, down = (rehearsal.measure(base.with_values({name: _from_unit(name, u + d)})) for d in (step, -step))
+        effects = {c.key: (up[c.condition][c.measure] - down[c.condition][c.measure]) / (2 * step) / c.se
+                   for c in cells}
+        effects = {k: (v if math.isfinite(v) else 0.0) for k, v in effects.items()}
+        informs = [c for c in rehearsal.conditions
+                   if max(abs(v) for k, v in effects.items() if k.startswith(f"{c}.")) >= INFORMS_SE]
+        rows.append({"parameter": name, "value": getattr(base, name), "used": list(used_in(name)),
+                     "effects": effects, "informs": informs})
+        progress(f"{name}: informs {', '.join(informs) or 'no condition'} "
+                 f"({time.perf_counter() - started:.0f} s)")
+    return {"conditions": list(rehearsal.conditions), "step_logit": step, "informs_se": INFORMS_SE,
+            "base": base.values(), "participants": rehearsal.participants, "seed": rehearsal.seed,
+            "parameters": rows, "seconds": round(time.perf_counter() - started, 1)}
+
+
+def explain_lines(table: dict) -> list[str]:
+    """The identifiability table as Markdown: one row per parameter, one column per condition (the largest cell
+    movement, in standard errors per logit, and the cell that moves most)."""
+    conditions = table["conditions"]
+    lines = [f"| Parameter | used in | {' | '.join(conditions)} | informed by |",
+             f"|---|---|{'---:|' * len(conditions)}---|"]
+    for row in table["parameters"]:
+        cols = []
+        for c in conditions:
+            own = {k.split(".", 1)[1]: v for k, v in row["effects"].items() if k.startswith(f"{c}.")}
+            top = max(own, key=lambda k: abs(own[k]))
+            cols.append(f"{abs(own[top]):.2f} ({top})" if abs(own[top]) > 0 else "0")
+        lines.append(f"| `{row['parameter']}` | {', '.join(row['used'])} | {' | '.join(cols)} | "
+                     f"{', '.join(row['informs']) or 'none'} |")
+    return lines
 
 
 def _plausible(seen: dict, best: tuple, value: float, count: int = PLAUSIBLE_SETS) -> list[tuple]:
@@ -276,9 +377,9 @@ def write(document: dict, path: Path) -> None:
     write_atomically(Path(path), (json.dumps(document, indent=1, sort_keys=True) + "\n").encode())
 
 
-def read_plausible(path: Path, study=None) -> list[Human]:
+def read_plausible(path: Path, study=None, on: tuple[str, ...] | None = None) -> list[Human]:
     """The calibration's plausible parameter sets (the best first; see :func:`_plausible`)."""
-    best = read(path, study)
+    best = read(path, study, on)
     document = json.loads(Path(path).read_text())
     out = [best]
     for k, entry in enumerate(document.get("plausible", [])[1:], start=1):
@@ -289,9 +390,10 @@ def read_plausible(path: Path, study=None) -> list[Human]:
     return out
 
 
-def read(path: Path, study=None) -> Human:
+def read(path: Path, study=None, on: tuple[str, ...] | None = None) -> Human:
     """The calibrated :class:`Human` of the calibration file ``path``; with ``study``, the file must have been
-    fitted on that study, its priors, its model library and this simulation code (errors name what differs)."""
+    fitted on that study, its priors, its model library and this simulation code, and with ``on``, on those
+    conditions (errors name what differs)."""
     path = Path(path)
     try:
         document = json.loads(path.read_text())
@@ -305,6 +407,9 @@ def read(path: Path, study=None) -> Human:
     if document.get("version") != VERSION:
         raise SceneSuggestError(f"calibration version {document.get('version')!r}, expected {VERSION}",
                                 file=str(path), field="version")
+    if on is not None and document.get("on") != list(on):
+        raise SceneSuggestError(f"fitted on {_fold(document.get('on'))}, not on {_fold(on)}", file=str(path),
+                                field="on")
     if study is not None:
         stale = stale_keys(document, study)
         if stale:
@@ -319,9 +424,17 @@ def read(path: Path, study=None) -> Human:
         raise SceneSuggestError(e.message, file=str(path), field=f"parameters.{e.field}") from None
 
 
-def stale_keys(document: dict, study) -> list[str]:
-    """What the calibration ``document`` was fitted with that differs from ``study`` now: any of study, priors,
-    library, simulation."""
+def _fold(on) -> str:
+    return " + ".join(on) if isinstance(on, list | tuple) and on else repr(on)
+
+
+def stale_keys(document: dict, study, on: tuple[str, ...] | None = None) -> list[str]:
+    """What the calibration ``document`` was fitted with that differs from ``study`` now (any of study, priors,
+    library, simulation) and, given ``on``, from those conditions; an older format is stale too."""
+    if document.get("format") != FORMAT or document.get("version") != VERSION:
+        return ["format"]
+    if on is not None and document.get("on") != list(on):
+        return ["conditions"]
     now, then = fingerprint(study), document.get("fingerprint") or {}
     names = {"study": "study", "priors_content_sha256": "priors (the engine)", "library_sha256": "model library",
              "simulation_sha256": "simulation code"}

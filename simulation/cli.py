@@ -30,7 +30,7 @@ def _app(study_id: str | None, database_url: str | None = None, migrate: bool = 
 
 
 def _study(app, study_id: str):
-    from study_server.studies.offline import OfflineAnswers
+    from study_server.trials.offline import OfflineAnswers
 
     return OfflineAnswers(app, study_id).study
 
@@ -48,11 +48,14 @@ def _study(app, study_id: str):
 @click.option("--study", "study_id", default=None, help="Study id (default: the first configured study).")
 @click.option("--calibration", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Behave as a calibration file says (from `study calibrate`; default: the parameters' defaults).")
+@click.option("--on", "on", default=None, callback=lambda ctx, param, v: None if v is None else _on(ctx, param, v),
+              help="Refuse a --calibration that was not fitted on these conditions (e.g. none,basic).")
 @click.option("--mix", is_flag=True, help="Mix in reloads, second tabs, repeated arrivals, resent batches and "
                                           "drop-outs.")
 @click.option("--json", "as_json", is_flag=True)
 def simulate_cmd(participants: int, seed: int, url: str | None, database_url: str | None, live: bool,
-                 study_id: str | None, calibration: Path | None, mix: bool, as_json: bool) -> None:
+                 study_id: str | None, calibration: Path | None, on: tuple[str, ...] | None, mix: bool,
+                 as_json: bool) -> None:
     """Simulated participants take the whole study through its HTTP interface; their operation times follow
     the keystroke-level model applied to what the engine returns, with the behaviour of simulation.human
     (hesitation, looking round, scanning, searching, misjudged drags and turns, practice).
@@ -79,7 +82,9 @@ def simulate_cmd(participants: int, seed: int, url: str | None, database_url: st
     app, study_id = _app(study_id, where if url is None else "sqlite://", migrate=url is None)
     study = _study(app, study_id)
     key = app.config["SECRET_KEY"]
-    human = read(calibration, study) if calibration is not None else None
+    if on is not None and calibration is None:
+        raise SceneSuggestError("--on checks a --calibration file: name one", field="--on")
+    human = read(calibration, study, on) if calibration is not None else None
     summary = simulate(participants, seed, url=url, study=study_id, app=None if url else app,
                        behaviours=Behaviours.mixed() if mix else None, human=human,
                        entry=lambda i: pilots.entry_query(key, study),
@@ -116,45 +121,97 @@ def _where_note(study_file: str, url: str | None, apart: bool, database: str | N
             f"pilot-export/\nremove: scenesuggest study reset --study {study}{db} --pilots-only")
 
 
+def _on(ctx, param, value: str) -> tuple[str, ...]:
+    from .paper_tables import conditions_of
+
+    try:
+        return conditions_of(value)
+    except SceneSuggestError as e:
+        raise click.BadParameter(e.message) from None
+
+
+def _workers() -> int:
+    import os
+
+    return max(1, min(2, len(os.sched_getaffinity(0))))
+
+
 @click.command("calibrate")
-@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path), default=Path("calibration.json"),
-              show_default=True, help="The calibration file to write.")
+@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="The file to write: the calibration (default calibration.json), or with --explain the "
+                   "identifiability table as JSON (default: printed only).")
+@click.option("--on", "on", default="none", show_default=True, callback=_on,
+              help="The conditions to fit on, one or two of none, basic, full separated by commas; the rest are "
+                   "left out, to be predicted.")
+@click.option("--explain", is_flag=True, help="Instead of fitting: how far each of Table 1 and 2's cells moves, in "
+                                              "every condition, when each free parameter moves (about --start's "
+                                              "parameters), and so which conditions can inform which parameter.")
 @click.option("--study", "study_id", default=None, help="Study id (default: the first configured study).")
 @click.option("--participants", default=40, show_default=True, type=click.IntRange(min=2),
               help="Bots per evaluation (bot i plays schedule row i).")
 @click.option("--seed", default=0, show_default=True, help="The bots' seed (the same for every evaluation).")
 @click.option("--evaluations", default=300, show_default=True, type=click.IntRange(min=1))
+@click.option("--workers", default=None, type=click.IntRange(min=1),
+              help="Processes sharing the bots of an evaluation (default: this machine's cores, at most 2).")
 @click.option("--start", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Start the fit from this calibration file's parameters (default: the parameters' defaults).")
-@click.option("--if-stale", is_flag=True, help="Do nothing when --out was fitted on this study, its priors, "
-                                               "library and simulation code.")
+@click.option("--if-stale", is_flag=True, help="Do nothing when --out was made on these conditions, this study, "
+                                               "its priors, library and simulation code.")
 @click.option("--json", "as_json", is_flag=True)
-def calibrate_cmd(out: Path, study_id: str | None, participants: int, seed: int, evaluations: int,
-                  start: Path | None, if_stale: bool, as_json: bool) -> None:
-    """Fit the simulated participants' free behaviour parameters to the paper's `none` condition (Table 1's
-    means and Table 2's rank shares; never the other conditions' numbers) by rehearsing the study's `none`
-    trials; writes the parameters, the loss, the seed and what the fit depends on."""
+def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id: str | None, participants: int,
+                  seed: int, evaluations: int, workers: int | None, start: Path | None, if_stale: bool,
+                  as_json: bool) -> None:
+    """Fit the simulated participants' free behaviour parameters to the paper's numbers (Table 1's means and
+    Table 2's rank shares) for the conditions --on, by rehearsing the study's trials of those conditions; the
+    other conditions' numbers are never read, and a simulation with the result predicts them. Writes the
+    parameters, the loss, the seed and what the fit depends on."""
     import json
 
-    from .calibrate import Rehearsal, fit, read, stale_keys, write
+    from .calibrate import Rehearsal, explain_lines, fingerprint, read, stale_keys, write
+    from .calibrate import explain as explain_cells
+    from .calibrate import fit as fit_cells
+    from .paper_tables import CONDITIONS
 
     app, study_id = _app(study_id)
-    if if_stale and out.is_file():
+    study = _study(app, study_id)
+    out = out if out is not None or explain else Path("calibration.json")
+    if if_stale and out is not None and out.is_file():
         try:
             document = json.loads(out.read_text())
         except (OSError, ValueError):
             document = None
-        if isinstance(document, dict) and not stale_keys(document, _study(app, study_id)):
+        if not isinstance(document, dict):
+            fresh = False
+        elif explain:
+            fresh = document.get("explains") is True and document.get("fingerprint") == fingerprint(study)
+        else:
+            fresh = not stale_keys(document, study, on)
+        if fresh:
             emit({"out": str(out), "fitted": False, "loss": document.get("loss")}, as_json,
-                 f"{out}: fitted on this study, its priors, library and simulation code; kept")
+                 f"{out}: made on {' + '.join(on) if not explain else 'every condition'}, this study, its "
+                 f"priors, library and simulation code; kept")
             return
-    rehearsal = Rehearsal(app, study_id, participants, seed)
-    document = fit(rehearsal, evaluations, start=read(start) if start is not None else None,
-                   progress=lambda message: click.echo(message, err=True))
-    write(document, out)
-    measured = ", ".join(f"{k} {v:.3g}" for k, v in document["measured_none"].items())
-    emit(document, as_json, f"{out}: loss {document['loss']:.2f} after {document['evaluations']} evaluations "
-                            f"({document['seconds']:.0f} s); none: {measured}")
+    rehearsal = Rehearsal(app, study_id, participants, seed, CONDITIONS if explain else on,
+                          workers=workers or _workers())
+    progress = lambda message: click.echo(message, err=True)  # noqa: E731
+    try:
+        base = read(start) if start is not None else None
+        if explain:
+            document = {**explain_cells(rehearsal, base, progress=progress), "explains": True,
+                        "fingerprint": fingerprint(study)}
+        else:
+            document = fit_cells(rehearsal, evaluations, start=base, progress=progress)
+    finally:
+        rehearsal.close()
+    if out is not None:
+        write(document, out)
+    if explain:
+        emit(document, as_json, "\n".join(explain_lines(document)))
+        return
+    measured = "; ".join(f"{c}: " + ", ".join(f"{k} {v:.3g}" for k, v in m.items())
+                         for c, m in document["measured"].items())
+    emit(document, as_json, f"{out}: fitted on {' + '.join(on)}, loss {document['loss']:.2f} after "
+                            f"{document['evaluations']} evaluations ({document['seconds']:.0f} s); {measured}")
 
 
 def _sizes(ctx, param, value: str) -> list[int]:

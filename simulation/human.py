@@ -15,18 +15,26 @@ from dataclasses import dataclass, field, fields, replace
 
 from scenesuggest.errors import SceneSuggestError
 
+from .paper_tables import CONDITIONS as EVERY
 
-def _p(default: float, unit: str, low: float, high: float, source: str, free: bool = True) -> float:
-    """A parameter's declaration: its default, and its metadata for :func:`describe` and validation."""
+LIST, SUGGESTIONS = ("none",), ("basic", "full")
+
+
+def _p(default: float, unit: str, low: float, high: float, source: str, free: bool = True,
+       used: tuple[str, ...] = EVERY) -> float:
+    """A parameter's declaration: its default, and its metadata for :func:`describe` and validation. ``used``: the
+    conditions whose trials the parameter acts in (a bot in any other condition behaves the same whatever its
+    value; a test holds it so), and so the only ones whose numbers can inform it."""
     return field(default=default, metadata={"unit": unit, "low": low, "high": high, "source": source,
-                                             "free": free})
+                                             "free": free, "used": used})
 
 
 @dataclass(frozen=True)
 class Human:
     """The behaviour of the simulated participants (one set of values for all of them; people differ by
     ``skill_sd`` and scenes by ``scene_sd``). ``free`` parameters are fitted by :mod:`.calibrate` to the paper's
-    ``none`` condition; the others are fixed by the interface or the literature."""
+    numbers for the conditions a calibration is given (those of its ``used`` conditions); the others are fixed by
+    the interface or the literature."""
 
     hesitation_s: float = _p(0.5, "s", 0.0, 10.0, "mean pause before each action (exponential); fitted")
     look_round_s: float = _p(1.5, "s", 0.0, 20.0, "mean time looking round the scene (camera orbits) before "
@@ -34,9 +42,9 @@ class Human:
     scan_item_s: float = _p(0.35, "s", 0.05, 3.0, "looking at one thumbnail of a list (visual search, about "
                                                   "0.3 s per item; Card, Moran & Newell 1983); fitted")
     list_patience: float = _p(24.0, "items", 1.0, 400.0, "items of the fixed model list a person scans before "
-                                                         "searching instead; fitted")
+                                                         "searching instead; fitted", used=LIST)
     search_first: float = _p(0.3, "probability", 0.0, 1.0, "chance of typing a search before scanning the "
-                                                           "model list; fitted")
+                                                           "model list; fitted", used=LIST)
     overlook: float = _p(0.2, "probability", 0.0, 0.9, "mean chance of missing the wanted model in a list "
                                                        "while looking at it (per person: Beta, strength 10); "
                                                        "fitted")
@@ -60,8 +68,8 @@ class Human:
                                                            "(power law of practice, Newell & Rosenbloom 1981)",
                                  free=False)
     suggestion_patience: float = _p(12.0, "items", 1.0, 100.0, "suggestions looked at before searching: the "
-                                                               "panel shows 3 x 4 tiles without scrolling",
-                                    free=False)
+                                                               "panel shows 3 x 4 tiles without scrolling; "
+                                                               "fitted", used=SUGGESTIONS)
     results_scanned: float = _p(12.0, "items", 1.0, 200.0, "search results looked at before reformulating: "
                                                            "the panel's first screen", free=False)
     reformulations: float = _p(3.0, "searches", 0.0, 10.0, "new search texts tried after the first before giving "
@@ -106,9 +114,15 @@ class Human:
         return {f.name: float(getattr(self, f.name)) for f in fields(self)}
 
 
-def free_parameters() -> list[str]:
-    """The names of the parameters a calibration fits, in declaration order."""
-    return [f.name for f in fields(Human) if f.metadata["free"]]
+def free_parameters(conditions: tuple[str, ...] = EVERY) -> list[str]:
+    """The names of the parameters a calibration on ``conditions`` fits (free, and used in one of them), in
+    declaration order."""
+    return [f.name for f in fields(Human) if f.metadata["free"] and set(f.metadata["used"]) & set(conditions)]
+
+
+def used_in(name: str) -> tuple[str, ...]:
+    """The conditions whose trials parameter ``name`` acts in."""
+    return {f.name: f for f in fields(Human)}[name].metadata["used"]
 
 
 def bounds(name: str) -> tuple[float, float]:
@@ -121,4 +135,4 @@ def describe(human: Human | None = None) -> list[dict]:
     human = human or Human()
     return [{"name": f.name, "value": getattr(human, f.name), "default": f.default, "unit": f.metadata["unit"],
              "low": f.metadata["low"], "high": f.metadata["high"], "free": f.metadata["free"],
-             "source": f.metadata["source"]} for f in fields(Human)]
+             "used": list(f.metadata["used"]), "source": f.metadata["source"]} for f in fields(Human)]

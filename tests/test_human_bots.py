@@ -1,8 +1,8 @@
-"""Simulated participants that behave like people, and their calibration on the paper's ``none`` condition only."""
+"""Simulated participants that behave like people, their calibration on some of the paper's conditions, and
+what each condition can tell of them."""
 
 from __future__ import annotations
 
-import ast
 import json
 import math
 import os
@@ -18,9 +18,10 @@ from demostudy import DEMO_STUDY, make_app
 from support import ROOT
 
 from scenesuggest.errors import SceneSuggestError
-from simulation import calibrate
-from simulation.calibrate import PAPER_NONE, Rehearsal, fit, loss, measure, read, write
-from simulation.human import Human, describe, free_parameters
+from simulation import calibrate, paper_tables
+from simulation.calibrate import Rehearsal, explain, explain_lines, fit, loss, measure, read, write
+from simulation.human import Human, describe, free_parameters, used_in
+from simulation.paper_tables import CONDITIONS, TABLE1, cells, conditions_of
 from simulation.participant import Bot
 from simulation.transport import FlaskTransport
 
@@ -60,7 +61,8 @@ def rehearsal(tmp_path_factory, demo_resources):
 def test_a_rehearsal_measures_the_none_condition_as_the_analysis_does(rehearsal):
     events = rehearsal.events(Human())
     measured = measure(events)
-    assert set(measured) >= set(PAPER_NONE) and all(math.isfinite(v) for v in measured.values())
+    assert set(measured) >= set(TABLE1) and all(math.isfinite(v) for v in measured.values())
+    assert set(events["condition"]) == {"none"}  # only the rehearsal's conditions are played
     assert abs(sum(measured[f"rank_{k}"] for k in ("1", "2", "3", "4+")) - 1) < 1e-9
     assert (events["type"] == "camera").any() and (events["type"] == "search").any()  # looks round, searches
     moves = events[events["type"] == "move_end"].groupby(["participant", "trial"])["payload"].apply(
@@ -87,27 +89,105 @@ def test_people_search_with_their_own_words_and_reformulate(rehearsal, demo_reso
 
 
 def test_the_loss_is_zero_at_the_paper_and_grows_away_from_it():
-    at_paper = {**{k: v[0] for k, v in PAPER_NONE.items()},
-                **{f"rank_{k}": v for k, v in calibrate.PAPER_NONE_RANKS.items()}}
-    assert loss(at_paper) == 0
-    assert loss({**at_paper, "total_time": 241.0}) == pytest.approx(1.96 ** 2 * 4 * 37 ** 2 / 64 ** 2)
-    assert loss({**at_paper, "mrr": float("nan")}) == 1e9
+    fold = cells(("none", "full"))
+    at_paper = {c: {} for c in ("none", "full")}
+    for cell in fold:
+        at_paper[cell.condition][cell.measure] = cell.mean
+    assert loss(at_paper, fold) == 0
+    off = {**at_paper, "full": {**at_paper["full"], "total_time": 168.0}}  # full's upper bound, 29 s above
+    assert loss(off, fold) == pytest.approx((29.0 / ((168.0 - 118.0) / 3.92)) ** 2)
+    off = {**at_paper, "none": {**at_paper["none"], "rank_2": 0.140 + 0.10}}  # two RANK_SE
+    assert loss(off, fold) == pytest.approx(4.0)
+    assert loss({**at_paper, "none": {**at_paper["none"], "mrr": float("nan")}}, fold) == 1e9
 
 
-def test_the_calibration_never_reads_the_other_conditions():
-    """The fit may only see the paper's `none` numbers: its source names no other condition, holds none of their
-    Table 1 or Table 2 numbers, and imports nothing that does (the replication's comparison holds them)."""
-    source = Path(calibrate.__file__).read_text()
-    tree = ast.parse(source)
-    assert not {"basic", "full"} & {w.strip("`'\".,:;()").lower() for w in source.split()}
-    numbers = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, float)}
-    others = {170.0, 130.0, 267.0, 139.0, 118.0, 168.0, 22.4, 19.5, 26.5, 17.2, 14.3, 21.1, 38.5, 31.0, 50.1,
-              39.8, 30.1, 62.5, 3.3, 2.3, 4.9, 2.5, 1.6, 3.9, 0.785, 0.765, 0.805, 0.769, 0.747, 0.791, 0.687,
-              0.675, 0.111, 0.0984, 0.0428, 0.0487, 0.159, 0.178}
-    assert not numbers & others
-    imported = {n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)} | {
-        a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
-    assert not any("compare" in m or "experiments" in m or "analysis.report" in m for m in imported)
+@pytest.mark.parametrize(("text", "message"), [
+    ("none,basic,full", "a calibration fitted on all three conditions predicts none"),
+    ("none,oriented", "no condition 'oriented' in the paper (it has none, basic, full)"),
+    ("none,none", "a condition is named twice"),
+    ("", "expected conditions separated by commas"),
+    ("none,", "expected conditions separated by commas"),
+])
+def test_a_fold_names_one_or_two_of_the_papers_conditions(text, message):
+    with pytest.raises(SceneSuggestError, match=re.escape(message)):
+        conditions_of(text)
+    assert conditions_of("full, none") == ("none", "full")  # in the paper's order
+
+
+def test_cells_hand_out_only_the_folds_conditions():
+    fold = cells(("basic",))
+    assert {c.condition for c in fold} == {"basic"} and len(fold) == len(TABLE1) + 4
+    total = next(c for c in fold if c.measure == "total_time")
+    assert (total.mean, total.se) == (170.0, pytest.approx((267.0 - 130.0) / 3.92))
+    assert total.matched(267.0) and not total.matched(267.5)
+    share = next(c for c in fold if c.measure == "rank_1")
+    assert share.matched(0.687 - 0.08) and not share.matched(0.687 - 0.081)
+
+
+FOLDS = [("none",), ("none", "basic"), ("none", "full"), ("basic", "full")]
+
+
+@pytest.mark.parametrize("on", FOLDS, ids=["+".join(f) for f in FOLDS])
+def test_a_fold_never_reads_the_held_out_conditions(on, demo_resources, tmp_path, monkeypatch):
+    """A fit on ``on`` is the same, to the bit, when every held-out cell of the paper's tables says something
+    else; its file holds its own conditions' cells only, and it fits exactly the parameters they use."""
+    rehearsal = Rehearsal(make_app(tmp_path / "app"), "demo", participants=2, seed=0, conditions=on)
+
+    def fitted() -> dict:
+        document = fit(rehearsal, evaluations=2)
+        return {k: v for k, v in document.items() if k not in ("seconds", "created")}
+
+    honest = fitted()
+    for by in [*paper_tables.TABLE1.values(), *paper_tables.TABLE2.values()]:
+        for c in paper_tables.held_out(on):
+            monkeypatch.setitem(by, c, (1e6, -1e6, 3e6) if isinstance(by[c], tuple) else 0.999)
+    assert fitted() == honest
+    assert honest["on"] == list(on) and honest["held_out"] == [c for c in CONDITIONS if c not in on]
+    assert {k.split(".")[0] for k in honest["paper"]} == set(on) and set(honest["measured"]) == set(on)
+    assert honest["free"] == free_parameters(on)
+    assert all(set(used_in(p)) & set(on) for p in honest["free"])
+    unused = [p for p in free_parameters() if not set(used_in(p)) & set(on)]
+    assert ("suggestion_patience" in unused) == (on == ("none",))
+    assert (("list_patience" in unused) and ("search_first" in unused)) == (on == ("basic", "full"))
+    assert all(honest["parameters"][p] == getattr(Human(), p) for p in unused)  # kept at their defaults
+
+
+@pytest.mark.parametrize(("parameter", "condition"), [
+    (p, c) for p in free_parameters() for c in CONDITIONS if c not in used_in(p)])
+def test_a_parameter_a_condition_does_not_use_leaves_its_trials_as_they_were(parameter, condition, tmp_path,
+                                                                               demo_resources):
+    rehearsal = Rehearsal(make_app(tmp_path / "app"), "demo", participants=3, seed=1, conditions=(condition,))
+    low, high = calibrate.bounds(parameter)
+
+    def events(value: float) -> list[dict]:
+        """The events, their times from their trial's start and without the lists' ids (fresh per list)."""
+        frame = rehearsal.events(Human().with_values({parameter: value}))
+        frame["client_t_ms"] -= frame.groupby(["participant", "trial"])["client_t_ms"].transform("min")
+        rows = frame.to_dict("records")
+        for row in rows:
+            row["payload"] = {k: v for k, v in row["payload"].items() if k != "list_id"}
+        return rows
+
+    a = events(low)
+    assert len(a) > 100 and a == events(high)
+
+
+@pytest.mark.slow
+def test_explain_says_which_condition_informs_which_parameter(tmp_path, demo_resources):
+    rehearsal = Rehearsal(make_app(tmp_path / "app"), "demo", participants=3, seed=0, conditions=CONDITIONS)
+    table = explain(rehearsal, step=1.0)
+    rows = {r["parameter"]: r for r in table["parameters"]}
+    assert list(rows) == free_parameters()
+    for name, row in rows.items():
+        assert set(row["effects"]) == {c.key for c in cells(CONDITIONS)}
+        for key, effect in row["effects"].items():
+            if key.split(".")[0] not in used_in(name):
+                assert effect == 0.0, (name, key)  # a condition that does not use it cannot tell it
+        assert set(row["informs"]) <= set(used_in(name))
+    assert rows["scan_item_s"]["informs"]  # scanning time shows in the times of every list a person scans
+    lines = explain_lines(table)
+    assert lines[0].startswith("| Parameter | used in | none | basic | full |")
+    assert any(line.startswith("| `suggestion_patience` | basic, full | 0 |") for line in lines)
 
 
 def test_the_engine_in_a_fingerprint_is_what_its_priors_hold_not_the_code_hash(rehearsal, tmp_path):
@@ -135,7 +215,7 @@ def test_the_engine_in_a_fingerprint_is_what_its_priors_hold_not_the_code_hash(r
 def test_a_fit_writes_a_file_that_simulate_reads_and_refuses_when_stale(rehearsal, tmp_path):
     document = fit(rehearsal, evaluations=3)
     assert document["evaluations"] == 3 and math.isfinite(document["loss"]) and document["seed"] == 0
-    assert set(document["free"]) == set(free_parameters())
+    assert document["free"] == free_parameters(("none",)) and document["on"] == ["none"]
     path = tmp_path / "calibration.json"
     write(document, path)
     human = read(path, rehearsal.study)
@@ -155,6 +235,10 @@ def test_a_fit_writes_a_file_that_simulate_reads_and_refuses_when_stale(rehearsa
         read(tmp_path / "garbage.json")
     with pytest.raises(SceneSuggestError, match="no such calibration file"):
         read(tmp_path / "missing.json")
+    with pytest.raises(SceneSuggestError, match=re.escape("field 'on': fitted on none, not on none + basic")):
+        read(path, rehearsal.study, ("none", "basic"))
+    assert calibrate.stale_keys(document, rehearsal.study, ("none", "full")) == ["conditions"]
+    assert calibrate.stale_keys({**document, "version": 1}, rehearsal.study) == ["format"]
 
 
 @pytest.mark.slow
@@ -163,16 +247,34 @@ def test_cli_calibrate_then_simulate_with_it(tmp_path, demo_resources):
            "SCENESUGGEST_INSTANCE": str(tmp_path / "instance"), "SCENESUGGEST_STUDIES": str(DEMO_STUDY)}
     cli = [sys.executable, "-m", "scenesuggest.cli", "study"]
     out = tmp_path / "cal.json"
-    run = subprocess.run([*cli, "calibrate", "-o", str(out), "--participants", "2", "--evaluations", "2",
-                          "--json"], capture_output=True, text=True, env=env, cwd=ROOT)
+    run = subprocess.run([*cli, "calibrate", "-o", str(out), "--on", "full,none", "--participants", "2",
+                          "--evaluations", "2", "--json"], capture_output=True, text=True, env=env, cwd=ROOT)
     assert run.returncode == 0, run.stderr
-    assert json.loads(run.stdout)["evaluations"] == 2 and "evaluation 2: loss" in run.stderr
-    again = subprocess.run([*cli, "calibrate", "-o", str(out), "--if-stale"], capture_output=True, text=True,
-                           env=env, cwd=ROOT)
+    fitted = json.loads(run.stdout)
+    assert fitted["evaluations"] == 2 and fitted["on"] == ["none", "full"] and "evaluation 2: loss" in run.stderr
+    again = subprocess.run([*cli, "calibrate", "-o", str(out), "--on", "none,full", "--if-stale"],
+                           capture_output=True, text=True, env=env, cwd=ROOT)
     assert again.returncode == 0 and "kept" in again.stdout, again.stderr
-    sim = subprocess.run([*cli, "simulate", "--participants", "1", "--calibration", str(out), "--json"],
-                         capture_output=True, text=True, env=env, cwd=ROOT)
+    sim = subprocess.run([*cli, "simulate", "--participants", "1", "--calibration", str(out), "--on", "none,full",
+                          "--json"], capture_output=True, text=True, env=env, cwd=ROOT)
     assert sim.returncode == 0 and json.loads(sim.stdout)["completed"] == 1, sim.stderr
+    for args, message in [
+            (["simulate", "--calibration", str(out), "--on", "none,basic"],
+             "fitted on none + full, not on none + basic"),
+            (["calibrate", "-o", str(tmp_path / "x.json"), "--on", "none,basic,full"], "predicts none"),
+            (["calibrate", "-o", str(tmp_path / "x.json"), "--on", "oriented"], "no condition 'oriented'")]:
+        refused = subprocess.run([*cli, *args], capture_output=True, text=True, env=env, cwd=ROOT)
+        assert refused.returncode == 2 and message in refused.stderr, (args, refused.stderr)
+        assert "Traceback" not in refused.stderr and not (tmp_path / "x.json").exists()
+    (tmp_path / "other.json").write_text(out.read_text())
+    other_fold = subprocess.run([*cli, "calibrate", "-o", str(tmp_path / "other.json"), "--on", "none",
+                                 "--if-stale", "--participants", "2", "--evaluations", "1", "--json"],
+                                capture_output=True, text=True, env=env, cwd=ROOT)
+    assert other_fold.returncode == 0 and json.loads(other_fold.stdout)["on"] == ["none"], other_fold.stderr
+    table = subprocess.run([*cli, "calibrate", "--explain", "--participants", "2", "-o", str(tmp_path / "id.json")],
+                           capture_output=True, text=True, env=env, cwd=ROOT)
+    assert table.returncode == 0 and "| `suggestion_patience` | basic, full | 0 |" in table.stdout, table.stderr
+    assert json.loads((tmp_path / "id.json").read_text())["explains"] is True
     power = subprocess.run([*cli, "power", "--calibration", str(out), "--participants", "4,6", "--studies", "10",
                             "--pilot", "3", "--sets", "2", "--json"], capture_output=True, text=True, env=env, cwd=ROOT)
     assert power.returncode == 0, power.stderr

@@ -68,7 +68,7 @@ def test_the_simulation_drives_the_server_from_outside():
     the ones that score simulated studies, as an analyst would, use the analysis: the calibration and the power
     analysis."""
     factory = {"study_server", "study_server.create_app", "study_server.upgrade_database"}
-    offline = {"study_server.studies", "study_server.studies.offline", "study_server.studies.offline.OfflineAnswers"}
+    offline = {"study_server.trials", "study_server.trials.offline", "study_server.trials.offline.OfflineAnswers"}
     # entry links signed as pilots', and the pilot database
     pilots = {"study_server.participants", "study_server.participants.pilots"}
     roots = {"cli.py": factory | offline | pilots, "calibrate.py": offline, "power.py": factory}

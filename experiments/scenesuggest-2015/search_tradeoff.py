@@ -3,7 +3,7 @@ shares of the replication's `none` trials as the share of objects searched for f
 list patience (items scanned before giving up on the list) move away from the calibrated values, everything else
 as calibrated. One JSON line per setting, with the loss against the paper's `none` row (without the prior).
 
-Run after ``make replication`` (it needs the prepared study and ``calibration.json``)::
+Run after ``make replication`` (it needs the prepared study and ``calibration/none.json``)::
 
     DATABASE_URL=sqlite:////tmp/tradeoff.sqlite3 SCENESUGGEST_INSTANCE=var/experiments/scenesuggest-2015/run/instance \\
     SCENESUGGEST_STUDIES=$PWD/experiments/scenesuggest-2015/study.toml \\
@@ -21,7 +21,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))
 
-from simulation.calibrate import Rehearsal, loss, measure, read  # noqa: E402
+from simulation.calibrate import Rehearsal, loss, read  # noqa: E402
+from simulation.paper_tables import cells  # noqa: E402
 from study_server import create_app, upgrade_database  # noqa: E402
 
 #: (search_first, list_patience) settings; None keeps the calibrated value.
@@ -32,13 +33,14 @@ def main() -> int:
     app = create_app()
     upgrade_database(app)
     rehearsal = Rehearsal(app, "scenesuggest-2015", participants=40, seed=0)
-    calibrated = read(HERE / "calibration.json", rehearsal.study)
+    calibrated = read(HERE / "calibration" / "none.json", rehearsal.study, ("none",))
     for search_first, patience in SETTINGS:
         changes = {k: v for k, v in (("search_first", search_first), ("list_patience", patience)) if v is not None}
         human = calibrated.with_values(changes)
-        measured = measure(rehearsal.events(human))
+        measured = rehearsal.measure(human)
         print(json.dumps({"search_first": round(human.search_first, 3), "list_patience": round(human.list_patience, 1),
-                          "loss": round(loss(measured), 2), **{k: round(v, 3) for k, v in measured.items()}}),
+                          "loss": round(loss(measured, cells(("none",))), 2),
+                          **{k: round(v, 3) for k, v in measured["none"].items()}}),
               flush=True)
     return 0
 

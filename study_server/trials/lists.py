@@ -191,8 +191,8 @@ def suggest(rt: StudyRuntime, who: Participant | None, condition: str, scene_id:
         query = {"parent": data.get("parent"), "point": data.get("point"), "normal": data.get("normal"),
                  "surface_type": found.surface_type, "engine": found.engine,
                  **({"fallback": found.fallback} if found.fallback else {})}
-        shown = [stored_item(i) for i in items]
-        list_id = _store(who, trial, "context", query, shown, _quota_bytes(rt)) if who else uuid.uuid4().hex
+        list_id = (_store(who, trial, "context", query, [stored_item(i) for i in items], _quota_bytes(rt))
+                   if who else uuid.uuid4().hex)
     if who is not None and found.fallback:
         log("engine_fallback", who, condition=condition, trial=trial, engine=interface.engine.name,
             answered_by=found.engine, reason=found.fallback, list_id=list_id)

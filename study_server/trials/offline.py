@@ -1,5 +1,6 @@
 """A study's answers to a participant's page, given in process without a participant: the scene, the fixed model
-list and the search results exactly as the API gives them, with no list recorded and no event stored. For
+list, the search results and the context suggestions exactly as the API gives them, with no list recorded and no
+event stored. For
 rehearsing a study's trials many times over (the simulation's calibration), where a real session per rehearsal
 would only add database writes."""
 
@@ -7,8 +8,9 @@ from __future__ import annotations
 
 from flask import Flask
 
-from .served import StudyRuntime, runtime
-from .study_file import Study
+from ..studies.served import StudyRuntime, runtime
+from ..studies.study_file import Study
+from . import lists
 
 
 class OfflineAnswers:
@@ -39,3 +41,10 @@ class OfflineAnswers:
             return {"list_id": None, "query": text,
                     "hits": [dict(self.rt.describe(self.rt.library[h.model_id]), rank=i + 1)
                              for i, h in enumerate(hits)]}
+
+    def suggest(self, condition: str, scene_id: str, trial: int, data: dict) -> dict:
+        """``POST /api/suggest`` in ``condition`` for a click in trial ``trial`` on scene ``scene_id`` (``data`` as
+        the editor posts it: ``scene``, ``parent``, ``point``, ``normal``; metres, world frame). The list is not
+        stored: its ``list_id`` is a fresh id that names nothing."""
+        with self.app.test_request_context():
+            return lists.suggest(self.rt, None, condition, scene_id, trial, data)
