@@ -67,6 +67,20 @@ def search_words(text: str) -> list[str]:
     return re.findall(r"[a-z]{3,}", words(text))
 
 
+def misspelt(text: str, u: float) -> str:
+    """``text`` as a person mistypes it: two neighbouring letters of its longest word swapped, after the first
+    (people get that one right), where ``u`` (in [0, 1)) says (``desk lamp`` → ``dsek lamp``); a doubled letter is
+    typed once instead. Mostly a word the library's names and tags do not hold."""
+    longest = max(text.split(), key=len)
+    if len(longest) < 3:
+        return text + longest[-1]
+    at = 1 + int(u * (len(longest) - 2))  # swap letters at and at + 1
+    typed = longest[:at] + longest[at + 1] + longest[at] + longest[at + 2:]
+    if typed == longest:
+        typed = longest[:at] + longest[at + 1:]
+    return text.replace(longest, typed, 1)
+
+
 def box_of(state: dict) -> tuple[np.ndarray, np.ndarray]:
     """The world axis-aligned box (low, high corners, metres) of an object state."""
     return frames.world_bbox(np.asarray(state["transform"], dtype=float).reshape(4, 4).T, state["size"])
@@ -221,17 +235,28 @@ class BotTrial:
         tags (which first: ``category_words``), then the other, then the category's parents in the taxonomy
         (most specific first); at most 1 + ``reformulations`` different texts. With chance ``generic_words``
         the category's words are first cut to their last (the head noun: ``desk lamp`` → ``lamp``), which
-        matches more models."""
+        matches more models; with chance ``tag_words`` the person's own words are one of the model's tags (what it
+        is for or looks like), which other models share; with chance ``unknown_words`` the first text is
+        mistyped and finds nothing useful."""
         model = self.who.library.get(obj["model_id"], {})
         category = words(obj["category"])
         own = list(dict.fromkeys(search_words(model.get("name", "")) + [w for tag in model.get("tags", ())
                                                                         for w in search_words(tag)]))
-        two, category_first, generic = self.who.rng.random(3)  # drawn always: common random numbers
-        own_text = (" ".join(own[:2]) if two < 0.5 else own[0]) if own else category
+        # drawn always: common random numbers
+        two, category_first, generic, tag, unknown, typo = self.who.rng.random(6)
+        named = list(dict.fromkeys(search_words(model.get("name", ""))))
+        tagged = list(dict.fromkeys(w for t in model.get("tags", ()) for w in search_words(t)))
+        if tag < self.human.tag_words and tagged:
+            own_text = tagged[int(two * len(tagged))]  # one word of what it is for or looks like
+        else:
+            own = list(dict.fromkeys(named + tagged))
+            own_text = (" ".join(own[:2]) if two < 0.5 else own[0]) if own else category
         said = [category.split()[-1], category] if generic < self.human.generic_words else [category]
         first = [*said, own_text] if category_first < self.human.category_words else [own_text, *said]
         parents = [words(c) for c in reversed(model.get("category_path", ())[:-1])]
         texts = list(dict.fromkeys(t for t in [*first, *parents, category.split()[-1]] if t))
+        if unknown < self.human.unknown_words:
+            texts.insert(0, misspelt(texts[0], typo))
         return texts[:1 + round(self.human.reformulations)]
 
     def search(self, text: str) -> dict:
@@ -414,7 +439,8 @@ class BotTrial:
                 break
             self.act(M + P)
             self.event("move_start", {"object": obj["id"]})
-            self.spend(drag_seconds(distance) + self.who.rng.exponential(1.0) * h.drag_settle_s)  # watching it
+            held = drag_seconds(distance) + self.who.rng.exponential(1.0) * h.drag_settle_s  # moving, then watching
+            self.spend(held * self.who.drag_factor)
             end = self.on_parent(obj, contact + self.plane_offset(obj, h.drag_error * distance / math.sqrt(2)))
             if np.linalg.norm(np.subtract(end, contact)) <= h.position_tolerance_m:
                 end = contact.tolist()

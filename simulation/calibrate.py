@@ -42,7 +42,7 @@ from scenesuggest.npz import read_npz
 
 from . import paper_tables
 from .human import Human, bounds, free_parameters, used_in
-from .paper_tables import Cell
+from .paper_tables import PARTICIPANTS, SPREAD_MEASURES, Cell
 from .transport import Response
 
 FORMAT = "scenesuggest-calibration"
@@ -226,7 +226,8 @@ class Rehearsal:
 
 def measure(events: pd.DataFrame) -> dict[str, float]:
     """The paper's measures of one condition's events, by the analysis' definitions: per-trial means of total,
-    rotation and translation time and keyword queries; MRR and rank shares over final picks."""
+    rotation and translation time and keyword queries; MRR and rank shares over final picks; and for each time the
+    standard error of its mean over PARTICIPANTS people (``total_time_se``, …: the spread of people's means)."""
     from analysis.measures import measures_by_trial
     from scenesuggest.contract.picks import picks
 
@@ -241,6 +242,11 @@ def measure(events: pd.DataFrame) -> dict[str, float]:
     ranks = np.asarray(ranks, dtype=float)
     out = {name: float(np.nanmean(per_trial[name])) for name in ("total_time", "rotation_time",
                                                                   "translation_time", "n_text_queries")}
+    people = unique.get_level_values(0)
+    for name in SPREAD_MEASURES:  # the standard error of the mean over the paper's number of people
+        per_person = pd.Series(per_trial[name]).groupby(np.asarray(people)).mean()
+        out[f"{name}_se"] = float(per_person.std(ddof=1) / math.sqrt(PARTICIPANTS)) if len(per_person) > 1 \
+            else float("nan")
     out["mrr"] = float(np.mean(1.0 / ranks)) if len(ranks) else float("nan")
     for label, hit in (("1", ranks == 1), ("2", ranks == 2), ("3", ranks == 3), ("4+", ranks >= 4)):
         out[f"rank_{label}"] = float(hit.mean()) if len(ranks) else float("nan")

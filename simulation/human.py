@@ -52,6 +52,12 @@ class Human:
                                                              "(else words of the model's name and tags); fitted")
     generic_words: float = _p(0.3, "probability", 0.0, 1.0, "chance that a person types only the category's "
                                                             "head noun first (lamp for a desk lamp); fitted")
+    tag_words: float = _p(0.2, "probability", 0.0, 1.0, "chance that a person's own words for an object are one "
+                                                        "word of what it is for or looks like (a tag several models "
+                                                        "share), not its name; fitted")
+    unknown_words: float = _p(0.2, "probability", 0.0, 1.0, "chance that a person's first search for an object uses "
+                                                            "a word the library does not know (a typo, their own word "
+                                                            "for it): they look, and try again; fitted")
     drag_error: float = _p(0.3, "fraction", 0.0, 2.0, "standard deviation of where a drag ends, as a fraction of "
                                                       "its distance (each miss is corrected by another drag); "
                                                       "fitted")
@@ -80,9 +86,15 @@ class Human:
     turn_tolerance_deg: float = _p(4.0, "deg", 0.5, 45.0, "how close a person turns before they are satisfied",
                                    free=False)
     skill_sd: float = _p(0.25, "log s", 0.0, 2.0, "spread of people's speed: log-normal standard deviation of a "
-                                                  "person's time factor", free=False)
+                                                  "person's time factor; fitted to the paper's intervals")
     scene_sd: float = _p(0.15, "log s", 0.0, 2.0, "spread of scenes' difficulty: log-normal standard deviation of "
-                                                  "a scene's time factor, the same for everyone", free=False)
+                                                  "a scene's time factor, the same for everyone; fitted to the "
+                                                  "paper's intervals")
+    trackpad_share: float = _p(0.2, "probability", 0.0, 1.0, "share of people who drag with a trackpad (the paper "
+                                                             "notes some did); fitted to the paper's intervals")
+    trackpad_slowdown: float = _p(1.7, "factor", 1.0, 5.0, "how much longer a drag takes on a trackpad than with a "
+                                                           "mouse: pointing throughput 2.9 against 4.9 bits/s "
+                                                           "(MacKenzie, Kauppinen & Silfverberg 2001)", free=False)
 
     def __post_init__(self):
         for f in fields(self):

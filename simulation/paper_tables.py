@@ -1,8 +1,9 @@
 """The paper's numbers the simulated participants are fitted to and judged by (Savva, Chang, Agrawala:
 SceneSuggest, Table 1 and Table 2; 20 participants × 9 trials, a 102-model library), by condition.
 
-Table 1 gives per-trial means with 95% bootstrap intervals (seconds, keyword queries, MRR); Table 2 the share of
-picks at rank 1, 2, 3 and 4 or lower, with no interval. :func:`cells` hands out the cells of some conditions only:
+Table 1 gives per-trial means with 95% bootstrap intervals (seconds, keyword queries, MRR); an interval's width
+also says how much people differ. Table 2 gives the share of picks at rank 1, 2, 3 and 4 or lower, with no
+interval. :func:`cells` hands out the cells of some conditions only:
 a calibration that leaves a condition out asks for the others' cells and never holds the held-out numbers.
 """
 
@@ -31,35 +32,50 @@ TABLE2 = {
 #: Table 2 gives no interval: a share off by 5 points costs one standard error in a fit, and a predicted share
 #: within RANK_TOLERANCE of the paper's matches it.
 RANK_SE, RANK_TOLERANCE = 0.05, 0.08
+#: The paper's participants, and the times whose intervals say how much people and scenes differ: a mean's standard
+#: error over PARTICIPANTS people is its interval's width / 3.92, known to within SPREAD_RELATIVE_SE of itself (the
+#: standard deviation of 20 people's is 16% uncertain; the bootstrap adds its own).
+PARTICIPANTS = 20
+SPREAD_MEASURES = ("total_time", "rotation_time", "translation_time")
+SPREAD_RELATIVE_SE = 0.2
 
 
 @dataclass(frozen=True)
 class Cell:
-    """One cell of the paper: ``measure`` (a Table 1 name, or ``rank_1`` … ``rank_4+``) in ``condition``, its
-    mean, its 95% interval (None for Table 2) and the standard error a fit weighs it by (the interval's width
-    / 3.92, or RANK_SE)."""
+    """One number of the paper in ``condition``: a Table 1 mean (``kind`` "mean", with its 95% interval), a Table
+    2 share (``measure`` ``rank_1`` … ``rank_4+``, "share") or the standard error of a Table 1 time over the paper's
+    participants (``measure`` e.g. ``total_time_se``, "spread", from the interval's width); ``se`` is what a fit
+    weighs it by (the interval's width / 3.92, RANK_SE, or SPREAD_RELATIVE_SE of the spread)."""
 
-    table: int
+    kind: str
     measure: str
     condition: str
     mean: float
-    low: float | None
-    high: float | None
+    low: float | None = None
+    high: float | None = None
+
+    @property
+    def table(self) -> int | None:
+        return {"mean": 1, "share": 2}.get(self.kind)
 
     @property
     def se(self) -> float:
-        return (self.high - self.low) / (2 * 1.96) if self.table == 1 else RANK_SE
+        if self.kind == "mean":
+            return (self.high - self.low) / (2 * 1.96)
+        return RANK_SE if self.kind == "share" else SPREAD_RELATIVE_SE * self.mean
 
     @property
     def key(self) -> str:
         return f"{self.condition}.{self.measure}"
 
     def matched(self, value: float) -> bool:
-        """Whether a simulated ``value`` matches this cell: inside the paper's interval (Table 1), within
-        RANK_TOLERANCE of its share (Table 2)."""
-        if self.table == 1:
+        """Whether a simulated ``value`` matches this cell: inside the paper's interval (a mean), within
+        RANK_TOLERANCE of its share, within two of its standard errors (a spread)."""
+        if self.kind == "mean":
             return self.low <= value <= self.high
-        return abs(value - self.mean) <= RANK_TOLERANCE
+        if self.kind == "share":
+            return abs(value - self.mean) <= RANK_TOLERANCE
+        return abs(value - self.mean) <= 2 * self.se
 
 
 def conditions_of(text: str | list[str] | tuple[str, ...]) -> tuple[str, ...]:
@@ -81,10 +97,14 @@ def conditions_of(text: str | list[str] | tuple[str, ...]) -> tuple[str, ...]:
     return tuple(c for c in CONDITIONS if c in names)
 
 
-def cells(conditions: tuple[str, ...]) -> tuple[Cell, ...]:
-    """Every cell of Table 1 and Table 2 in ``conditions`` (and no other condition's)."""
-    out = [Cell(1, measure, c, *by[c]) for measure, by in TABLE1.items() for c in conditions]
-    out += [Cell(2, f"rank_{label}", c, by[c], None, None) for label, by in TABLE2.items() for c in conditions]
+def cells(conditions: tuple[str, ...], spreads: bool = True) -> tuple[Cell, ...]:
+    """Every cell of Table 1 and Table 2 in ``conditions`` (and no other condition's), then (``spreads``) the
+    spreads their times' intervals give."""
+    out = [Cell("mean", measure, c, *by[c]) for measure, by in TABLE1.items() for c in conditions]
+    out += [Cell("share", f"rank_{label}", c, by[c]) for label, by in TABLE2.items() for c in conditions]
+    if spreads:
+        out += [Cell("spread", f"{m}_se", c, (TABLE1[m][c][2] - TABLE1[m][c][1]) / (2 * 1.96))
+                for m in SPREAD_MEASURES for c in conditions]
     return tuple(out)
 
 

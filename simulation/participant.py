@@ -75,8 +75,10 @@ class Bot:
         self.symmetry = symmetry if symmetry is not None else {}
         self.library: dict[str, dict] = {}
         self.fixed: list[dict] = []
-        z_speed, u_overlook = rng.normal(), rng.random()  # drawn always: common random numbers
+        z_speed, u_overlook, u_pad = rng.normal(), rng.random(), rng.random()  # drawn always: common random numbers
         self.speed = speed if speed is not None else float(np.exp(self.human.skill_sd * z_speed))
+        #: how much longer this person's drags take than with a mouse (a trackpad's, or 1)
+        self.drag_factor = self.human.trackpad_slowdown if u_pad < self.human.trackpad_share else 1.0
         self.does = behaviours or Behaviours()
         if self.does.lossy or self.does.latency_s:
             self.http = LossyTransport(transport, rng, self.does.lossy, self.does.latency_s)

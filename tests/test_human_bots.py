@@ -61,7 +61,7 @@ def rehearsal(tmp_path_factory, demo_resources):
 def test_a_rehearsal_measures_the_none_condition_as_the_analysis_does(rehearsal):
     events = rehearsal.events(Human())
     measured = measure(events)
-    assert set(measured) >= set(TABLE1) and all(math.isfinite(v) for v in measured.values())
+    assert set(measured) >= set(TABLE1) | {"total_time_se"} and all(math.isfinite(v) for v in measured.values())
     assert set(events["condition"]) == {"none"}  # only the rehearsal's conditions are played
     assert abs(sum(measured[f"rank_{k}"] for k in ("1", "2", "3", "4+")) - 1) < 1e-9
     assert (events["type"] == "camera").any() and (events["type"] == "search").any()  # looks round, searches
@@ -77,7 +77,7 @@ def test_a_rehearsal_measures_the_none_condition_as_the_analysis_does(rehearsal)
 def test_people_search_with_their_own_words_and_reformulate(rehearsal, demo_resources):
     app = make_app(Path(rehearsal.app.instance_path).parent / "words")
     bot = Bot(FlaskTransport(app.test_client()), "demo", "w", np.random.default_rng(0),
-              human=Human(category_words=0.0))
+              human=Human(category_words=0.0, unknown_words=0.0))
     bot.library = {"m": {"id": "m", "name": "Tall Lamp 3000", "tags": ["light"],
                          "category_path": ["Lighting", "FloorLamp"]}}
     from simulation.actions import BotTrial
@@ -86,6 +86,27 @@ def test_people_search_with_their_own_words_and_reformulate(rehearsal, demo_reso
                         "trial": {"index": 0, "scene": "desk", "condition": "none", "kind": "trial"}})
     texts = trial.search_texts({"model_id": "m", "category": "FloorLamp"})
     assert texts[0] in ("tall", "tall lamp") and "floor lamp" in texts and "lighting" in texts
+    trial.human = Human(category_words=0.0, tag_words=1.0, unknown_words=0.0)  # what it is for: models share it
+    assert trial.search_texts({"model_id": "m", "category": "FloorLamp"})[0] == "light"
+    trial.human = Human(category_words=1.0, generic_words=0.0, unknown_words=1.0)  # a typo first, then the words
+    typo, *rest = trial.search_texts({"model_id": "m", "category": "FloorLamp"})
+    assert rest[0] == "floor lamp" and typo != "floor lamp" and sorted(typo) == sorted("floor lamp")
+
+
+@pytest.mark.parametrize(("text", "u", "typed"), [("desk lamp", 0.0, "dsek lamp"), ("book", 0.0, "bok"),
+                                                  ("mug", 0.9, "mgu"), ("coffee table", 0.99, "coffe table")])
+def test_a_typo_swaps_two_letters_after_the_first(text, u, typed):
+    from simulation.actions import misspelt
+
+    assert misspelt(text, u) == typed
+
+
+def test_trackpad_users_drag_slower(tmp_path, demo_resources):
+    rehearsal = Rehearsal(make_app(tmp_path / "app"), "demo", participants=3, seed=0)
+    mouse = measure(rehearsal.events(Human(trackpad_share=0.0)))
+    pads = measure(rehearsal.events(Human(trackpad_share=1.0)))
+    assert pads["translation_time"] > 1.3 * mouse["translation_time"]
+    assert pads["rotation_time"] == mouse["rotation_time"]  # turning is done with keys or the ring alike
 
 
 def test_the_loss_is_zero_at_the_paper_and_grows_away_from_it():
@@ -99,6 +120,8 @@ def test_the_loss_is_zero_at_the_paper_and_grows_away_from_it():
     off = {**at_paper, "none": {**at_paper["none"], "rank_2": 0.140 + 0.10}}  # two RANK_SE
     assert loss(off, fold) == pytest.approx(4.0)
     assert loss({**at_paper, "none": {**at_paper["none"], "mrr": float("nan")}}, fold) == 1e9
+    wide = {**at_paper, "none": {**at_paper["none"], "total_time_se": 1.2 * (241.0 - 177.0) / 3.92}}
+    assert loss(wide, fold) == pytest.approx(1.0)  # people 20% more spread than the interval says: one SE
 
 
 @pytest.mark.parametrize(("text", "message"), [
@@ -116,12 +139,15 @@ def test_a_fold_names_one_or_two_of_the_papers_conditions(text, message):
 
 def test_cells_hand_out_only_the_folds_conditions():
     fold = cells(("basic",))
-    assert {c.condition for c in fold} == {"basic"} and len(fold) == len(TABLE1) + 4
+    assert {c.condition for c in fold} == {"basic"} and len(fold) == len(TABLE1) + 4 + 3
     total = next(c for c in fold if c.measure == "total_time")
     assert (total.mean, total.se) == (170.0, pytest.approx((267.0 - 130.0) / 3.92))
     assert total.matched(267.0) and not total.matched(267.5)
     share = next(c for c in fold if c.measure == "rank_1")
     assert share.matched(0.687 - 0.08) and not share.matched(0.687 - 0.081)
+    spread = next(c for c in fold if c.measure == "total_time_se")  # how much people differ, from the width
+    assert spread.mean == pytest.approx(total.se) and spread.se == pytest.approx(0.2 * total.se)
+    assert spread.table is None and total.table == 1 and share.table == 2
 
 
 FOLDS = [("none",), ("none", "basic"), ("none", "full"), ("basic", "full")]
