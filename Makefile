@@ -89,30 +89,41 @@ demo-power: demo-report
 	$(BIN)/scenesuggest analyze power --export $(DEMO_REPORT)/export --participants 10,20,40 --studies 100
 
 # The SceneSuggest replication (experiments/scenesuggest-2015): prepare its library, priors and targets from your
-# copy of the Stanford Scene Database ($$SCENESUGGEST_STANFORD_DIR, default ../shared/data/stanford_scene_db),
-# calibrate the simulated participants on the paper's `none` condition (calibration.json; again only when the study,
-# its priors, library or the simulation code changed), run 20 simulated participants, export, analyse, and write the report and its comparison with the paper into
-# experiments/scenesuggest-2015/results/.
+# copy of the Stanford Scene Database ($$SCENESUGGEST_STANFORD_DIR, default ../shared/data/stanford_scene_db);
+# calibrate the simulated participants four times (calibration/<fold>.json: on `none` alone, and leaving each
+# condition out in turn; each again only when the study, its priors, library or the simulation code changed) and
+# measure what each condition can tell (calibration/identifiability.json); run 20 simulated participants with each
+# calibration, export and analyse each run, run the `none` calibration's bots again with the learned engine serving
+# the suggestions, and write the report and the comparison with the paper into experiments/scenesuggest-2015/results/.
 REPLICATION := experiments/scenesuggest-2015
 REPLICATION_RUN := var/experiments/scenesuggest-2015/run
+REPLICATION_FOLDS := none none+basic none+full basic+full
 SCENESUGGEST_STANFORD_DIR ?= $(CURDIR)/../shared/data/stanford_scene_db
+REPLICATION_ENV = SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml
 replication: setup
 	SCENESUGGEST_STANFORD_DIR=$(SCENESUGGEST_STANFORD_DIR) $(BIN)/python $(REPLICATION)/prepare.py
 	rm -rf $(REPLICATION_RUN) && mkdir -p $(REPLICATION_RUN)
 	$(BIN)/python $(REPLICATION)/compare.py engines
-	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/calibrate.sqlite3 SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance \
-		SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml $(BIN)/scenesuggest study calibrate --if-stale \
-		-o $(REPLICATION)/calibration.json
-	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml \
-		$(BIN)/scenesuggest study simulate --participants 20 --seed 0 --calibration $(REPLICATION)/calibration.json \
-		--db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3
-	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION)/study.toml \
-		$(BIN)/scenesuggest study export --study scenesuggest-2015 --db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study.sqlite3 \
-		--out $(REPLICATION_RUN)/export
+	for fold in $(REPLICATION_FOLDS); do \
+		DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/calibrate.sqlite3 $(REPLICATION_ENV) $(BIN)/scenesuggest study \
+			calibrate --on $$(echo $$fold | tr + ,) --evaluations $$([ $$fold = none ] && echo 500 || echo 350) \
+			--if-stale -o $(REPLICATION)/calibration/$$fold.json || exit 1; \
+	done
+	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/calibrate.sqlite3 $(REPLICATION_ENV) $(BIN)/scenesuggest study \
+		calibrate --explain --start $(REPLICATION)/calibration/none.json --if-stale \
+		-o $(REPLICATION)/calibration/identifiability.json
 	rm -rf $(REPLICATION)/results/report
-	$(BIN)/scenesuggest analyze report --export $(REPLICATION_RUN)/export --out $(REPLICATION)/results/report
+	for fold in $(REPLICATION_FOLDS); do \
+		$(REPLICATION_ENV) $(BIN)/scenesuggest study simulate --participants 20 --seed 0 \
+			--calibration $(REPLICATION)/calibration/$$fold.json --on $$(echo $$fold | tr + ,) \
+			--db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-$$fold.sqlite3 || exit 1; \
+		$(REPLICATION_ENV) $(BIN)/scenesuggest study export --study scenesuggest-2015 \
+			--db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-$$fold.sqlite3 --out $(REPLICATION_RUN)/export-$$fold || exit 1; \
+		$(BIN)/scenesuggest analyze report --export $(REPLICATION_RUN)/export-$$fold \
+			--out $$([ $$fold = none ] && echo $(REPLICATION)/results/report || echo $(REPLICATION_RUN)/report-$$fold) || exit 1; \
+	done
 	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION_RUN)/study-learned.toml \
-		$(BIN)/scenesuggest study simulate --participants 20 --seed 0 --calibration $(REPLICATION)/calibration.json \
+		$(BIN)/scenesuggest study simulate --participants 20 --seed 0 --calibration $(REPLICATION)/calibration/none.json \
 		--db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-learned.sqlite3
 	SCENESUGGEST_INSTANCE=$(CURDIR)/$(REPLICATION_RUN)/instance SCENESUGGEST_STUDIES=$(CURDIR)/$(REPLICATION_RUN)/study-learned.toml \
 		$(BIN)/scenesuggest study export --study scenesuggest-2015 --db sqlite:///$(CURDIR)/$(REPLICATION_RUN)/study-learned.sqlite3 \

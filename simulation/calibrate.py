@@ -21,6 +21,7 @@ numbers: every evaluation replays the same bots from the same seeds.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -275,11 +276,52 @@ def loss(measured: dict[str, dict[str, float]], cells: tuple[Cell, ...], u: np.n
 
 
 def fit(rehearsal: Rehearsal, evaluations: int = 300, start: Human | None = None,
-        progress=lambda message: None) -> dict:
+        progress=lambda message: None, draws: int = 0, draw_evaluations: int = 100, seed: int = 0) -> dict:
     """Fit the parameters the rehearsal's conditions inform to the paper's cells of those conditions
-    (Nelder–Mead, at most ``evaluations`` rehearsals); returns the calibration document (see :func:`write`)."""
+    (Nelder–Mead, at most ``evaluations`` rehearsals); returns the calibration document (see :func:`write`),
+    with ``draws`` refits for its uncertainty (:func:`add_draws`)."""
     on = paper_tables.conditions_of(rehearsal.conditions)
-    cells = paper_tables.cells(on)
+    document = _fit(rehearsal, paper_tables.cells(on), evaluations, start, progress)
+    return add_draws(rehearsal, document, draws, draw_evaluations, seed, progress) if draws else document
+
+
+def add_draws(rehearsal: Rehearsal, document: dict, draws: int, evaluations: int = 100, seed: int = 0,
+              progress=lambda message: None) -> dict:
+    """The calibration ``document`` with its uncertainty as ``draws`` refits (``evaluations`` each, from its best
+    fit) on its cells drawn from their sampling distributions (:func:`drawn_cells`, generator ``[seed, k]``);
+    the draws it has already are kept."""
+    on = paper_tables.conditions_of(rehearsal.conditions)
+    if document.get("on") != list(on):
+        raise SceneSuggestError(f"a calibration fitted on {_fold(document.get('on'))} cannot be refitted on "
+                                f"{_fold(on)}", field="on")
+    cells, best = paper_tables.cells(on), Human().with_values(document["parameters"])
+    done = list(document.get("draws") or [])
+    started = time.perf_counter()
+    for k in range(len(done), draws):
+        drawn = drawn_cells(cells, np.random.default_rng([seed, k]))
+        refit = _fit(rehearsal, drawn, evaluations, best,
+                     lambda message, k=k: progress(f"draw {k + 1}/{draws}: {message}"))
+        done.append({"cells": {c.key: c.mean for c in drawn}, "loss": refit["loss"],
+                     "parameters": refit["parameters"], "evaluations": refit["evaluations"],
+                     "seconds": round(time.perf_counter() - started, 1)})
+    return {**document, "draws": done, "draws_seed": seed}
+
+
+def drawn_cells(cells: tuple[Cell, ...], rng: np.random.Generator) -> tuple[Cell, ...]:
+    """``cells`` as another study of the paper's size might have found them: each mean normal about the paper's
+    with its standard error, each share with RANK_SE (within [0, 1]), each spread with its own (above 0); the
+    standard errors a fit weighs them by stay the paper's."""
+    out = []
+    for c in cells:
+        value = c.mean + c.se * float(rng.normal())
+        value = min(max(value, 0.0), 1.0) if c.kind == "share" else max(value, 0.05 * c.mean)
+        out.append(dataclasses.replace(c, mean=value, fixed_se=c.se))
+    return tuple(out)
+
+
+def _fit(rehearsal: Rehearsal, cells: tuple[Cell, ...], evaluations: int, start: Human | None,
+         progress) -> dict:
+    on = paper_tables.conditions_of(rehearsal.conditions)
     names = free_parameters(on)
     start = start or Human()
     u0 = np.array([_to_unit(n, getattr(Human(), n)) for n in names])
@@ -384,15 +426,18 @@ def write(document: dict, path: Path) -> None:
 
 
 def read_plausible(path: Path, study=None, on: tuple[str, ...] | None = None) -> list[Human]:
-    """The calibration's plausible parameter sets (the best first; see :func:`_plausible`)."""
+    """The calibration's plausible parameter sets, the best first: its refits on drawn cells when it has them
+    (``study calibrate --draws``), else the evaluated sets that fit almost as well (:func:`_plausible`)."""
     best = read(path, study, on)
     document = json.loads(Path(path).read_text())
+    key = "draws" if document.get("draws") else "plausible"
+    entries = document.get(key) or []
     out = [best]
-    for k, entry in enumerate(document.get("plausible", [])[1:], start=1):
+    for k, entry in enumerate(entries[1:] if key == "plausible" else entries, start=1 if key == "plausible" else 0):
         try:
             out.append(Human().with_values(entry["parameters"]))
-        except (SceneSuggestError, KeyError, TypeError) as e:
-            raise SceneSuggestError(f"{e}", file=str(path), field=f"plausible[{k}]") from None
+        except (SceneSuggestError, KeyError, TypeError, AttributeError) as e:
+            raise SceneSuggestError(f"{e}", file=str(path), field=f"{key}[{k}]") from None
     return out
 
 

@@ -155,19 +155,25 @@ def _workers() -> int:
               help="Processes sharing the bots of an evaluation (default: this machine's cores, at most 2).")
 @click.option("--start", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Start the fit from this calibration file's parameters (default: the parameters' defaults).")
+@click.option("--draws", default=0, show_default=True, type=click.IntRange(min=0),
+              help="The calibration's uncertainty: refits on the paper's cells drawn from their sampling "
+                   "distributions (`study power` uses them for its intervals).")
+@click.option("--draw-evaluations", default=100, show_default=True, type=click.IntRange(min=1),
+              help="Evaluations of each refit (each starts from the best fit).")
 @click.option("--if-stale", is_flag=True, help="Do nothing when --out was made on these conditions, this study, "
-                                               "its priors, library and simulation code.")
+                                               "its priors, library and simulation code (and has --draws refits; "
+                                               "only the missing ones are made).")
 @click.option("--json", "as_json", is_flag=True)
 def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id: str | None, participants: int,
-                  seed: int, evaluations: int, workers: int | None, start: Path | None, if_stale: bool,
-                  as_json: bool) -> None:
+                  seed: int, evaluations: int, workers: int | None, start: Path | None, draws: int,
+                  draw_evaluations: int, if_stale: bool, as_json: bool) -> None:
     """Fit the simulated participants' free behaviour parameters to the paper's numbers (Table 1's means and
     Table 2's rank shares) for the conditions --on, by rehearsing the study's trials of those conditions; the
     other conditions' numbers are never read, and a simulation with the result predicts them. Writes the
     parameters, the loss, the seed and what the fit depends on."""
     import json
 
-    from .calibrate import Rehearsal, explain_lines, fingerprint, read, stale_keys, write
+    from .calibrate import Rehearsal, add_draws, explain_lines, fingerprint, read, stale_keys, write
     from .calibrate import explain as explain_cells
     from .calibrate import fit as fit_cells
     from .paper_tables import CONDITIONS
@@ -175,6 +181,7 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
     app, study_id = _app(study_id)
     study = _study(app, study_id)
     out = out if out is not None or explain else Path("calibration.json")
+    kept = None  # a fresh calibration that lacks only draws
     if if_stale and out is not None and out.is_file():
         try:
             document = json.loads(out.read_text())
@@ -186,6 +193,8 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
             fresh = document.get("explains") is True and document.get("fingerprint") == fingerprint(study)
         else:
             fresh = not stale_keys(document, study, on)
+            if fresh and len(document.get("draws") or []) < draws:
+                fresh, kept = False, document
         if fresh:
             emit({"out": str(out), "fitted": False, "loss": document.get("loss")}, as_json,
                  f"{out}: made on {' + '.join(on) if not explain else 'every condition'}, this study, its "
@@ -199,8 +208,11 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
         if explain:
             document = {**explain_cells(rehearsal, base, progress=progress), "explains": True,
                         "fingerprint": fingerprint(study)}
+        elif kept is not None:
+            document = add_draws(rehearsal, kept, draws, draw_evaluations, seed, progress)
         else:
-            document = fit_cells(rehearsal, evaluations, start=base, progress=progress)
+            document = fit_cells(rehearsal, evaluations, start=base, progress=progress, draws=draws,
+                                 draw_evaluations=draw_evaluations, seed=seed)
     finally:
         rehearsal.close()
     if out is not None:
@@ -236,19 +248,26 @@ def _sizes(ctx, param, value: str) -> list[int]:
 @click.option("--sets", default=3, show_default=True, type=click.IntRange(min=1),
               help="Plausible parameter sets of the calibration to use (the best fit first).")
 @click.option("--study", "study_id", default=None, help="Study id (default: the first configured study).")
+@click.option("--against", type=click.Path(dir_okay=False, exists=True, path_type=Path), default=None,
+              help="A study file of the same study whose conditions other engines serve: the power to tell its "
+                   "engine from this study's in `full`, every participant building the scenes with both.")
 @click.option("--seed", default=0, show_default=True)
 @click.option("--json", "as_json", is_flag=True)
 def power_cmd(calibration: Path, sizes: list[int], studies: int, pilot: int, sets: int, study_id: str | None,
-              seed: int, as_json: bool) -> None:
-    """Participants needed for 80% power on H1 (total time) and H2 (rotation time, full vs basic), from pilots of
-    the calibrated simulated participants, with the range over the calibration's plausible parameter sets."""
+              against: Path | None, seed: int, as_json: bool) -> None:
+    """Participants needed for 80% power on H1 (total time) and H2 (rotation time, full vs basic), or with
+    --against on telling two engines apart, from pilots of the calibrated simulated participants, with the range
+    over the calibration's parameter sets (its refits on drawn cells, or the sets that fit almost as well)."""
     from .calibrate import read_plausible
     from .power import study_power
 
     app, study_id = _app(study_id)
-    humans = read_plausible(calibration, _study(app, study_id))[:sets]
+    study = _study(app, study_id)
+    if against is not None:
+        _same_study(study, against)
+    humans = read_plausible(calibration, study)[:sets]
     result = study_power(study_id, humans, sizes, studies, pilot, seed,
-                         progress=lambda message: click.echo(message, err=True))
+                         progress=lambda message: click.echo(message, err=True), against=against)
     lines = [f"power at alpha = {result['alpha']} ({studies} studies per size, pilots of {pilot} simulated "
              f"participants, {len(humans)} plausible parameter set(s): best fit [range])"]
     for name, h in result["hypotheses"].items():
@@ -258,3 +277,22 @@ def power_cmd(calibration: Path, sizes: list[int], studies: int, pilot: int, set
         rng = f"{need['low'] or '>' + str(sizes[-1])}–{need['high'] or '>' + str(sizes[-1])}"
         lines.append(f"{name}: {cells}; participants for 80% power: {text} (range {rng})")
     emit(result, as_json, "\n".join(lines))
+
+
+def _same_study(study, path: Path) -> None:
+    """``path`` must be a study file of ``study`` itself (its id, conditions and scenes) with other engines."""
+    from study_server import create_app
+
+    app = create_app({"SQLALCHEMY_DATABASE_URI": "sqlite://", "DATABASE_FROM_COMMAND_LINE": True,
+                      "STUDY_FILES": [str(path)]})
+    found = list(app.extensions["studies"])
+    if found != [study.id]:
+        raise SceneSuggestError(f"another study's file: its study is {', '.join(found)}, not {study.id}",
+                                file=str(path), field="--against")
+    other = _study(app, study.id)
+    for what, mine, theirs in (("id", study.id, other.id),
+                               ("conditions", [c.id for c in study.conditions], [c.id for c in other.conditions]),
+                               ("scenes", sorted(study.scenes), sorted(other.scenes))):
+        if mine != theirs:
+            raise SceneSuggestError(f"another study's file: its {what} {theirs!r} are not {mine!r}", file=str(path),
+                                    field="--against")

@@ -53,6 +53,7 @@ class Cell:
     mean: float
     low: float | None = None
     high: float | None = None
+    fixed_se: float | None = None  # a standard error of its own (a drawn cell keeps the paper's)
 
     @property
     def table(self) -> int | None:
@@ -60,6 +61,8 @@ class Cell:
 
     @property
     def se(self) -> float:
+        if self.fixed_se is not None:
+            return self.fixed_se
         if self.kind == "mean":
             return (self.high - self.low) / (2 * 1.96)
         return RANK_SE if self.kind == "share" else SPREAD_RELATIVE_SE * self.mean

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from demostudy import DEMO_STUDY, make_app
+from demostudy import DEMO_STUDY, copy_demo_study, make_app
 from support import ROOT
 
 from scenesuggest.errors import SceneSuggestError
@@ -238,6 +238,38 @@ def test_the_engine_in_a_fingerprint_is_what_its_priors_hold_not_the_code_hash(r
     assert calibrate.priors_content_sha256(tmp_path / "missing.npz") is None
 
 
+def test_drawn_cells_vary_as_another_study_of_the_papers_size_would():
+    from simulation.calibrate import drawn_cells
+
+    fold = cells(("none",))
+    draws = [drawn_cells(fold, np.random.default_rng([0, k])) for k in range(400)]
+    assert drawn_cells(fold, np.random.default_rng([0, 0])) == draws[0]  # seeded
+    for i, cell in enumerate(fold):
+        values = np.array([d[i].mean for d in draws])
+        assert all(d[i].se == cell.se for d in draws[:5])  # weighed as the paper's
+        if cell.kind == "share":
+            assert values.min() >= 0 and values.max() <= 1
+        else:
+            assert abs(values.mean() - cell.mean) < 0.2 * cell.se and 0.8 < values.std() / cell.se < 1.2
+
+
+def test_a_calibrations_uncertainty_is_refits_on_drawn_cells(rehearsal, tmp_path):
+    from simulation.calibrate import add_draws, read_plausible
+
+    document = fit(rehearsal, evaluations=2, draws=2, draw_evaluations=2, seed=3)
+    assert len(document["draws"]) == 2 and document["draws_seed"] == 3
+    assert document["draws"][0]["cells"] != document["draws"][1]["cells"]
+    assert document["draws"][0]["evaluations"] == 2
+    path = tmp_path / "drawn.json"
+    write(document, path)
+    sets = read_plausible(path, rehearsal.study)
+    assert [h.values() for h in sets] == [document["parameters"], *(d["parameters"] for d in document["draws"])]
+    more = add_draws(rehearsal, document, 3, evaluations=1, seed=3)  # only the missing one is made
+    assert more["draws"][:2] == document["draws"] and len(more["draws"]) == 3
+    with pytest.raises(SceneSuggestError, match="fitted on none cannot be refitted on none \\+ basic"):
+        add_draws(Rehearsal(rehearsal.app, "demo", 2, 0, ("none", "basic")), document, 3)
+
+
 def test_a_fit_writes_a_file_that_simulate_reads_and_refuses_when_stale(rehearsal, tmp_path):
     document = fit(rehearsal, evaluations=3)
     assert document["evaluations"] == 3 and math.isfinite(document["loss"]) and document["seed"] == 0
@@ -310,6 +342,21 @@ def test_cli_calibrate_then_simulate_with_it(tmp_path, demo_resources):
     for h in result["hypotheses"].values():
         assert set(h["power"]) == {"4", "6"} and all(0 <= v["low"] <= v["best"] <= v["high"] <= 1
                                                       for v in h["power"].values())
+    other = copy_demo_study(tmp_path / "other")  # the same study: its engines tell apart no better than chance
+    engines = subprocess.run([*cli, "power", "--calibration", str(out), "--participants", "4", "--studies", "10",
+                              "--pilot", "3", "--sets", "1", "--against", str(other), "--json"], capture_output=True,
+                             text=True, env=env, cwd=ROOT)
+    assert engines.returncode == 0, engines.stderr
+    compared = json.loads(engines.stdout)
+    assert compared["against"] == str(other) and set(compared["hypotheses"]) == {
+        "E1 total time (full: the study's engine vs the other)", "E2 MRR (full: the study's engine vs the other)"}
+    assert all(0 <= v["best"] <= 1 for h in compared["hypotheses"].values() for v in h["power"].values())
+    renamed = other.read_text().replace('id = "demo"', 'id = "another"', 1)
+    another = other.parent / "another.toml"
+    another.write_text(renamed)
+    refused = subprocess.run([*cli, "power", "--calibration", str(out), "--against", str(another)],
+                             capture_output=True, text=True, env=env, cwd=ROOT)
+    assert refused.returncode == 2 and "another study's file: its study is another, not demo" in refused.stderr
     (tmp_path / "bad.json").write_text(json.dumps({**json.loads(out.read_text()), "parameters": {"overlook": 2}}))
     bad = subprocess.run([*cli, "simulate", "--participants", "1", "--calibration", str(tmp_path / "bad.json")],
                          capture_output=True, text=True, env=env, cwd=ROOT)

@@ -203,3 +203,37 @@ def test_the_learned_engine_variant_changes_the_suggestion_conditions_only(repli
         bad = tmp_path / "study.toml"
         bad.write_text(replication.read_text().replace('id = "full"', 'id = "oriented"'))
         compare.learned_variant(bad, learned)
+
+
+def _at_paper(**changes) -> dict:
+    """A simulated run whose every cell is the paper's (a zero-width interval), with ``changes`` (measure →
+    condition → mean)."""
+    from simulation.paper_tables import CONDITIONS, TABLE1, TABLE2
+
+    sim = {m: {c: by[c][0] for c in CONDITIONS} for m, by in TABLE1.items()}
+    sim |= {f"rank_{label}": dict(by) for label, by in TABLE2.items()}
+    for measure, by in changes.items():
+        sim[measure] = {**sim[measure], **by}
+    return {m: tuple({"mean": v[c], "low": v[c], "high": v[c]} for c in CONDITIONS) for m, v in sim.items()}
+
+
+def test_folds_side_by_side_mark_what_each_was_fitted_on(tmp_path, monkeypatch):
+    compare = replication_module("compare")
+    monkeypatch.setattr(compare, "CALIBRATIONS", tmp_path)
+    fitted = {"loss": 12.5, "loss_without_prior": 10.0, "evaluations": 350, "seconds": 700.0, "converged": False,
+              "free": ["hesitation_s"], "parameters": {}, "measured": {}}
+    (tmp_path / "basic+full.json").write_text(json.dumps({**fitted, "on": ["basic", "full"]}))
+    slow_none = compare.fold_summary("basic+full", _at_paper(total_time={"none": 150.0}))
+    cells = {(r["measure"], r["condition"]): r for r in slow_none["cells"]}
+    assert {r["role"] for r in slow_none["cells"] if r["condition"] == "none"} == {"predicted"}
+    assert not cells["total_time", "none"]["matched"] and cells["mrr", "none"]["matched"]
+    assert slow_none["matched"] == {"calibrated": [18, 18], "predicted": [8, 9]}
+    found = {d["finding"].split(":")[0]: d["reproduced"] for d in slow_none["directions"]}
+    assert found == {"H1": False, "H2": True, "H3": True, "MRR": True}  # none 150 s is not slower than basic 170 s
+    lines = "\n".join(compare.fold_lines([slow_none], None))
+    assert "| 1 | Total time (s) | none | 204.0 [177.0, 241.0] | 150.0 [150.0, 150.0] ✗ |" in lines
+    assert "| 1 | Total time (s) | basic | 170.0 [130.0, 267.0] | 170.0 [170.0, 170.0] *fit* |" in lines
+    assert "| basic+full | 12.5 (10.0) | 350, 700 s | 18 of 18 | 8 of 9 | H2, H3, MRR |" in lines
+    (tmp_path / "none+full.json").write_text(json.dumps({**fitted, "on": ["none"]}))
+    with pytest.raises(SystemExit, match="fitted on \\['none'\\], not on \\['none', 'full'\\]"):
+        compare.fold_summary("none+full", _at_paper())

@@ -48,28 +48,27 @@ from scenesuggest.learning.priors import Priors, code_digest  # noqa: E402
 from scenesuggest.library.index import load_index  # noqa: E402
 from scenesuggest.scenes import scene_json  # noqa: E402
 from scenesuggest.suggestion.suggest import ContextQuery, Engine  # noqa: E402
+from simulation.calibrate import explain_lines  # noqa: E402
+from simulation.paper_tables import CONDITIONS, RANK_TOLERANCE, TABLE1, TABLE2, cells  # noqa: E402
 
-CONDITIONS = ("none", "basic", "full")
-# Savva, Chang, Agrawala: SceneSuggest, Table 1 and Table 2 (means per trial; 20 participants, 102 models)
-PAPER = {
-    "total_time": (204.0, 170.0, 139.0),
-    "rotation_time": (23.6, 22.4, 17.2),
-    "translation_time": (40.5, 38.5, 39.8),
-    "n_text_queries": (5.2, 3.3, 2.5),
-    "mrr": (0.353, 0.785, 0.769),
-    "rank1_share": (0.296, 0.687, 0.675),
-}
-#: The paper's 95% bootstrap intervals of Table 1 (low, high) per condition, and Table 2's rank shares.
-PAPER_CI = {
-    "total_time": ((177.0, 241.0), (130.0, 267.0), (118.0, 168.0)),
-    "rotation_time": ((19.9, 28.7), (19.5, 26.5), (14.3, 21.1)),
-    "translation_time": ((32.0, 51.1), (31.0, 50.1), (30.1, 62.5)),
-    "n_text_queries": ((3.8, 7.0), (2.3, 4.9), (1.6, 3.9)),
-    "mrr": ((0.318, 0.388), (0.765, 0.805), (0.747, 0.791)),
-}
-PAPER_RANKS = {"1": (0.296, 0.687, 0.675), "2": (0.140, 0.111, 0.0984), "3": (0.0035, 0.0428, 0.0487),
-               "4+": (0.560, 0.159, 0.178)}
-RANK_SHARE_TOLERANCE = 0.08  # Table 2 gives no interval: a predicted share within 8 points matches
+# Savva, Chang, Agrawala: SceneSuggest, Table 1's means and Table 2's rank-1 share (simulation/paper_tables.py),
+# per measure a value per condition.
+PAPER = {**{m: tuple(by[c][0] for c in CONDITIONS) for m, by in TABLE1.items()},
+         "rank1_share": tuple(TABLE2["1"][c] for c in CONDITIONS)}
+#: The calibrations side by side: the one fitted on `none` alone (the report in results/report/ is its run), and
+#: the three that leave one condition out. Each file is calibration/<fold>.json; each run's report is in the run
+#: directory (RUN / f"report-{fold}").
+FOLDS = ("none", "none+basic", "none+full", "basic+full")
+CALIBRATIONS = HERE / "calibration"
+#: The paper's four findings, as the sign of differences of condition means: (name, measure, [(lower, higher)]).
+DIRECTIONS = (("H1: suggestions are faster (total time none > basic > full)", "total_time",
+               [("basic", "none"), ("full", "basic")]),
+              ("H2: oriented suggestions save turning (rotation time full < basic)", "rotation_time",
+               [("full", "basic")]),
+              ("H3: suggestions replace searching (keyword queries basic, full < none)", "n_text_queries",
+               [("basic", "none"), ("full", "none")]),
+              ("MRR: suggestions rank the wanted model higher (MRR none < basic, full)", "mrr",
+               [("none", "basic"), ("none", "full")]))
 LABELS = {
     "total_time": "Total time (s)", "rotation_time": "Rotation time (s)", "translation_time": "Translation time (s)",
     "n_text_queries": "Keyword queries", "mrr": "MRR", "rank1_share": "Rank-1 picks",
@@ -252,30 +251,87 @@ def _cell(key: str, mean, low=None, high=None) -> str:
     return _fmt(key, mean) + (f" [{_fmt(key, low)}, {_fmt(key, high)}]" if low is not None else "")
 
 
-def predictions(sim: dict) -> list[dict]:
-    """Every cell of Table 1 and Table 2, paper beside simulated: ``none`` is what the simulator was calibrated
-    on; ``basic`` and ``full`` are predictions, matched when a Table 1 mean falls inside the paper's 95% interval
-    and a Table 2 share within RANK_SHARE_TOLERANCE of the paper's."""
+def predictions(sim: dict, on: tuple[str, ...] = ("none",)) -> list[dict]:
+    """Every cell of Table 1 and Table 2, paper beside simulated: the conditions ``on`` are what the simulator was
+    calibrated on; the others are predictions, matched when a Table 1 mean falls inside the paper's 95% interval
+    and a Table 2 share within RANK_TOLERANCE of the paper's."""
     rows = []
-    for key, paper in PAPER.items():
-        if key == "rank1_share":
-            continue
-        for i, c in enumerate(CONDITIONS):
-            ours, (low, high) = sim[key][i], PAPER_CI[key][i]
-            rows.append({"table": 1, "measure": key, "condition": c, "paper": paper[i], "paper_low": low,
-                         "paper_high": high, **{f"simulated{k}": ours[v] for k, v in
-                                                (("", "mean"), ("_low", "low"), ("_high", "high"))},
-                         "role": "calibrated" if c == "none" else "predicted",
-                         "matched": bool(low <= ours["mean"] <= high)})
-    for label, paper in PAPER_RANKS.items():
-        for i, c in enumerate(CONDITIONS):
-            ours = sim[f"rank_{label}"][i]
-            rows.append({"table": 2, "measure": f"rank_{label}", "condition": c, "paper": paper[i],
-                         "paper_low": None, "paper_high": None, "simulated": ours["mean"],
-                         "simulated_low": ours["low"], "simulated_high": ours["high"],
-                         "role": "calibrated" if c == "none" else "predicted",
-                         "matched": bool(abs(ours["mean"] - paper[i]) <= RANK_SHARE_TOLERANCE)})
+    for cell in cells(CONDITIONS, spreads=False):
+        ours = sim[cell.measure][CONDITIONS.index(cell.condition)]
+        rows.append({"table": cell.table, "measure": cell.measure, "condition": cell.condition, "paper": cell.mean,
+                     "paper_low": cell.low, "paper_high": cell.high,
+                     **{f"simulated{k}": ours[v] for k, v in (("", "mean"), ("_low", "low"), ("_high", "high"))},
+                     "role": "calibrated" if cell.condition in on else "predicted",
+                     "matched": bool(cell.matched(ours["mean"]))})
     return rows
+
+
+def directions(sim: dict) -> list[dict]:
+    """The paper's four findings (DIRECTIONS) in the simulated means: each reproduced when every difference has
+    the paper's sign."""
+    out = []
+    for name, key, pairs in DIRECTIONS:
+        means = {c: sim[key][CONDITIONS.index(c)]["mean"] for c in CONDITIONS}
+        out.append({"finding": name, "reproduced": all(means[lo] < means[hi] for lo, hi in pairs),
+                    "means": means})
+    return out
+
+
+def fold_summary(fold: str, sim: dict) -> dict:
+    """One calibration's run: its cells (calibrated and predicted), how many of each matched, its findings, and its
+    calibration file's loss and cost."""
+    on = tuple(fold.split("+"))
+    rows = predictions(sim, on)
+    calibration = json.loads((CALIBRATIONS / f"{fold}.json").read_text())
+    if calibration.get("on") != list(on):
+        raise SystemExit(f"{CALIBRATIONS / f'{fold}.json'}: fitted on {calibration.get('on')}, not on {list(on)}")
+    count = {role: [sum(r["matched"] for r in rows if r["role"] == role), sum(r["role"] == role for r in rows)]
+             for role in ("calibrated", "predicted")}
+    return {"fold": fold, "on": list(on), "cells": rows, "matched": count, "directions": directions(sim),
+            "calibration": {k: calibration[k] for k in ("loss", "loss_without_prior", "evaluations", "seconds",
+                                                          "converged", "free", "parameters", "measured")}}
+
+
+def fold_lines(folds: list[dict], identifiability: dict | None) -> list[str]:
+    """The calibrations side by side: every cell under each, calibrated cells marked, predicted ones matched or
+    not; then each fold's counts and findings, and what each condition can tell."""
+    names = [f["fold"] for f in folds]
+    lines = ["", "## Leave one condition out: what each condition predicts of the others", "",
+             "Four calibrations of the same bots: on `none` alone (the run above), and on two conditions each, the "
+             "third predicted. A fold never reads the held-out condition's numbers (`simulation/paper_tables.py` "
+             "hands a fit its own conditions' cells only; a test changes the others and finds the fit unchanged). "
+             "Each run: 20 bots, seed 0. A cell the fold was fitted on is marked *fit*; a predicted cell ✓ when a "
+             "Table 1 mean is inside the paper's interval or a Table 2 share within "
+             f"{100 * RANK_TOLERANCE:.0f} points, else ✗.", "",
+             f"| Table | Measure | Condition | Paper | {' | '.join(names)} |",
+             f"|---:|---|---|---:|{'---:|' * len(names)}"]
+    for i, first in enumerate(folds[0]["cells"]):
+        key = "rank1_share" if first["table"] == 2 else first["measure"]
+        label = LABELS[first["measure"]] if first["table"] == 1 else f"Rank {first['measure'].split('_')[1]} picks"
+        row = []
+        for f in folds:
+            r = f["cells"][i]
+            mark = "*fit*" if r["role"] == "calibrated" else "✓" if r["matched"] else "✗"
+            row.append(f"{_cell(key, r['simulated'], r['simulated_low'], r['simulated_high'])} {mark}")
+        lines.append(f"| {first['table']} | {label} | {first['condition']} | "
+                     f"{_cell(key, first['paper'], first['paper_low'], first['paper_high'])} | {' | '.join(row)} |")
+    lines += ["", "| Calibration | loss (without prior) | evaluations, seconds | fitted cells matched | "
+                  "predicted cells matched | findings reproduced |", "|---|---:|---:|---:|---:|---|"]
+    for f in folds:
+        c, (fm, fn), (pm, pn) = f["calibration"], f["matched"]["calibrated"], f["matched"]["predicted"]
+        found = ", ".join(d["finding"].split(":")[0] for d in f["directions"] if d["reproduced"]) or "none"
+        lines.append(f"| {f['fold']} | {c['loss']:.1f} ({c['loss_without_prior']:.1f}) | {c['evaluations']}, "
+                     f"{c['seconds']:.0f} s | {fm} of {fn} | {pm} of {pn} | {found} |")
+    lines += ["", "Findings: " + "; ".join(d["finding"] for d in folds[0]["directions"]) + "."]
+    if identifiability:
+        lines += ["", "### What each condition can tell (`scenesuggest study calibrate --explain`)", "",
+                  "How far each cell of a condition moves when a parameter moves by one logit about the `none` "
+                  "fit (the largest over the condition's cells, in the cell's standard errors, and which cell), "
+                  f"{identifiability['participants']} bots, common random numbers. A parameter is informed by a "
+                  f"condition when it moves one of its cells by {identifiability['informs_se']} standard errors "
+                  "or more; a condition whose trials do not use it cannot inform it at all (0).", ""]
+        lines += explain_lines(identifiability)
+    return lines
 
 
 def _prediction_row(r: dict, with_role: bool) -> str:
@@ -292,9 +348,9 @@ def _prediction_row(r: dict, with_role: bool) -> str:
 def prediction_lines(rows: list[dict]) -> list[str]:
     lines = ["", "## Every cell of Table 1 and Table 2: calibrated on `none`, predicted for `basic` and `full`", "",
              "The simulated participants' free parameters were fitted to the paper's `none` row only "
-             "(`calibration.json`, `scenesuggest study calibrate`); `basic` and `full` are predictions. A Table 1 "
+             "(`calibration/none.json`, `scenesuggest study calibrate`); `basic` and `full` are predictions. A Table 1 "
              "prediction matches when its mean is inside the paper's 95% interval; a Table 2 share when it is within "
-             f"{100 * RANK_SHARE_TOLERANCE:.0f} points of the paper's (the paper gives no interval).", "",
+             f"{100 * RANK_TOLERANCE:.0f} points of the paper's (the paper gives no interval).", "",
              "| Table | Measure | Condition | Role | Paper | Simulated [95% interval] | Matched |",
              "|---:|---|---|---|---:|---:|:---:|"]
     lines += [_prediction_row(r, with_role=True) for r in rows]
@@ -325,7 +381,8 @@ def model_choices(report: Path, prepared: Path) -> dict[str, dict[str, int]]:
 
 
 def write(sim: dict, engine_rows: list[dict], out: Path, per_engine: list[dict] | None = None,
-          trained: dict[str, dict] | None = None, choices: dict | None = None, variant: dict | None = None) -> None:
+          trained: dict[str, dict] | None = None, choices: dict | None = None, variant: dict | None = None,
+          folds: list[dict] | None = None, identifiability: dict | None = None) -> None:
     lines = ["# The replication next to the paper (simulated participants)", "",
              "Generated by `make replication` (experiments/scenesuggest-2015/compare.py). **Simulated participants**: "
              f"{sim['_n']['participants']['completed']} bots (keystroke-level model with people's behaviour, "
@@ -355,6 +412,9 @@ def write(sim: dict, engine_rows: list[dict], out: Path, per_engine: list[dict] 
         lines.append(f"| {key} | {lrt['chi2']:.2f} | {lrt['df']} | {p} |")
     rows = predictions(sim)
     lines += prediction_lines(rows)
+    if folds:
+        lines += fold_lines(folds, identifiability)
+        lines.append("")
     if choices:
         lines += ["Which model was chosen (final picks): the target object's own, another of its category, or a "
                   "model of another category.", "", "| Condition | Target's model | Another of its category | "
@@ -392,7 +452,7 @@ def write(sim: dict, engine_rows: list[dict], out: Path, per_engine: list[dict] 
            "lr_tests": sim["_lrt"], "n": sim["_n"], "engine_on_targets": engine_rows,
            "engines_on_targets": per_engine or [], "predictions": rows, "model_choices": choices or {},
            "learned_engine_predictions": [r for r in predictions(variant) if r["role"] == "predicted"]
-           if variant else []}
+           if variant else [], "folds": folds or [], "identifiability": identifiability}
     (out / "comparison.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
 
 
@@ -437,8 +497,13 @@ def main(argv: list[str]) -> int:
         print(f"wrote {LEARNED_STUDY}")
         return 0
     variant = simulated(LEARNED_REPORT) if (LEARNED_REPORT / "results.json").is_file() else None
+    folds = [fold_summary(fold, simulated(RESULTS / "report" if fold == "none" else RUN / f"report-{fold}"))
+             for fold in FOLDS if fold == "none" or (RUN / f"report-{fold}" / "results.json").is_file()]
+    explained = CALIBRATIONS / "identifiability.json"
+    identifiability = json.loads(explained.read_text()) if explained.is_file() else None
     write(simulated(RESULTS / "report"), engine_on_targets(PREPARED), RESULTS,
-          engines_on_targets(PREPARED, trained), trained, model_choices(RESULTS / "report", PREPARED), variant)
+          engines_on_targets(PREPARED, trained), trained, model_choices(RESULTS / "report", PREPARED), variant,
+          folds, identifiability)
     print(f"wrote {RESULTS / 'comparison.md'}")
     return 0
 
