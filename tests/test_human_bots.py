@@ -178,6 +178,20 @@ def test_a_fold_never_reads_the_held_out_conditions(on, demo_resources, tmp_path
     assert all(honest["parameters"][p] == getattr(Human(), p) for p in unused)  # kept at their defaults
 
 
+def test_the_papers_numbers_live_in_one_module():
+    """The bots and their fit hold none of the paper's Table 1 or Table 2 numbers: a fit reaches them only through
+    ``paper_tables.cells`` of its own conditions (the test above)."""
+    import ast
+
+    numbers = {v for by in TABLE1.values() for cell in by.values() for v in cell}
+    numbers |= {v for by in paper_tables.TABLE2.values() for v in by.values()}
+    numbers -= {2.5}  # full's keyword queries, and the distance a bot looks round from (metres): not the paper's
+    for name in ("calibrate.py", "human.py", "actions.py", "participant.py", "timing.py", "power.py", "cli.py"):
+        tree = ast.parse((ROOT / "simulation" / name).read_text())
+        found = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, float)}
+        assert not found & numbers, (name, found & numbers)
+
+
 @pytest.mark.parametrize(("parameter", "condition"), [
     (p, c) for p in free_parameters() for c in CONDITIONS if c not in used_in(p)])
 def test_a_parameter_a_condition_does_not_use_leaves_its_trials_as_they_were(parameter, condition, tmp_path,
