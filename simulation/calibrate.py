@@ -145,8 +145,13 @@ class _Local:
         raise SceneSuggestError(f"a rehearsal does not send {path}")
 
 
-#: The rehearsal a forked worker plays its share of the bots in (set in the parent just before the fork).
+#: The rehearsal a forked worker plays its share of the bots in (each worker adopts its pool's at its start).
 _FORKED: Rehearsal | None = None
+
+
+def _adopt(rehearsal: Rehearsal) -> None:
+    global _FORKED
+    _FORKED = rehearsal
 
 
 def _play_share(human: Human, bots: range) -> list[dict]:
@@ -204,9 +209,12 @@ class Rehearsal:
             rows = self.play(human, range(self.participants))
         else:
             if self._pool is None:
-                global _FORKED
-                _FORKED = self
-                self._pool = multiprocessing.get_context("fork").Pool(self.workers)
+                sql = getattr(self.app, "extensions", {}).get("sqlalchemy")
+                if sql is not None:  # no database connection crosses the fork
+                    with self.app.app_context():
+                        sql.engine.dispose()
+                self._pool = multiprocessing.get_context("fork").Pool(self.workers, initializer=_adopt,
+                                                                      initargs=(self,))
             shares = np.array_split(np.arange(self.participants), self.workers)
             rows = [row for part in self._pool.starmap(_play_share, [(human, range(int(s[0]), int(s[-1]) + 1))
                                                                       for s in shares if len(s)])
@@ -222,13 +230,21 @@ class Rehearsal:
         """Stop the worker processes (if any)."""
         if self._pool is not None:
             self._pool.terminate()
+            self._pool.join()
             self._pool = None
+
+    def __enter__(self) -> Rehearsal:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def measure(events: pd.DataFrame) -> dict[str, float]:
     """The paper's measures of one condition's events, by the analysis' definitions: per-trial means of total,
-    rotation and translation time and keyword queries; MRR and rank shares over final picks; and for each time the
-    standard error of its mean over PARTICIPANTS people (``total_time_se``, …: the spread of people's means)."""
+    rotation and translation time (seconds) and keyword queries; MRR and rank shares over final picks; and for each
+    time the standard error of its mean over PARTICIPANTS people (``total_time_se``, …, seconds: the spread of
+    people's means)."""
     from analysis.measures import measures_by_trial
     from scenesuggest.contract.picks import picks
 
@@ -323,7 +339,8 @@ def _fit(rehearsal: Rehearsal, cells: tuple[Cell, ...], evaluations: int, start:
          progress) -> dict:
     on = paper_tables.conditions_of(rehearsal.conditions)
     names = free_parameters(on)
-    start = start or Human()
+    # only the parameters this fold fits come from a start; every other keeps its default
+    start = Human().with_values({n: getattr(start, n) for n in names}) if start else Human()
     u0 = np.array([_to_unit(n, getattr(Human(), n)) for n in names])
     u_start = np.array([_to_unit(n, getattr(start, n)) for n in names])
     seen: dict[tuple, tuple[float, dict]] = {}
@@ -481,11 +498,19 @@ def _fold(on) -> str:
 
 def stale_keys(document: dict, study, on: tuple[str, ...] | None = None) -> list[str]:
     """What the calibration ``document`` was fitted with that differs from ``study`` now (any of study, priors,
-    library, simulation) and, given ``on``, from those conditions; an older format is stale too."""
+    library, simulation), from the paper's cells of its conditions (as :mod:`.paper_tables` holds them now) and,
+    given ``on``, from those conditions; an older format is stale too."""
     if document.get("format") != FORMAT or document.get("version") != VERSION:
         return ["format"]
     if on is not None and document.get("on") != list(on):
         return ["conditions"]
+    fitted_on = document.get("on")
+    try:
+        targets = {c.key: [c.mean, c.low, c.high] for c in paper_tables.cells(tuple(fitted_on or ()))}
+    except SceneSuggestError:
+        targets = None
+    if document.get("paper") != targets:
+        return ["paper's numbers"]
     now, then = fingerprint(study), document.get("fingerprint") or {}
     names = {"study": "study", "priors_content_sha256": "priors (the engine)", "library_sha256": "model library",
              "simulation_sha256": "simulation code"}

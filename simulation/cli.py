@@ -167,20 +167,28 @@ def _workers() -> int:
 def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id: str | None, participants: int,
                   seed: int, evaluations: int, workers: int | None, start: Path | None, draws: int,
                   draw_evaluations: int, if_stale: bool, as_json: bool) -> None:
-    """Fit the simulated participants' free behaviour parameters to the paper's numbers (Table 1's means and
-    Table 2's rank shares) for the conditions --on, by rehearsing the study's trials of those conditions; the
-    other conditions' numbers are never read, and a simulation with the result predicts them. Writes the
-    parameters, the loss, the seed and what the fit depends on."""
+    """Fit the simulated participants' free behaviour parameters to the paper's numbers (Table 1's means, the
+    spread of people its intervals' widths give, and Table 2's rank shares) for the conditions --on, by rehearsing
+    the study's trials of those conditions; the other conditions' numbers are never read, and a simulation with
+    the result predicts them. Writes the parameters, the loss, the seed and what the fit depends on."""
     import json
 
     from .calibrate import Rehearsal, add_draws, explain_lines, fingerprint, read, stale_keys, write
     from .calibrate import explain as explain_cells
     from .calibrate import fit as fit_cells
+    from .human import Human
     from .paper_tables import CONDITIONS
 
     app, study_id = _app(study_id)
     study = _study(app, study_id)
     out = out if out is not None or explain else Path("calibration.json")
+    base = read(start) if start is not None else None
+    if base is not None and not explain:
+        started_on = json.loads(start.read_text()).get("on") or []
+        if not set(started_on) <= set(on):
+            raise SceneSuggestError(f"a fit on {' + '.join(on)} cannot start from one fitted on "
+                                    f"{' + '.join(started_on)}: it would carry the numbers it leaves out",
+                                    file=str(start), field="--start")
     kept = None  # a fresh calibration that lacks only draws
     if if_stale and out is not None and out.is_file():
         try:
@@ -190,7 +198,9 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
         if not isinstance(document, dict):
             fresh = False
         elif explain:
-            fresh = document.get("explains") is True and document.get("fingerprint") == fingerprint(study)
+            fresh = (document.get("explains") is True and document.get("fingerprint") == fingerprint(study)
+                     and document.get("base") == (base or Human()).values()
+                     and document.get("participants") == participants and document.get("seed") == seed)
         else:
             fresh = not stale_keys(document, study, on)
             if fresh and len(document.get("draws") or []) < draws:
@@ -200,11 +210,11 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
                  f"{out}: made on {' + '.join(on) if not explain else 'every condition'}, this study, its "
                  f"priors, library and simulation code; kept")
             return
-    rehearsal = Rehearsal(app, study_id, participants, seed, CONDITIONS if explain else on,
-                          workers=workers or _workers())
+    if kept is not None:  # its draws are made as its fit was: the same bots and seed
+        participants, seed = kept["participants"], kept.get("draws_seed", kept["seed"])
     progress = lambda message: click.echo(message, err=True)  # noqa: E731
-    try:
-        base = read(start) if start is not None else None
+    with Rehearsal(app, study_id, participants, seed, CONDITIONS if explain else on,
+                   workers=workers or _workers()) as rehearsal:
         if explain:
             document = {**explain_cells(rehearsal, base, progress=progress), "explains": True,
                         "fingerprint": fingerprint(study)}
@@ -213,8 +223,6 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
         else:
             document = fit_cells(rehearsal, evaluations, start=base, progress=progress, draws=draws,
                                  draw_evaluations=draw_evaluations, seed=seed)
-    finally:
-        rehearsal.close()
     if out is not None:
         write(document, out)
     if explain:

@@ -34,10 +34,16 @@ TABLE2 = {
 RANK_SE, RANK_TOLERANCE = 0.05, 0.08
 #: The paper's participants, and the times whose intervals say how much people and scenes differ: a mean's standard
 #: error over PARTICIPANTS people is its interval's width / 3.92, known to within SPREAD_RELATIVE_SE of itself (the
-#: standard deviation of 20 people's is 16% uncertain; the bootstrap adds its own).
+#: standard deviation of 20 people's is 16% uncertain; the bootstrap adds its own). This reads the paper's
+#: bootstrap as resampling participants (as our analysis does); the paper does not say.
 PARTICIPANTS = 20
 SPREAD_MEASURES = ("total_time", "rotation_time", "translation_time")
 SPREAD_RELATIVE_SE = 0.2
+
+
+def interval_se(low: float, high: float) -> float:
+    """The standard error a 95% interval (``low``, ``high``) gives: its width / 3.92."""
+    return (high - low) / (2 * 1.96)
 
 
 @dataclass(frozen=True)
@@ -64,7 +70,7 @@ class Cell:
         if self.fixed_se is not None:
             return self.fixed_se
         if self.kind == "mean":
-            return (self.high - self.low) / (2 * 1.96)
+            return interval_se(self.low, self.high)
         return RANK_SE if self.kind == "share" else SPREAD_RELATIVE_SE * self.mean
 
     @property
@@ -106,8 +112,8 @@ def cells(conditions: tuple[str, ...], spreads: bool = True) -> tuple[Cell, ...]
     out = [Cell("mean", measure, c, *by[c]) for measure, by in TABLE1.items() for c in conditions]
     out += [Cell("share", f"rank_{label}", c, by[c]) for label, by in TABLE2.items() for c in conditions]
     if spreads:
-        out += [Cell("spread", f"{m}_se", c, (TABLE1[m][c][2] - TABLE1[m][c][1]) / (2 * 1.96))
-                for m in SPREAD_MEASURES for c in conditions]
+        out += [Cell("spread", f"{m}_se", c, interval_se(*TABLE1[m][c][1:])) for m in SPREAD_MEASURES
+                for c in conditions]
     return tuple(out)
 
 

@@ -1,7 +1,8 @@
 """How many participants a study needs, from the calibrated simulator (``scenesuggest study power``).
 
-For each of the calibration's plausible parameter sets (:func:`.calibrate.read_plausible`: the best fit first,
-then sets the paper's ``none`` numbers fit almost as well — the calibration's uncertainty), a pilot of simulated
+For each of the calibration's parameter sets (:func:`.calibrate.read_plausible`: the best fit first, then its refits
+on the paper's cells drawn from their sampling distributions, or without draws the sets its cells fit almost as
+well — the calibration's uncertainty), a pilot of simulated
 participants takes the study in process on a database of its own; :func:`analysis.power.power` then resamples
 that pilot into studies of each size and counts how often each hypothesis' likelihood-ratio test rejects. The
 participants needed for a power are the smallest size that reaches it, per parameter set, so the answer comes
@@ -57,21 +58,26 @@ def _pilot(tmp: Path, name: str, study_id: str, human, participants: int, seed: 
     summary = simulate(participants, seed, study=study_id, app=app, human=human, progress=progress)
     if summary["failures"]:
         raise RuntimeError(f"simulated participants could not finish: {summary['failures'][0]}")
-    trials, picks, people, _, _ = select(read_database(url, study_id))
-    return trials, picks, people
+    trials, picks, _, _, _ = select(read_database(url, study_id))
+    return trials, picks
+
+
+def _plans(trials) -> dict:
+    """Each participant's trials as (position, scene, condition), in order."""
+    ordered = trials.sort_values(["participant", "position"])
+    return {p: list(zip(g["position"], g["scene"], g["condition"], strict=True))
+            for p, g in ordered.groupby("participant")}
 
 
 def paired(a: tuple, b: tuple) -> tuple:
-    """Two runs of the same bots (trials, picks, participants of each) as one study: ``b``'s conditions renamed
-    with OTHER. Each bot has the same participant id, schedule row and scenes in both (they arrive in the same
-    order); anything else is an error."""
+    """Two runs of the same bots (trials and picks of each) as one study: ``b``'s conditions renamed with OTHER.
+    Each bot must have the same participant id and the same trials (positions, scenes, conditions) in both (they
+    arrive in the same order on fresh databases); anything else is an error."""
     import pandas as pd
 
-    rows_a = a[2].set_index("participant")["row"].sort_index()
-    rows_b = b[2].set_index("participant")["row"].sort_index()
-    if not rows_a.equals(rows_b):
-        raise RuntimeError("the two runs' participants do not pair up (other ids or schedule rows)")
-    other = [frame.assign(condition=frame["condition"].astype(str) + OTHER) for frame in b[:2]]
+    if _plans(a[0]) != _plans(b[0]):
+        raise RuntimeError("the two runs' participants do not pair up (other ids, scenes or conditions)")
+    other = [frame.assign(condition=frame["condition"].astype(str) + OTHER) for frame in b]
     return (pd.concat([a[0], other[0]], ignore_index=True), pd.concat([a[1], other[1]], ignore_index=True))
 
 
@@ -90,7 +96,7 @@ def study_power(study_id: str, humans: list, sizes: list[int], studies: int, pil
         for k, human in enumerate(humans):
             said = lambda label, k=k: progress(f"parameter set {k + 1}/{len(humans)}: {label}")  # noqa: E731
             run = _pilot(Path(tmp), f"pilot-{k}", study_id, human, pilot, seed + k, None, said)
-            trials, picks = run[:2]
+            trials, picks = run
             if against:
                 trials, picks = paired(run, _pilot(Path(tmp), f"other-{k}", study_id, human, pilot, seed + k,
                                                    against, said))

@@ -288,6 +288,7 @@ def fold_summary(fold: str, sim: dict) -> dict:
     count = {role: [sum(r["matched"] for r in rows if r["role"] == role), sum(r["role"] == role for r in rows)]
              for role in ("calibrated", "predicted")}
     return {"fold": fold, "on": list(on), "cells": rows, "matched": count, "directions": directions(sim),
+            "participants": sim["_n"]["participants"]["completed"],
             "calibration": {k: calibration[k] for k in ("loss", "loss_without_prior", "evaluations", "seconds",
                                                           "converged", "free", "parameters", "measured")}}
 
@@ -300,7 +301,8 @@ def fold_lines(folds: list[dict], identifiability: dict | None) -> list[str]:
              "Four calibrations of the same bots: on `none` alone (the run above), and on two conditions each, the "
              "third predicted. A fold never reads the held-out condition's numbers (`simulation/paper_tables.py` "
              "hands a fit its own conditions' cells only; a test changes the others and finds the fit unchanged). "
-             "Each run: 20 bots, seed 0. A cell the fold was fitted on is marked *fit*; a predicted cell ✓ when a "
+             f"Each run: {', '.join(str(f['participants']) for f in folds)} bots that completed the study (in the "
+             "columns' order). A cell the fold was fitted on is marked *fit*; a predicted cell ✓ when a "
              "Table 1 mean is inside the paper's interval or a Table 2 share within "
              f"{100 * RANK_TOLERANCE:.0f} points, else ✗.", "",
              f"| Table | Measure | Condition | Paper | {' | '.join(names)} |",
