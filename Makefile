@@ -90,8 +90,9 @@ demo-power: demo-report
 
 # The SceneSuggest replication (experiments/scenesuggest-2015): prepare its library, priors and targets from your
 # copy of the Stanford Scene Database ($$SCENESUGGEST_STANFORD_DIR, default ../shared/data/stanford_scene_db);
-# calibrate the simulated participants four times (calibration/<fold>.json: on `none` alone, and leaving each
-# condition out in turn; each again only when the study, its priors, library or the simulation code changed) and
+# calibrate the simulated participants four times (calibration/<fold>.json: on `none` alone, with four refits on
+# drawn cells for `study power`, and leaving each condition out in turn; each again only when the study, its
+# priors, library, the simulation code or the paper's numbers changed) and
 # measure what each condition can tell (calibration/identifiability.json); run 20 simulated participants with each
 # calibration, export and analyse each run, run the `none` calibration's bots again with the learned engine serving
 # the suggestions, and write the report and the comparison with the paper into experiments/scenesuggest-2015/results/.
@@ -106,7 +107,7 @@ replication: setup
 	$(BIN)/python $(REPLICATION)/compare.py engines
 	for fold in $(REPLICATION_FOLDS); do \
 		DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/calibrate.sqlite3 $(REPLICATION_ENV) $(BIN)/scenesuggest study \
-			calibrate --on $$(echo $$fold | tr + ,) --evaluations $$([ $$fold = none ] && echo 500 || echo 350) \
+			calibrate --on $$(echo $$fold | tr + ,) $$([ $$fold = none ] && echo --evaluations 500 --draws 4 || echo --evaluations 350) \
 			--if-stale -o $(REPLICATION)/calibration/$$fold.json || exit 1; \
 	done
 	DATABASE_URL=sqlite:///$(CURDIR)/$(REPLICATION_RUN)/calibrate.sqlite3 $(REPLICATION_ENV) $(BIN)/scenesuggest study \

@@ -388,3 +388,20 @@ def test_cli_calibrate_then_simulate_with_it(tmp_path, demo_resources):
                          capture_output=True, text=True, env=env, cwd=ROOT)
     assert bad.returncode == 2 and "field 'parameters.overlook': 2.0 is outside [0.0, 0.9]" in bad.stderr, bad.stderr
     assert "Traceback" not in bad.stderr
+
+
+def test_two_runs_of_the_same_bots_pair_up_into_one_engine_comparison():
+    import pandas as pd
+
+    from simulation.power import OTHER, paired
+
+    trials = pd.DataFrame({"participant": ["1", "1", "2", "2"], "position": [1, 2, 1, 2],
+                           "scene": ["desk", "bed", "bed", "desk"], "condition": ["full", "none"] * 2,
+                           "total_time": [100.0, 120.0, 90.0, 80.0]})
+    picks = pd.DataFrame({"participant": ["1", "2"], "condition": ["full", "full"], "reciprocal_rank": [1.0, 0.5]})
+    both_trials, both_picks = paired((trials, picks), (trials.assign(total_time=70.0), picks))
+    assert sorted(both_trials["condition"].unique()) == ["full", f"full{OTHER}", "none", f"none{OTHER}"]
+    assert len(both_trials) == 8 and len(both_picks) == 4
+    assert both_trials.loc[both_trials["condition"] == f"full{OTHER}", "total_time"].tolist() == [70.0, 70.0]
+    with pytest.raises(RuntimeError, match="do not pair up"):
+        paired((trials, picks), (trials.assign(scene=["bed", "desk", "bed", "desk"]), picks))

@@ -1,7 +1,9 @@
-"""Why the calibrated bots search less than the paper's participants in `none`: keyword queries, MRR and rank
-shares of the replication's `none` trials as the share of objects searched for first (``search_first``) and the
-list patience (items scanned before giving up on the list) move away from the calibrated values, everything else
-as calibrated. One JSON line per setting, with the loss against the paper's `none` row (without the prior).
+"""Why the calibrated bots search less than the paper's participants in `none`: keyword queries, total time, MRR
+and rank shares of the replication's `none` trials as the share of objects searched for first (``search_first``),
+the list patience (items scanned before giving up on the list), the share of first searches mistyped
+(``unknown_words``) and of searches with one tag word (``tag_words``) move away from the calibrated values,
+everything else as calibrated. One JSON line per setting, with the loss against the paper's `none` cells (without
+the prior).
 
 Run after ``make replication`` (it needs the prepared study and ``calibration/none.json``)::
 
@@ -25,8 +27,10 @@ from simulation.calibrate import Rehearsal, loss, read  # noqa: E402
 from simulation.paper_tables import cells  # noqa: E402
 from study_server import create_app, upgrade_database  # noqa: E402
 
-#: (search_first, list_patience) settings; None keeps the calibrated value.
-SETTINGS = [(None, None), (0.5, None), (0.75, None), (0.95, None), (None, 40.0), (None, 15.0), (0.95, 15.0)]
+#: Settings: parameter → value; the rest as calibrated.
+SETTINGS = [{}, {"search_first": 0.5}, {"search_first": 0.95}, {"list_patience": 40.0},
+            {"search_first": 0.95, "list_patience": 15.0}, {"unknown_words": 0.5}, {"unknown_words": 0.9},
+            {"tag_words": 0.9}, {"unknown_words": 0.9, "tag_words": 0.9}]
 
 
 def main() -> int:
@@ -34,11 +38,11 @@ def main() -> int:
     upgrade_database(app)
     rehearsal = Rehearsal(app, "scenesuggest-2015", participants=40, seed=0)
     calibrated = read(HERE / "calibration" / "none.json", rehearsal.study, ("none",))
-    for search_first, patience in SETTINGS:
-        changes = {k: v for k, v in (("search_first", search_first), ("list_patience", patience)) if v is not None}
+    for changes in SETTINGS:
         human = calibrated.with_values(changes)
         measured = rehearsal.measure(human)
-        print(json.dumps({"search_first": round(human.search_first, 3), "list_patience": round(human.list_patience, 1),
+        print(json.dumps({**{k: round(getattr(human, k), 3) for k in ("search_first", "list_patience",
+                                                                        "unknown_words", "tag_words")},
                           "loss": round(loss(measured, cells(("none",))), 2),
                           **{k: round(v, 3) for k, v in measured["none"].items()}}),
               flush=True)
