@@ -422,7 +422,7 @@ def explain_lines(table: dict) -> list[str]:
             top = max(own, key=lambda k: abs(own[k]))
             cols.append(f"{abs(own[top]):.2f} ({top})" if abs(own[top]) > 0 else "0")
         lines.append(f"| `{row['parameter']}` | {', '.join(row['used'])} | {' | '.join(cols)} | "
-                     f"{', '.join(row['informs']) or 'none'} |")
+                     f"{', '.join(f'`{c}`' for c in row['informs']) or 'no condition'} |")
     return lines
 
 

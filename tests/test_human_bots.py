@@ -235,6 +235,7 @@ def test_explain_says_which_condition_informs_which_parameter(tmp_path, demo_res
     lines = explain_lines(table)
     assert lines[0].startswith("| Parameter | used in | none | basic | full |")
     assert any(line.startswith("| `suggestion_patience` | basic, full | 0 |") for line in lines)
+    assert all(line.endswith(("no condition |", "` |")) for line in lines[2:])  # never a bare "none"
 
 
 def test_the_engine_in_a_fingerprint_is_what_its_priors_hold_not_the_code_hash(rehearsal, tmp_path):
