@@ -475,9 +475,12 @@ def read(path: Path, study=None, on: tuple[str, ...] | None = None) -> Human:
     if document.get("version") != VERSION:
         raise SceneSuggestError(f"calibration version {document.get('version')!r}, expected {VERSION}",
                                 file=str(path), field="version")
-    if on is not None and document.get("on") != list(on):
-        raise SceneSuggestError(f"fitted on {_fold(document.get('on'))}, not on {_fold(on)}", file=str(path),
+    fitted = fitted_on(document)
+    if fitted is None:
+        raise SceneSuggestError(f"not a fold of the paper's conditions: {document.get('on')!r}", file=str(path),
                                 field="on")
+    if on is not None and fitted != tuple(on):
+        raise SceneSuggestError(f"fitted on {_fold(fitted)}, not on {_fold(on)}", file=str(path), field="on")
     if study is not None:
         stale = stale_keys(document, study)
         if stale:
@@ -496,19 +499,29 @@ def _fold(on) -> str:
     return " + ".join(on) if isinstance(on, list | tuple) and on else repr(on)
 
 
+def fitted_on(document: dict) -> tuple[str, ...] | None:
+    """The conditions a calibration ``document`` was fitted on, or None when its ``on`` names no fold (one or two
+    of the paper's conditions, in their order)."""
+    on = document.get("on")
+    if not isinstance(on, list) or not all(isinstance(c, str) for c in on):
+        return None
+    try:
+        fold = paper_tables.conditions_of(on)
+    except SceneSuggestError:
+        return None
+    return fold if list(fold) == on else None
+
+
 def stale_keys(document: dict, study, on: tuple[str, ...] | None = None) -> list[str]:
     """What the calibration ``document`` was fitted with that differs from ``study`` now (any of study, priors,
     library, simulation), from the paper's cells of its conditions (as :mod:`.paper_tables` holds them now) and,
     given ``on``, from those conditions; an older format is stale too."""
     if document.get("format") != FORMAT or document.get("version") != VERSION:
         return ["format"]
-    if on is not None and document.get("on") != list(on):
+    fitted = fitted_on(document)
+    if fitted is None or (on is not None and fitted != tuple(on)):
         return ["conditions"]
-    fitted_on = document.get("on")
-    try:
-        targets = {c.key: [c.mean, c.low, c.high] for c in paper_tables.cells(tuple(fitted_on or ()))}
-    except SceneSuggestError:
-        targets = None
+    targets = {c.key: [c.mean, c.low, c.high] for c in paper_tables.cells(fitted)}
     if document.get("paper") != targets:
         return ["paper's numbers"]
     now, then = fingerprint(study), document.get("fingerprint") or {}

@@ -151,11 +151,11 @@ def _workers() -> int:
               help="Bots per evaluation (bot i plays schedule row i).")
 @click.option("--seed", default=0, show_default=True, help="The bots' seed (the same for every evaluation).")
 @click.option("--evaluations", default=300, show_default=True, type=click.IntRange(min=1))
-@click.option("--workers", default=None, type=click.IntRange(min=1),
+@click.option("--workers", default=None, type=click.IntRange(1, 16),
               help="Processes sharing the bots of an evaluation (default: this machine's cores, at most 2).")
 @click.option("--start", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Start the fit from this calibration file's parameters (default: the parameters' defaults).")
-@click.option("--draws", default=0, show_default=True, type=click.IntRange(min=0),
+@click.option("--draws", default=0, show_default=True, type=click.IntRange(0, 100),
               help="The calibration's uncertainty: refits on the paper's cells drawn from their sampling "
                    "distributions (`study power` uses them for its intervals).")
 @click.option("--draw-evaluations", default=100, show_default=True, type=click.IntRange(min=1),
@@ -173,7 +173,7 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
     the result predicts them. Writes the parameters, the loss, the seed and what the fit depends on."""
     import json
 
-    from .calibrate import Rehearsal, add_draws, explain_lines, fingerprint, read, stale_keys, write
+    from .calibrate import Rehearsal, add_draws, explain_lines, fingerprint, fitted_on, read, stale_keys, write
     from .calibrate import explain as explain_cells
     from .calibrate import fit as fit_cells
     from .human import Human
@@ -184,7 +184,7 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
     out = out if out is not None or explain else Path("calibration.json")
     base = read(start) if start is not None else None
     if base is not None and not explain:
-        started_on = json.loads(start.read_text()).get("on") or []
+        started_on = fitted_on(json.loads(start.read_text()))  # a fold: read() checked it
         if not set(started_on) <= set(on):
             raise SceneSuggestError(f"a fit on {' + '.join(on)} cannot start from one fitted on "
                                     f"{' + '.join(started_on)}: it would carry the numbers it leaves out",
@@ -203,7 +203,12 @@ def calibrate_cmd(out: Path | None, on: tuple[str, ...], explain: bool, study_id
                      and document.get("participants") == participants and document.get("seed") == seed)
         else:
             fresh = not stale_keys(document, study, on)
-            if fresh and len(document.get("draws") or []) < draws:
+            made = document.get("draws") or []
+            if fresh and not (isinstance(made, list) and isinstance(document.get("participants"), int)
+                              and isinstance(document.get("seed"), int)
+                              and isinstance(document.get("draws_seed", 0), int)):
+                fresh = False  # malformed: fitted again from the start
+            elif fresh and len(made) < draws:
                 fresh, kept = False, document
         if fresh:
             emit({"out": str(out), "fitted": False, "loss": document.get("loss")}, as_json,

@@ -323,6 +323,11 @@ def test_a_fit_writes_a_file_that_simulate_reads_and_refuses_when_stale(rehearsa
         read(path, rehearsal.study, ("none", "basic"))
     assert calibrate.stale_keys(document, rehearsal.study, ("none", "full")) == ["conditions"]
     assert calibrate.stale_keys({**document, "version": 1}, rehearsal.study) == ["format"]
+    for bad_on in (5, "none", ["none", "none"], ["full", "none"], ["none", "basic", "full"], ["\ud800"], None):
+        (tmp_path / "on.json").write_text(json.dumps({**document, "on": bad_on}))
+        with pytest.raises(SceneSuggestError, match="field 'on': not a fold of the paper's conditions"):
+            read(tmp_path / "on.json")
+        assert calibrate.stale_keys({**document, "on": bad_on}, rehearsal.study) == ["conditions"]
     corrected = {**document, "paper": {**document["paper"], "none.total_time": [205.0, 177.0, 241.0]}}
     assert calibrate.stale_keys(corrected, rehearsal.study) == ["paper's numbers"]
     assert calibrate.stale_keys(document, rehearsal.study) == []
@@ -345,13 +350,21 @@ def test_cli_calibrate_then_simulate_with_it(tmp_path, demo_resources):
     sim = subprocess.run([*cli, "simulate", "--participants", "1", "--calibration", str(out), "--on", "none,full",
                           "--json"], capture_output=True, text=True, env=env, cwd=ROOT)
     assert sim.returncode == 0 and json.loads(sim.stdout)["completed"] == 1, sim.stderr
+    (tmp_path / "on5.json").write_text(json.dumps({**json.loads(out.read_text()), "on": 5}))
+    (tmp_path / "bad.toml").write_text("not = [toml")
     for args, message in [
             (["simulate", "--calibration", str(out), "--on", "none,basic"],
              "fitted on none + full, not on none + basic"),
             (["calibrate", "-o", str(tmp_path / "x.json"), "--on", "none", "--start", str(out)],
              "a fit on none cannot start from one fitted on none + full"),
             (["calibrate", "-o", str(tmp_path / "x.json"), "--on", "none,basic,full"], "predicts none"),
-            (["calibrate", "-o", str(tmp_path / "x.json"), "--on", "oriented"], "no condition 'oriented'")]:
+            (["calibrate", "-o", str(tmp_path / "x.json"), "--on", "oriented"], "no condition 'oriented'"),
+            (["calibrate", "-o", str(tmp_path / "x.json"), "--on", "none\x01"], "no condition 'none\\x01'"),
+            (["calibrate", "-o", str(tmp_path / "x.json"), "--draws", str(2 ** 31)], "--draws"),
+            (["calibrate", "-o", str(tmp_path / "x.json"), "--workers", str(2 ** 31)], "--workers"),
+            (["calibrate", "-o", str(tmp_path / "x.json"), "--start", str(tmp_path / "on5.json")],
+             "field 'on': not a fold of the paper's conditions: 5"),
+            (["power", "--calibration", str(out), "--against", str(tmp_path / "bad.toml")], "not valid TOML")]:
         refused = subprocess.run([*cli, *args], capture_output=True, text=True, env=env, cwd=ROOT)
         assert refused.returncode == 2 and message in refused.stderr, (args, refused.stderr)
         assert "Traceback" not in refused.stderr and not (tmp_path / "x.json").exists()
@@ -360,6 +373,11 @@ def test_cli_calibrate_then_simulate_with_it(tmp_path, demo_resources):
                                  "--if-stale", "--participants", "2", "--evaluations", "1", "--json"],
                                 capture_output=True, text=True, env=env, cwd=ROOT)
     assert other_fold.returncode == 0 and json.loads(other_fold.stdout)["on"] == ["none"], other_fold.stderr
+    (tmp_path / "same.json").write_text(json.dumps({**json.loads(out.read_text()), "draws": 5}))  # malformed
+    same_fold = subprocess.run([*cli, "calibrate", "-o", str(tmp_path / "same.json"), "--on", "none,full",
+                                "--if-stale", "--participants", "2", "--evaluations", "1", "--json"],
+                               capture_output=True, text=True, env=env, cwd=ROOT)
+    assert same_fold.returncode == 0 and json.loads(same_fold.stdout)["evaluations"] == 1, same_fold.stderr
     table = subprocess.run([*cli, "calibrate", "--explain", "--participants", "2", "-o", str(tmp_path / "id.json")],
                            capture_output=True, text=True, env=env, cwd=ROOT)
     assert table.returncode == 0 and "| `suggestion_patience` | basic, full | 0 |" in table.stdout, table.stderr

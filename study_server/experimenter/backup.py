@@ -77,15 +77,16 @@ def _counts(con) -> dict:
 
 
 @contextmanager
-def _connected(url: str, begin: bool = False):
-    """A connection to the database at ``url`` (in a transaction committed at the end with ``begin``), its engine
-    disposed after; a database that cannot be reached is a :class:`BackupError` naming ``--db``."""
-    engine = create_engine(url)
+def _connected(url: str, begin: bool = False, doing: str = "open", **engine_options):
+    """A connection to the database at ``url`` (in a transaction committed at the end with ``begin``; the engine
+    made with ``engine_options``), its engine disposed after; a database error is a :class:`BackupError` naming
+    ``--db`` and saying what could not be done (``cannot open the database``)."""
+    engine = create_engine(url, **engine_options)
     try:
         with engine.begin() if begin else engine.connect() as con:
             yield con
     except SQLAlchemyError as e:
-        raise BackupError(f"cannot open the database ({type(e).__name__}: {str(e).splitlines()[0]})",
+        raise BackupError(f"cannot {doing} the database ({type(e).__name__}: {str(e).splitlines()[0]})",
                           field="--db") from None
     finally:
         engine.dispose()
@@ -155,21 +156,13 @@ def _claim(out: Path) -> Path:
 def _pg_dump(url: str, tmp: Path) -> dict:
     """``pg_dump`` of the snapshot a repeatable-read transaction exports, counted in that same snapshot, so the
     summary describes exactly what the dump holds."""
-    engine = create_engine(url, isolation_level="REPEATABLE READ")
-    try:
-        with engine.connect() as con:
-            snapshot = con.execute(text("SELECT pg_export_snapshot()")).scalar()
-            summary = _counts(con)
-            uri, env = _libpq(url)
-            _run([_pg_tool("pg_dump"), "--format=custom", "--no-owner", "--no-privileges", "--no-password",
-                  f"--snapshot={snapshot}",
-                  f"--file={tmp}", f"--dbname={uri}"], env, "pg_dump")
-            return summary
-    except SQLAlchemyError as e:
-        raise BackupError(f"cannot read the database ({type(e).__name__}: {str(e).splitlines()[0]})",
-                          field="--db") from None
-    finally:
-        engine.dispose()
+    with _connected(url, doing="read", isolation_level="REPEATABLE READ") as con:
+        snapshot = con.execute(text("SELECT pg_export_snapshot()")).scalar()
+        summary = _counts(con)
+        uri, env = _libpq(url)
+        _run([_pg_tool("pg_dump"), "--format=custom", "--no-owner", "--no-privileges", "--no-password",
+              f"--snapshot={snapshot}", f"--file={tmp}", f"--dbname={uri}"], env, "pg_dump")
+        return summary
 
 
 def _dump(url: str, kind: str, into: Path) -> dict:
