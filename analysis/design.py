@@ -4,8 +4,12 @@ Fixed terms: a numeric column enters as itself; a text or categorical column (or
 one) enters as treatment dummies ``COLlevel`` against its first level — R's ``contr.treatment``. Levels are in
 categorical order when the column is a pandas Categorical, otherwise sorted as R sorts factor levels.
 
-Random terms: ``GROUP`` is a random intercept per level of GROUP; ``X|GROUP`` is a correlated random intercept
-and slope of X per level of GROUP (lme4's ``(X | GROUP)``).
+Random terms: ``GROUP`` is a random intercept per level of GROUP; ``X|GROUP`` a random intercept and slope of X
+per level of GROUP, correlated (lme4's ``(1 + X | GROUP)``); X is a numeric column, or a factor, whose slope is its
+treatment dummies (the same coding as the fixed term). Several slopes: ``X + W|GROUP``; no intercept: ``0 + X|GROUP``.
+``X||GROUP`` is the same with every correlation left out: the intercept and each column of X (each dummy of a factor)
+get a variance of their own (afex's ``expand_re = TRUE``; lme4's own ``(1 + X || GROUP)`` keeps a factor's dummies
+correlated, so reproduce.R writes such a term out as lme4's ``(1 | GROUP) + (0 + dummy(X, "b") | GROUP) + …``).
 """
 
 from __future__ import annotations
@@ -24,23 +28,39 @@ _FACTOR = re.compile(r"^factor\((.+)\)$")
 
 @dataclass(frozen=True)
 class RandomTerm:
-    """One grouping factor: ``codes`` index ``levels`` per row; ``slope`` values per row when it has one."""
+    """One random-effects term: per level of ``group`` (``codes`` index ``levels`` per row), effects on the model
+    matrix columns ``names`` (``values``: one row per observation, one column per name; ``(Intercept)`` a column of
+    ones), with a full covariance between them (lme4's ``(… | group)``). Uncorrelated effects are several terms on
+    the same group."""
 
     group: str
     levels: tuple[str, ...]
     codes: np.ndarray
-    slope_name: str | None = None
-    slope: np.ndarray | None = None
+    names: tuple[str, ...] = ("(Intercept)",)
+    values: np.ndarray | None = None  # None: the intercept alone
+
+    @property
+    def width(self) -> int:
+        """Effects per level (the size of the term's covariance matrix)."""
+        return len(self.names)
+
+    def columns(self) -> np.ndarray:
+        """The term's model-matrix columns, n × width."""
+        return np.ones((len(self.codes), 1)) if self.values is None else self.values
 
     def z(self) -> sparse.csr_matrix:
-        """Sparse random-effects columns: per level, an intercept (and the slope) column."""
-        n, k = len(self.codes), len(self.levels)
-        rows = np.arange(n)
-        if self.slope is None:
-            return sparse.csr_matrix((np.ones(n), (rows, self.codes)), shape=(n, k))
-        cols = np.concatenate([2 * self.codes, 2 * self.codes + 1])
-        vals = np.concatenate([np.ones(n), self.slope])
-        return sparse.csr_matrix((vals, (np.concatenate([rows, rows]), cols)), shape=(n, 2 * k))
+        """Sparse random-effects columns, level-major as lme4 lays them out: per level, one column per name."""
+        n, k = len(self.codes), self.width
+        rows = np.repeat(np.arange(n), k)
+        cols = (self.codes[:, None] * k + np.arange(k)).ravel()
+        return sparse.csr_matrix((self.columns().ravel(), (rows, cols)), shape=(n, k * len(self.levels)))
+
+    def label(self) -> str:
+        """lme4's spelling: ``(1 | participant)``, ``(1 + conditionbasic + conditionfull | participant)``."""
+        names = ["1" if n == "(Intercept)" else n for n in self.names]
+        if "1" not in names:
+            names.insert(0, "0")
+        return f"({' + '.join(names)} | {self.group})"
 
 
 @dataclass(frozen=True)
@@ -84,7 +104,7 @@ class Design:
 def formula_of(design: Design) -> str:
     """lme4's formula for the design, as fits report it: ``y ~ condition + (1 | participant) + (1 | scene)``."""
     fixed = " + ".join(design.fixed_terms) or "1"
-    random = " + ".join(f"({t.slope_name or 1} | {t.group})" for t in design.random)
+    random = " + ".join(t.label() for t in design.random)
     return f"{design.response} ~ {fixed} + {random}"
 
 
@@ -110,12 +130,12 @@ def _require(data: pd.DataFrame, column: str, role: str) -> None:
         raise AnalysisError(f"no column {column!r} (columns: {', '.join(map(str, data.columns))})", role)
 
 
-def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None
+def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None, role: str = "--fixed"
                    ) -> tuple[list[str], list[np.ndarray], list | None]:
     """(column names, columns, the levels of a categorical term — None for a numeric one)."""
     m = _FACTOR.match(term)
     column = m.group(1) if m else term
-    _require(data, column, "--fixed")
+    _require(data, column, role)
     values = data[column]
     categorical = bool(m) or not pd.api.types.is_numeric_dtype(values) or isinstance(values.dtype,
                                                                                       pd.CategoricalDtype)
@@ -129,24 +149,76 @@ def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None
                                 f"({', '.join(map(str, levels))})", "--reference")
         levels = matches + [lv for lv in levels if lv not in matches]
     if len(levels) < 2:
-        raise AnalysisError(f"{column!r} has {len(levels)} level(s) with data; a fixed effect needs at least 2",
-                            "--fixed")
+        raise AnalysisError(f"{column!r} has {len(levels)} level(s) with data; "
+                            f"{'a fixed effect' if role == '--fixed' else 'a random slope'} needs at least 2", role)
     return ([f"{term}{lv}" for lv in levels[1:]],
             [(values == lv).to_numpy(float) for lv in levels[1:]], levels)
 
 
-def _random_term(data: pd.DataFrame, spec: str) -> RandomTerm:
-    slope_name, _, group = spec.rpartition("|")
-    group, slope_name = group.strip(), slope_name.strip() or None
+def _random_terms(data: pd.DataFrame, spec: str, references: dict[str, str | None]) -> list[RandomTerm]:
+    """The terms of one ``--random`` spec (see the module's docstring); ``references`` holds the reference level
+    of each categorical fixed term, so a factor's slope is coded as its fixed effect is."""
+    uncorrelated = "||" in spec
+    left, _, group = spec.replace("||", "|").rpartition("|")
+    group, left = group.strip(), left.strip()
+    if not group or "|" in left:
+        raise AnalysisError(f"{spec!r} is not a random term (GROUP, X|GROUP or X||GROUP)", "--random")
     _require(data, group, "--random")
     levels = levels_of(data[group])
     index = {lv: i for i, lv in enumerate(levels)}
     codes = data[group].map(index).to_numpy(int)
-    slope = None
-    if slope_name:
-        _require(data, slope_name, "--random")
-        slope = pd.to_numeric(data[slope_name], errors="coerce").to_numpy(float)
-    return RandomTerm(group, tuple(map(str, levels)), codes, slope_name, slope)
+    parts = [p.strip() for p in left.split("+")] if left else []
+    if any(not p for p in parts):
+        raise AnalysisError(f"{spec!r} has an empty term", "--random")
+    intercept = "0" not in parts
+    names, columns = (["(Intercept)"], [np.ones(len(data))]) if intercept else ([], [])
+    for part in parts:
+        if part in ("0", "1"):
+            continue
+        n, c, lv = _fixed_columns(data, part, references.get(part), role="--random")
+        if lv is not None and len(lv) < 2:
+            raise AnalysisError(f"{part!r} has one level; a random slope needs at least 2", "--random")
+        names += n
+        columns += c
+    if not names:
+        raise AnalysisError(f"{spec!r} has no random effect (0 and nothing else)", "--random")
+    if len(set(names)) < len(names):
+        raise AnalysisError(f"{spec!r} names a column twice", "--random")
+    values = np.column_stack(columns)
+    common = dict(group=group, levels=tuple(map(str, levels)), codes=codes)
+    if not uncorrelated or len(names) == 1:
+        return [RandomTerm(**common, names=tuple(names), values=None if names == ["(Intercept)"] else values)]
+    return [RandomTerm(**common, names=(name,), values=None if name == "(Intercept)" else values[:, [i]])
+            for i, name in enumerate(names)]
+
+
+def _check_random(terms: list[RandomTerm], n: int) -> None:
+    """Refuse random effects the data cannot support, naming the term: two terms with the same effect on one group,
+    as many random effects as observations or more (lme4's check.nobs.vs.nRE), and a slope that never varies within
+    any level of its group (a between-group column: it is the intercept over again)."""
+    seen: dict[tuple[str, str], RandomTerm] = {}
+    for t in terms:
+        for name in t.names:
+            if (t.group, name) in seen:
+                raise AnalysisError(f"{t.label()} repeats the effect {name} of {seen[t.group, name].label()}",
+                                    "--random")
+            seen[t.group, name] = t
+        q = t.width * len(t.levels)
+        if q >= n:
+            raise AnalysisError(f"{t.label()} has {q} random effects for {n} observations: the number of "
+                                "observations must exceed the number of random effects", "--random")
+        for j, name in enumerate(t.names):
+            column = t.columns()[:, j]
+            if name == "(Intercept)":
+                continue
+            low = np.full(len(t.levels), np.inf)
+            high = np.full(len(t.levels), -np.inf)
+            np.minimum.at(low, t.codes, column)
+            np.maximum.at(high, t.codes, column)
+            if not np.any(high > low):
+                raise AnalysisError(f"{t.label()}: {name} never varies within a level of {t.group} (each "
+                                    f"{t.group} has one value of it), so its slope by {t.group} is not "
+                                    "identifiable", "--random")
 
 
 def build_design(data: pd.DataFrame, response: str, fixed: list[str], random: list[str],
@@ -156,7 +228,7 @@ def build_design(data: pd.DataFrame, response: str, fixed: list[str], random: li
         raise AnalysisError("a mixed model needs at least one random term", "--random")
     _require(data, response, "--response")
     used = [response] + [(_FACTOR.match(t).group(1) if _FACTOR.match(t) else t) for t in fixed]
-    used += [part.strip() for spec in random for part in spec.split("|")]
+    used += [_column_of(part) for spec in random for part in _parts(spec)]
     for column in used:
         _require(data, column, "column")
     y_all = pd.to_numeric(data[response], errors="coerce")
@@ -167,16 +239,30 @@ def build_design(data: pd.DataFrame, response: str, fixed: list[str], random: li
     if len(rows) < 3:
         raise AnalysisError(f"only {len(rows)} complete row(s)", f"response {response!r}")
     names, columns, levels = ["(Intercept)"], [np.ones(len(rows))], []
+    references: dict[str, str | None] = {}
     for term in fixed:
         n, c, lv = _fixed_columns(rows, term, reference if term == fixed[0] else None)
         names += n
         columns += c
         if lv is not None:
             levels.append((term, tuple(map(str, lv))))
+            references[term] = str(lv[0])
     X = np.column_stack(columns)
     if np.linalg.matrix_rank(X) < X.shape[1]:
         raise AnalysisError("the fixed effects are not estimable (a level is confounded with another term)",
                             "--fixed")
-    terms = tuple(_random_term(rows, spec) for spec in random)
-    return Design(response, y_all[complete].to_numpy(float), X, tuple(names), tuple(fixed), terms,
+    terms = [t for spec in random for t in _random_terms(rows, spec, references)]
+    _check_random(terms, len(rows))
+    return Design(response, y_all[complete].to_numpy(float), X, tuple(names), tuple(fixed), tuple(terms),
                   int((~complete).sum()), tuple(levels))
+
+
+def _parts(spec: str) -> list[str]:
+    """The group and the columns a ``--random`` spec names (not 0 or 1)."""
+    left, _, group = spec.replace("||", "|").rpartition("|")
+    return [group] + [p for p in (q.strip() for q in left.split("+")) if p and p not in ("0", "1")]
+
+
+def _column_of(term: str) -> str:
+    m = _FACTOR.match(term.strip())
+    return (m.group(1) if m else term).strip()

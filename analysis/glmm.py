@@ -1,13 +1,13 @@
-"""Poisson mixed models (log link, random intercepts) by maximum likelihood, as lme4's ``glmer`` fits them.
+"""Poisson mixed models (log link, random intercepts and slopes) by maximum likelihood, as lme4's ``glmer`` fits them.
 
 statsmodels has no maximum-likelihood GLMM, so the likelihood is written here in lme4's terms: spherical random
-effects u ~ N(0, I), b = Λ_θ u with Λ_θ = diag(θ per grouping factor); for given (θ, β) penalised iteratively
+effects u ~ N(0, I), b = Λ_θ u (:mod:`analysis.random_effects`); for given (θ, β) penalised iteratively
 reweighted least squares finds the conditional mode û and the Laplace approximation is
 
     −2 ℓ ≈ −2 Σ log Pois(y | μ(û)) + ‖û‖² + log det(Λ'Z'WZΛ + I),   W = diag(μ).
 
-With a single grouping factor ``n_agq > 1`` replaces it by adaptive Gauss–Hermite quadrature around û. (θ, β)
-are optimised together (bounded L-BFGS-B from two starts, the best restarted: :mod:`analysis.optimum`), as lme4's
+With a single random intercept ``n_agq > 1`` replaces it by adaptive Gauss–Hermite quadrature around û. (θ, β)
+are optimised together (BOBYQA from two starts, the best restarted: :mod:`analysis.optimum`), as lme4's
 second stage does; standard errors come from the finite-difference Hessian of −2 ℓ over (θ, β), lme4's default.
 
 Why glmer's numbers differ slightly from these (its default SEs by 0.3–0.6% on the reference data; on 30 random
@@ -30,17 +30,16 @@ re-checks that on random studies in every CI run.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from scipy.special import gammaln
 from statsmodels.genmod.families import Poisson
 from statsmodels.genmod.generalized_linear_model import GLM
 
-from .crossed import CrossedIntercepts, Curvature
 from .design import Design, formula_of
 from .errors import AnalysisError
+from .lmm import components, is_singular
 from .optimum import minimize
+from .random_effects import Curvature, RandomEffects, term_factors
 from .results import MixedFit
 
 STEP = 1e-4  # finite-difference step of the Hessian (lme4's deriv12)
@@ -55,13 +54,20 @@ class _Laplace:
 
     def __init__(self, design: Design, n_agq: int):
         self.y, self.X = design.y, design.X
-        self.z = CrossedIntercepts(design.random)
-        self.k, self.p, self.q = self.z.k, design.X.shape[1], self.z.q
+        self.z = RandomEffects(design.random)
+        self.k, self.p, self.q = self.z.n_theta, design.X.shape[1], self.z.q
         self.n_agq = n_agq
         self.codes = design.random[0].codes
         self.nodes, self.weights = np.polynomial.hermite.hermgauss(n_agq)
         self.const = gammaln(self.y + 1).sum()
         self.u = np.zeros(self.q)
+
+    def theta(self, params: np.ndarray) -> np.ndarray:
+        """θ of (θ, β), with the factors' diagonals taken positive (the deviance of an intercept-only factor is even
+        in its θ; the finite differences of the Hessian step across zero)."""
+        theta = np.array(params[:self.k], dtype=float)
+        theta[self.z.diagonal] = np.abs(theta[self.z.diagonal])
+        return theta
 
     def _h(self, theta, mu) -> Curvature:
         """Λ'Z'WZΛ + I with W = diag(μ)."""
@@ -106,13 +112,13 @@ class _Laplace:
         return u, eta, self._h(theta, np.exp(eta))
 
     def deviance(self, params: np.ndarray) -> float:
-        theta, beta = np.abs(params[:self.k]), params[self.k:]
+        theta, beta = self.theta(params), params[self.k:]
         try:
             with np.errstate(over="ignore", invalid="ignore"):
                 u, eta, h = self._mode(theta, beta, self.u)
         except (np.linalg.LinAlgError, ValueError):
             return WILD
-        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(h.d))):
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(h.d_inv))):
             return WILD
         self.u = u
         if self.n_agq == 1:
@@ -121,7 +127,7 @@ class _Laplace:
                 return float(-2 * loglik + h.logdet())
             except np.linalg.LinAlgError:
                 return WILD
-        return float(-2 * self._agq(theta[0], beta, u, h.d))
+        return float(-2 * self._agq(theta[0], beta, u, h.d[:, 0, 0]))
 
     def _agq(self, theta, beta, u, h) -> float:
         """Σ over groups of log ∫ Π_i Pois(y_i | b) N(b; 0, θ²) db by Gauss–Hermite around the mode."""
@@ -154,29 +160,26 @@ def _hessian(f, x: np.ndarray) -> np.ndarray:
 
 
 def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
-    """Poisson GLMM with random intercepts; ``loglik`` is the Laplace (or quadrature) log-likelihood."""
+    """Poisson GLMM; ``loglik`` is the Laplace (or quadrature) log-likelihood."""
     y = design.y
     if np.any(y < 0) or np.any(y != np.round(y)):
         raise AnalysisError("a Poisson model needs counts (whole numbers ≥ 0)", f"response {design.response!r}")
-    if any(t.slope is not None for t in design.random):
-        raise AnalysisError("random slopes are supported for Gaussian models only", "--random")
-    if n_agq > 1 and len(design.random) > 1:
-        raise AnalysisError("adaptive quadrature needs a single grouping factor; use the Laplace approximation")
+    if n_agq > 1 and (len(design.random) > 1 or design.random[0].width > 1):
+        raise AnalysisError("adaptive quadrature needs a single random intercept (as lme4's nAGQ > 1); use the "
+                            "Laplace approximation", "--random")
     if y.sum() == 0:
         raise AnalysisError("is zero everywhere; there is nothing to model", f"response {design.response!r}")
-    # The largest factor first: its block of the curvature is the diagonal one (see analysis.crossed).
-    design = replace(design, random=tuple(sorted(design.random, key=lambda t: -len(t.levels))))
     model = _Laplace(design, n_agq)
     beta0 = GLM(y, design.X, family=Poisson()).fit().params
     k = model.k
-    bounds = [(0, None)] * k + [(None, None)] * model.p
-    starts = [np.concatenate([np.full(k, theta), beta0]) for theta in START_THETA]
+    bounds = [(0, None) if diagonal else (None, None) for diagonal in model.z.diagonal] + [(None, None)] * model.p
+    starts = [np.concatenate([np.where(model.z.diagonal, theta, 0.0), beta0]) for theta in START_THETA]
 
     def reset():
         model.u = np.zeros(model.q)
 
-    best = minimize(model.deviance, starts, bounds, list(range(k)), before=reset)
-    x = np.concatenate([np.abs(best.x[:k]), best.x[k:]])
+    best = minimize(model.deviance, starts, bounds, list(np.flatnonzero(model.z.diagonal)), before=reset)
+    x = np.concatenate([model.theta(best.x), best.x[k:]])
     dev = model.deviance(x)
     hess = _hessian(model.deviance, x)
     try:
@@ -193,6 +196,6 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
         groups={t.group: len(t.levels) for t in design.random},
         fixed=dict(zip(design.fixed_names, map(float, x[k:]), strict=True)),
         se=dict(zip(design.fixed_names, map(float, se), strict=True)), cov_fixed=cov,
-        variance={t.group: float(th**2) for t, th in zip(design.random, theta, strict=True)},
-        loglik=-dev / 2, n_params=model.p + k, optimizer="L-BFGS-B", singular=bool(np.any(theta < 1e-4)),
+        variance=components(design.random, term_factors(design.random, theta), 1.0),
+        loglik=-dev / 2, n_params=model.p + k, optimizer="bobyqa", singular=is_singular(theta, model.z.diagonal),
         dropped=design.dropped, extra={"n_agq": n_agq})

@@ -2,30 +2,31 @@
 
 lme4's profiled deviance (Bates, Mächler, Bolker & Walker 2015, §3): random effects b = Λ_θ u with spherical u;
 for given θ the fixed effects and σ² have closed forms, so the optimiser only searches θ (one relative standard
-deviation per random intercept; the three entries of a lower-triangular 2×2 factor per intercept–slope term).
+deviation per random intercept; the lower triangle of a term's covariance factor for correlated slopes).
 Everything is computed from the cross-products Z'Z, Z'X, Z'y, X'X, X'y, y'y, so an evaluation costs one
-Cholesky factorisation of a q×q matrix (q = random-effect levels) whatever the number of rows — and with random
-intercepts only (every model of the report), one of the small Schur complement of :mod:`analysis.crossed`.
+factorisation of the curvature whatever the number of rows: small blocks per participant and the Schur complement
+over the other factors (:mod:`analysis.random_effects`).
 
 statsmodels' MixedLM gives the same estimates (crossed factors as variance components of one group) but takes
 ~20 s per fit on 1800 rows with 200 participants, because it works on the dense n×q design of that one group;
 this formulation takes well under a second, which is what keeps the report's budget.
 
-The flat likelihood in a variance near zero can stop one optimiser early, so each fit is multi-start (bounded
-L-BFGS-B from θ = 1, 0.1 and 3, the best restarted and moved off zero variances by :mod:`analysis.optimum`, then
-polished by Nelder–Mead). Fixed-effect covariances are lme4's σ² (X'V⁻¹X)⁻¹.
+The deviance's exact gradient in θ is computed from the same blocks (:meth:`_Profiled.deviance_and_gradient`), so
+each local fit is L-BFGS-B with it: a few dozen evaluations where lme4's derivative-free BOBYQA takes hundreds.
+The flat likelihood in a variance near zero can stop one optimiser early, so each fit is multi-start (θ = 1, 0.1
+and 3 times the identity, the best restarted and moved off zero variances by :mod:`analysis.optimum`).
+Fixed-effect covariances are lme4's σ² (X'V⁻¹X)⁻¹.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy import optimize
 from scipy.linalg import block_diag, cho_factor, cho_solve, solve_triangular
 
-from .crossed import CrossedIntercepts
 from .design import Design, formula_of
 from .errors import AnalysisError
 from .optimum import minimize
+from .random_effects import RandomEffects, term_factors
 from .results import MixedFit
 
 STARTS = (1.0, 0.1, 3.0)
@@ -34,42 +35,28 @@ STARTS = (1.0, 0.1, 3.0)
 class _Profiled:
     """−2 log-likelihood (or the REML criterion) as a function of θ alone."""
 
-    def __init__(self, design: Design, reml: bool, crossed: bool = True):
-        """``crossed``: solve random intercepts through :mod:`analysis.crossed` (False: the dense q×q solve that
-        slopes need, kept for them and for tests that compare the two)."""
+    def __init__(self, design: Design, reml: bool, blocked: bool = True):
+        """``blocked``: solve through the block structure of :mod:`analysis.random_effects` (False: a dense q×q
+        Cholesky, kept for tests that compare the two)."""
         self.design, self.reml = design, reml
         X, y = design.X, design.y
         self.n, self.p = X.shape
         self.xtx, self.xty, self.yty = X.T @ X, X.T @ y, float(y @ y)
-        if crossed and all(t.slope is None for t in design.random):
-            # Crossed intercepts: cross-tabulations and per-level sums, factors largest first (analysis.crossed).
-            self.order = sorted(range(len(design.random)), key=lambda i: -len(design.random[i].levels))
-            self.crossed = CrossedIntercepts([design.random[i] for i in self.order])
-            self.tabs = self.crossed.crosstabs(np.ones(self.n))
-            self.zt_yx = self.crossed.zt(np.column_stack([y, X]))
-            self.q = self.crossed.q
+        self.effects = RandomEffects(design.random)
+        if blocked:
+            self.tabs = self.effects.crosstabs(np.ones(self.n))
+            self.zt_yx = self.effects.zt(np.column_stack([y, X]))
         else:
-            self.crossed = None
+            self.tabs = None
             Z = design.z()
             self.ztz = (Z.T @ Z).toarray()
             self.ztx = np.asarray(Z.T @ X)
             self.zty = np.asarray(Z.T @ y)
-            self.q = self.ztz.shape[0]
-        #: per term: (number of θ, size of the block)
-        self.shapes = [(1, 1) if t.slope is None else (3, 2) for t in design.random]
-        self.bounds = [bound for n, _ in self.shapes for bound in
-                       ([(0, None)] if n == 1 else [(0, None), (None, None), (0, None)])]
+        self.q = self.effects.q
+        self.bounds = [(0, None) if diagonal else (None, None) for diagonal in self.effects.diagonal]
 
     def blocks(self, theta: np.ndarray) -> list[np.ndarray]:
-        """The relative covariance factor of each term (1×1 or lower-triangular 2×2)."""
-        out, i = [], 0
-        for n, _ in self.shapes:
-            if n == 1:
-                out.append(np.array([[theta[i]]]))
-            else:
-                out.append(np.array([[theta[i], 0.0], [theta[i + 1], theta[i + 2]]]))
-            i += n
-        return out
+        return term_factors(self.design.random, theta)
 
     def lam(self, theta: np.ndarray) -> np.ndarray:
         parts = [np.kron(np.eye(len(t.levels)), b) for t, b in zip(self.design.random, self.blocks(theta),
@@ -78,10 +65,10 @@ class _Profiled:
 
     def _products(self, theta: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, float]:
         """With A = Λ'Z'ZΛ + I = LL': ‖L⁻¹Λ'Z'y‖², (L⁻¹Λ'Z'X)'(L⁻¹Λ'Z'y), (L⁻¹Λ'Z'X)'(L⁻¹Λ'Z'X) and log det A."""
-        if self.crossed is not None:
-            th = np.asarray(theta, dtype=float)[self.order]
-            a = self.crossed.curvature(th, self.tabs)
-            b = self.zt_yx * self.crossed.scale(th)[:, None]  # Λ'Z'[y X]
+        if self.tabs is not None:
+            theta = np.asarray(theta, dtype=float)
+            a = self.effects.curvature(theta, self.tabs)
+            b = self.effects.scale_t(theta, self.zt_yx)  # Λ'Z'[y X]
             s = a.solve(b)
             return float(b[:, 0] @ s[:, 0]), b[:, 1:].T @ s[:, 0], b[:, 1:].T @ s[:, 1:], a.logdet()
         lam = self.lam(theta)
@@ -111,8 +98,62 @@ class _Profiled:
         except np.linalg.LinAlgError:
             return 1e300
 
+    def deviance_and_gradient(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
+        """The deviance and its exact gradient in θ (the blocked solve only). With A = Λ'Z'ZΛ + I, the penalised
+        residual e at (β̂, û), F = A⁻¹Λ'Z'X, R = X − ZΛF and S_X = R'X, for θ_i an entry (r, c) of a factor's T
+        (Λ_i = ∂Λ/∂θ_i: a one at (r, c) of every level's block):
+
+            ∂ log|A| = 2 tr(A⁻¹Λ'Z'Z Λ_i),   ∂ r² = −2 (Z'e)'Λ_i û   (û minimises r², so only Λ moves it),
+            ∂ log|S_X| = −2 tr(F S_X⁻¹ (Z'R)'Λ_i)   (REML),
+
+        each a sum over the levels of θ_i's factor of per-level blocks."""
+        theta = np.asarray(theta, dtype=float)
+        effects = self.effects
+        try:
+            a = effects.curvature(theta, self.tabs)
+            b = effects.scale_t(theta, self.zt_yx)
+            s = a.solve(b)
+            xvx = self.xtx - b[:, 1:].T @ s[:, 1:]
+            rx = np.linalg.cholesky(xvx)
+        except np.linalg.LinAlgError:
+            return 1e300, np.zeros_like(theta)
+        cu_cu, rzx_cu = float(b[:, 0] @ s[:, 0]), b[:, 1:].T @ s[:, 0]
+        cb = solve_triangular(rx, self.xty - rzx_cu, lower=True)
+        r2 = max(self.yty - cu_cu - cb @ cb, 1e-300)
+        beta = solve_triangular(rx.T, cb, lower=False)
+        dof = self.n - self.p if self.reml else self.n
+        dev = a.logdet() + dof * (1 + np.log(2 * np.pi * r2 / dof))
+        if self.reml:
+            dev += 2 * np.log(np.diag(rx)).sum()
+        f = s[:, 1:]
+        u = s[:, 0] - f @ beta
+        ze = self.zt_yx[:, 0] - self.zt_yx[:, 1:] @ beta - effects.ztz_times(self.tabs, effects.scale(theta, u))
+        h00, h_rest = a.inverse_times_diagonal(*effects.lam_t_ztz(theta, self.tabs))
+        if self.reml:
+            zr = self.zt_yx[:, 1:] - effects.ztz_times(self.tabs, effects.scale(theta, f))
+            fs = f @ cho_solve((rx, True), np.eye(self.p))  # F S_X⁻¹
+        grad = np.zeros_like(theta)
+        n0 = effects.sizes[0]
+        for k, (g, ze_g, u_g) in enumerate(zip(effects.groups, effects.level_blocks(ze), effects.level_blocks(u),
+                                               strict=True)):
+            if k == 0:
+                h = h00
+            else:
+                at = effects.offsets[k] - n0
+                h = np.stack([h_rest[at + lv * g.width:at + (lv + 1) * g.width,
+                                     at + lv * g.width:at + (lv + 1) * g.width] for lv in range(g.size)])
+            logdet_part = 2 * h[:, g.cols, g.rows].sum(axis=0)
+            r2_part = -2 * (ze_g[:, g.rows] * u_g[:, g.cols]).sum(axis=0)
+            grad[g.theta] = logdet_part + dof / r2 * r2_part
+            if self.reml:
+                fs_g = effects.level_blocks(fs)[k]
+                zr_g = effects.level_blocks(zr)[k]
+                grad[g.theta] -= 2 * np.einsum("lip,lip->i", fs_g[:, g.cols], zr_g[:, g.rows])
+        return float(dev), grad
+
     def start(self, value: float) -> np.ndarray:
-        return np.concatenate([[value] if n == 1 else [value, 0.0, value] for n, _ in self.shapes])
+        """θ with every term's factor ``value`` times the identity (lme4 starts from 1)."""
+        return np.where(self.effects.diagonal, value, 0.0)
 
 
 def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
@@ -121,27 +162,16 @@ def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
         raise AnalysisError("is constant; there is no variance to model", f"response {design.response!r}")
     model = _Profiled(design, reml)
     best = minimize(model.deviance, [model.start(s) for s in STARTS], model.bounds,
-                    [i for i, (low, _) in enumerate(model.bounds) if low == 0])
-    # Polish: Nelder–Mead needs no gradient, so it can settle θ to ~1e-9 where finite differences cannot.
-    again = optimize.minimize(model.deviance, best.x, method="Nelder-Mead", bounds=model.bounds,
-                              options={"xatol": 1e-9, "fatol": 1e-10, "maxiter": 2000})
-    best = again if again.fun <= best.fun else best
+                    [i for i, (low, _) in enumerate(model.bounds) if low == 0],
+                    with_gradient=model.deviance_and_gradient)
     if not np.isfinite(best.fun) or best.fun >= 1e300:
         raise AnalysisError("the likelihood could not be evaluated (a fixed effect is confounded with the "
                             "random effects?)", f"response {design.response!r}")
     theta = best.x
     sol = model.solve(theta)
     sigma2 = sol["sigma2"]
-    variance: dict[str, float] = {}
     blocks = model.blocks(theta)
-    for t, b in zip(design.random, blocks, strict=True):
-        cov = sigma2 * b @ b.T
-        variance[t.group] = float(cov[0, 0])
-        if t.slope is not None:
-            variance[f"{t.group}:{t.slope_name}"] = float(cov[1, 1])
-            denom = np.sqrt(cov[0, 0] * cov[1, 1])
-            variance[f"{t.group}:cor"] = float(cov[0, 1] / denom) if denom > 0 else float("nan")
-    variance["residual"] = float(sigma2)
+    variance = {**components(design.random, blocks, sigma2), "residual": float(sigma2)}
     cov_fixed = sigma2 * cho_solve(cho_factor(sol["xvx"]), np.eye(model.p))
     se = np.sqrt(np.diag(cov_fixed))
     return MixedFit(
@@ -149,5 +179,33 @@ def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
         groups={t.group: len(t.levels) for t in design.random},
         fixed=dict(zip(design.fixed_names, map(float, sol["beta"]), strict=True)),
         se=dict(zip(design.fixed_names, map(float, se), strict=True)), cov_fixed=cov_fixed, variance=variance,
-        loglik=-sol["deviance"] / 2, n_params=model.p + len(theta) + 1, reml=reml, optimizer="L-BFGS-B",
-        singular=any(abs(np.diag(b)).min() < 1e-4 for b in blocks), dropped=design.dropped)
+        loglik=-sol["deviance"] / 2, n_params=model.p + len(theta) + 1, reml=reml, optimizer="bobyqa",
+        singular=is_singular(theta, model.effects.diagonal), dropped=design.dropped)
+
+
+#: lme4's isSingular tolerance: a θ on a factor's diagonal below it is a boundary fit
+SINGULAR_TOL = 1e-4
+
+
+def is_singular(theta: np.ndarray, diagonal: np.ndarray) -> bool:
+    """lme4's ``isSingular``: a diagonal entry of a relative covariance factor below SINGULAR_TOL (a variance at
+    zero, or a correlation at ±1)."""
+    return bool(np.any(np.abs(np.asarray(theta)[diagonal]) < SINGULAR_TOL))
+
+
+def components(terms, blocks: list[np.ndarray], scale: float) -> dict[str, float]:
+    """lme4's ``VarCorr`` by name: ``group`` for an intercept's variance, ``group:column`` for a slope's,
+    ``group:cor(a,b)`` for a correlation (as lme4's ``as.data.frame(VarCorr(m))`` names them); ``scale`` is σ² for
+    Gaussian models, 1 for Poisson."""
+    out: dict[str, float] = {}
+    for t, b in zip(terms, blocks, strict=True):
+        cov = scale * b @ b.T
+        names = [t.group if n == "(Intercept)" else f"{t.group}:{n}" for n in t.names]
+        for i, name in enumerate(names):
+            out[name] = float(cov[i, i])
+        for j in range(t.width):
+            for i in range(j + 1, t.width):
+                denom = np.sqrt(cov[i, i] * cov[j, j])
+                out[f"{t.group}:cor({t.names[j]},{t.names[i]})"] = float(cov[i, j] / denom) if denom > 0 \
+                    else float("nan")
+    return out

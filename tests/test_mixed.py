@@ -46,7 +46,7 @@ def _variance_key(r_key: str) -> str:
     if what == "(Intercept)":
         return group
     if what.startswith("cor("):
-        return f"{group}:cor"
+        return r_key
     return f"{group}:{what}"
 
 
@@ -214,22 +214,28 @@ def test_poisson_needs_counts_and_rows_with_missing_values_are_dropped(sim):
 
 
 @pytest.mark.parametrize("reml", [False, True])
-def test_the_crossed_intercepts_solve_equals_the_dense_one(sim, reml):
-    """The Schur-complement solve of analysis.crossed gives the dense q×q Cholesky's deviance, fixed effects and
-    σ² at any θ, on unbalanced data with the grouping factors in either order."""
+@pytest.mark.parametrize("random", [["participant", "scene"], ["scene", "participant"], ["participant"],
+                                    ["condition|participant", "scene"], ["condition||participant", "condition|scene"],
+                                    ["scene", "0 + condition|participant"], ["condition|scene", "participant"]])
+def test_the_blocked_solve_equals_the_dense_one(sim, reml, random):
+    """The solve through per-participant blocks and the Schur complement (analysis.random_effects) gives the dense
+    q×q Cholesky's deviance, fixed effects and σ² at any θ (off-diagonal entries of either sign), on unbalanced data,
+    for intercepts, correlated and uncorrelated slopes, the grouping factors in either order."""
     from analysis.lmm import _Profiled
 
     rng = np.random.default_rng(5)
     unbalanced = sim.drop(index=rng.choice(len(sim), 41, replace=False))
-    for random in (["participant", "scene"], ["scene", "participant"], ["participant"]):
-        design = build_design(unbalanced, "log_total", ["condition"], random)
-        fast, dense = _Profiled(design, reml), _Profiled(design, reml, crossed=False)
-        assert fast.crossed is not None and dense.crossed is None
-        for theta in [np.full(len(random), 1.0), rng.uniform(0, 3, len(random)), np.zeros(len(random))]:
-            a, b = fast.solve(theta), dense.solve(theta)
-            assert a["deviance"] == pytest.approx(b["deviance"], rel=1e-12, abs=1e-9)
-            assert a["beta"] == pytest.approx(b["beta"], rel=1e-10, abs=1e-12)
-            assert a["sigma2"] == pytest.approx(b["sigma2"], rel=1e-10)
+    design = build_design(unbalanced, "log_total", ["condition"], random)
+    fast, dense = _Profiled(design, reml), _Profiled(design, reml, blocked=False)
+    assert fast.tabs is not None and dense.tabs is None
+    diagonal = fast.effects.diagonal
+    for theta in [np.where(diagonal, 1.0, 0.0), np.where(diagonal, rng.uniform(0, 3, len(diagonal)),
+                                                           rng.normal(0, 1, len(diagonal))),
+                  np.zeros(len(diagonal))]:
+        a, b = fast.solve(theta), dense.solve(theta)
+        assert a["deviance"] == pytest.approx(b["deviance"], rel=1e-12, abs=1e-9)
+        assert a["beta"] == pytest.approx(b["beta"], rel=1e-10, abs=1e-12)
+        assert a["sigma2"] == pytest.approx(b["sigma2"], rel=1e-10)
 
 
 def test_a_small_variance_is_found_where_the_gradient_fit_stops_at_zero():

@@ -1,0 +1,281 @@
+"""The random-effects side of a mixed model, in blocks by grouping factor: what both likelihoods solve with.
+
+lme4's parameterisation (Bates, Mächler, Bolker & Walker 2015, §2): random effects b = Λ_θ u with spherical u, where
+Λ_θ repeats, for every level of a term's grouping factor, the term's lower-triangular relative covariance factor
+T (its entries, column by column, are θ; a variance is σ² (TT')ᵢᵢ). Terms on the same grouping factor (an intercept
+and uncorrelated slopes) are stacked into one block per level, so that each row of the data touches one block of
+each factor.
+
+The curvature Λ'Z'WZΛ + I is then block-diagonal over the levels of the first (largest) factor — small K×K blocks,
+K its effects per level — plus dense blocks for the other factors. Solves and the log-determinant go through the
+Schur complement of that block-diagonal part: O(q₁ K³ + q₁ K q₂²) per evaluation instead of O((q₁ K + q₂)³), for q₁
+participants and q₂ scene effects — what lets a 2,000-participant study with random slopes fit in seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+from scipy.linalg import cho_factor, cho_solve
+
+from .design import RandomTerm
+
+
+class Curvature:
+    """The symmetric positive-definite matrix [[D, C], [C', E]] with D block-diagonal (``d``: L blocks K×K): solves
+    and the log-determinant through the Schur complement E − C'D⁻¹C."""
+
+    def __init__(self, d: np.ndarray, c: np.ndarray, e: np.ndarray):
+        self.d, self.c = d, c
+        self.chol = np.linalg.cholesky(d)  # raises LinAlgError when a block is not positive definite
+        self.d_inv = np.linalg.inv(d)
+        self.schur = cho_factor(e - c.T @ self._d_solve(c)) if e.size else None
+
+    def _d_solve(self, g: np.ndarray) -> np.ndarray:
+        """D⁻¹g for g of D's rows (a vector, or a matrix of right-hand sides)."""
+        levels, k, _ = self.d.shape
+        shaped = g.reshape(levels, k, -1)
+        return np.matmul(self.d_inv, shaped).reshape(g.shape)
+
+    def solve(self, g: np.ndarray) -> np.ndarray:
+        """The solution x of this matrix times x = g (a vector, or a matrix of right-hand sides)."""
+        n = self.d.shape[0] * self.d.shape[1]
+        if self.schur is None:
+            return self._d_solve(g)
+        x1 = cho_solve(self.schur, g[n:] - self.c.T @ self._d_solve(g[:n]))
+        return np.concatenate([self._d_solve(g[:n] - self.c @ x1), x1])
+
+    def logdet(self) -> float:
+        total = 2 * float(np.log(np.diagonal(self.chol, axis1=1, axis2=2)).sum())
+        if self.schur is not None:
+            total += 2 * float(np.log(np.diag(self.schur[0])).sum())
+        return total
+
+    def inverse_times_diagonal(self, g00: np.ndarray, g01: np.ndarray, g10: np.ndarray, g11: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray]:
+        """The diagonal blocks of this matrix's inverse times G = [[G00, G01], [G10, G11]], G00 block-diagonal
+        like D (``g00``: L×K×K): those of the first part level by level (L×K×K), and the whole lower-right part
+        (q₂×q₂), from which a caller takes its own blocks. With P = D⁻¹C and S the Schur complement, the inverse
+        is [[D⁻¹ + P S⁻¹ P', −P S⁻¹], [−S⁻¹ P', S⁻¹]]."""
+        first = np.matmul(self.d_inv, g00)
+        if self.schur is None:
+            return first, np.zeros((0, 0))
+        levels, k, _ = self.d.shape
+        p = self._d_solve(self.c).reshape(levels, k, -1)  # D⁻¹C, level by level
+        cd_g00 = np.einsum("lkq,lkj->qlj", self.c.reshape(levels, k, -1), first).reshape(-1, levels * k)
+        q = cho_solve(self.schur, cd_g00 - g10).reshape(-1, levels, k)  # S⁻¹(C'D⁻¹G00 − G10)
+        first = first + np.matmul(p, np.moveaxis(q, 0, 1))
+        rest = cho_solve(self.schur, g11 - self._d_solve(self.c).T @ g01)  # S⁻¹(G11 − C'D⁻¹G01)
+        return first, rest
+
+
+@dataclass(frozen=True)
+class _Group:
+    """One grouping factor's stacked terms: ``x`` its rows' effect columns (n × K), ``z`` the sparse Z (n × LK, level
+    major), and where each θ goes in the factor's K×K block: ``theta``, ``rows``, ``cols``."""
+
+    name: str
+    size: int
+    codes: np.ndarray
+    x: np.ndarray
+    z: sparse.csr_matrix
+    zt: sparse.csr_matrix
+    theta: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+
+    @property
+    def width(self) -> int:
+        return self.x.shape[1]
+
+
+def theta_layout(terms) -> list[tuple[int, int]]:
+    """Per θ in lme4's order (term by term, each term's lower triangle column by column): (row, column) in its
+    term's factor T."""
+    return [(r, c) for t in terms for c in range(t.width) for r in range(c, t.width)]
+
+
+def term_factors(terms, theta: np.ndarray) -> list[np.ndarray]:
+    """Each term's relative covariance factor T (lower triangular, the term's width square) from θ."""
+    out, i = [], 0
+    for t in terms:
+        block = np.zeros((t.width, t.width))
+        for r, c in theta_layout([t]):
+            block[r, c] = theta[i]
+            i += 1
+        out.append(block)
+    return out
+
+
+class RandomEffects:
+    """Z and Λ_θ of ``terms`` (lme4's (… | group) terms, in the design's order; θ follows that order), grouped by
+    factor, the factor with most levels first; u and Λ'Z'r are stacked per factor in that order (``q`` effects in
+    all), each factor level by level."""
+
+    def __init__(self, terms: tuple[RandomTerm, ...] | list[RandomTerm]):
+        layout = theta_layout(terms)
+        self.n_theta = len(layout)
+        #: θ entries on a factor's diagonal: bounded below by 0 (lme4's ``lower``)
+        self.diagonal = np.array([r == c for r, c in layout])
+        starts = np.cumsum([0] + [t.width * (t.width + 1) // 2 for t in terms])
+        by_group: dict[str, list[int]] = {}
+        for i, t in enumerate(terms):
+            by_group.setdefault(t.group, []).append(i)
+        groups = []
+        for name, members in by_group.items():
+            offsets = np.cumsum([0] + [terms[i].width for i in members])
+            theta, rows, cols = [], [], []
+            for i, off in zip(members, offsets, strict=False):
+                for j, (r, c) in enumerate(theta_layout([terms[i]])):
+                    theta.append(starts[i] + j)
+                    rows.append(off + r)
+                    cols.append(off + c)
+            first = terms[members[0]]
+            x = np.column_stack([terms[i].columns() for i in members])
+            n, k = x.shape
+            z = sparse.csr_matrix((x.ravel(), (np.repeat(np.arange(n), k), (first.codes[:, None] * k
+                                                                            + np.arange(k)).ravel())),
+                                  shape=(n, len(first.levels) * k))
+            groups.append(_Group(name, len(first.levels), first.codes, x, z, z.T.tocsr(), np.array(theta),
+                                 np.array(rows), np.array(cols)))
+        self.groups = sorted(groups, key=lambda g: -g.size)
+        self.sizes = [g.size * g.width for g in self.groups]
+        self.offsets = np.concatenate([[0], np.cumsum(self.sizes)[:-1]]).astype(int)
+        self.q = int(sum(self.sizes))
+
+    def factors(self, theta: np.ndarray) -> list[np.ndarray]:
+        """Each factor's K×K lower-triangular block of Λ_θ."""
+        out = []
+        for g in self.groups:
+            t = np.zeros((g.width, g.width))
+            t[g.rows, g.cols] = theta[g.theta]
+            out.append(t)
+        return out
+
+    def zl_u(self, theta: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """ZΛu: per row, Σ over factors of its effect columns times T u of its level."""
+        total = 0.0
+        for g, t, off, size in zip(self.groups, self.factors(theta), self.offsets, self.sizes, strict=True):
+            b = u[off:off + size].reshape(g.size, g.width) @ t.T
+            total = total + (g.x * b[g.codes]).sum(axis=1)
+        return total
+
+    def zt(self, r: np.ndarray) -> np.ndarray:
+        """Z'r (r a vector, or a matrix with a column per right-hand side)."""
+        return np.concatenate([g.zt @ r for g in self.groups])
+
+    def scale_t(self, theta: np.ndarray, zt_r: np.ndarray) -> np.ndarray:
+        """Λ' times a stacked Z'r (from :meth:`zt`)."""
+        parts = []
+        for g, t, off, size in zip(self.groups, self.factors(theta), self.offsets, self.sizes, strict=True):
+            block = zt_r[off:off + size].reshape(g.size, g.width, -1)
+            parts.append(np.matmul(t.T, block).reshape(zt_r[off:off + size].shape))
+        return np.concatenate(parts)
+
+    def zl_t(self, theta: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Λ'Z'r."""
+        return self.scale_t(theta, self.zt(r))
+
+    def crosstabs(self, w: np.ndarray) -> dict:
+        """Z'WZ by blocks of factors: ``(0, 0)`` the first factor's L×K×K diagonal blocks, ``(a, b)`` for a ≤ b
+        otherwise (dense)."""
+        first = self.groups[0]
+        k = first.width
+        diag = np.empty((first.size, k, k))
+        for i in range(k):
+            for j in range(i, k):
+                diag[:, i, j] = diag[:, j, i] = np.bincount(first.codes, w * first.x[:, i] * first.x[:, j],
+                                                            minlength=first.size)
+        tabs = {(0, 0): diag}
+        for a, ga in enumerate(self.groups):
+            for b in range(max(a, 1), len(self.groups)):
+                tabs[a, b] = (ga.zt @ self.groups[b].z.multiply(w[:, None])).toarray()
+        return tabs
+
+    def curvature(self, theta: np.ndarray, tabs: dict) -> Curvature:
+        """Λ'Z'WZΛ + I from the cross-tabulations of :meth:`crosstabs`."""
+        ts = self.factors(theta)
+        first = self.groups[0]
+        d = ts[0].T @ tabs[0, 0] @ ts[0] + np.eye(first.width)
+        rest = self.q - self.sizes[0]
+        c = np.zeros((self.sizes[0], rest))
+        e = np.eye(rest)
+        for a in range(len(self.groups)):
+            for b in range(max(a, 1), len(self.groups)):
+                block = self._scaled(tabs[a, b], a, b, ts)
+                sb = slice(self.offsets[b] - self.sizes[0], self.offsets[b] - self.sizes[0] + self.sizes[b])
+                if a == 0:
+                    c[:, sb] = block
+                    continue
+                sa = slice(self.offsets[a] - self.sizes[0], self.offsets[a] - self.sizes[0] + self.sizes[a])
+                e[sa, sb] += block
+                if a != b:
+                    e[sb, sa] += block.T
+        return Curvature(d, c, e)
+
+    def ztz_times(self, tabs: dict, v: np.ndarray) -> np.ndarray:
+        """Z'Z v (from :meth:`crosstabs` with unit weights), v stacked as u is (a vector, or a matrix of
+        columns)."""
+        parts = [np.zeros_like(v[off:off + size]) for off, size in zip(self.offsets, self.sizes, strict=True)]
+        first = self.groups[0]
+        v0 = v[:self.sizes[0]]
+        parts[0] = parts[0] + np.matmul(tabs[0, 0], v0.reshape(first.size, first.width, -1)).reshape(v0.shape)
+        for (a, b), block in tabs.items():
+            if (a, b) == (0, 0):
+                continue
+            va = v[self.offsets[a]:self.offsets[a] + self.sizes[a]]
+            vb = v[self.offsets[b]:self.offsets[b] + self.sizes[b]]
+            parts[a] = parts[a] + block @ vb
+            if a != b:
+                parts[b] = parts[b] + block.T @ va
+        return np.concatenate(parts)
+
+    def scale(self, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Λ v, v stacked as u is (a vector, or a matrix of columns)."""
+        parts = []
+        for g, t, off, size in zip(self.groups, self.factors(theta), self.offsets, self.sizes, strict=True):
+            block = v[off:off + size].reshape(g.size, g.width, -1)
+            parts.append(np.matmul(t, block).reshape(v[off:off + size].shape))
+        return np.concatenate(parts)
+
+    def lam_t_ztz(self, theta: np.ndarray, tabs: dict) -> tuple:
+        """Λ'Z'Z in the blocks :meth:`Curvature.inverse_times_diagonal` takes: (G00 level by level, G01, G10,
+        G11), the first factor against the rest."""
+        ts = self.factors(theta)
+        first = self.groups[0]
+        g00 = np.matmul(ts[0].T, tabs[0, 0])
+        n0, rest = self.sizes[0], self.q - self.sizes[0]
+        ztz_0r = np.zeros((n0, rest))
+        ztz_rr = np.zeros((rest, rest))
+        for (a, b), block in tabs.items():
+            if (a, b) == (0, 0):
+                continue
+            sb = slice(self.offsets[b] - n0, self.offsets[b] - n0 + self.sizes[b])
+            if a == 0:
+                ztz_0r[:, sb] = block
+                continue
+            sa = slice(self.offsets[a] - n0, self.offsets[a] - n0 + self.sizes[a])
+            ztz_rr[sa, sb] = block
+            if a != b:
+                ztz_rr[sb, sa] = block.T
+        g01 = np.matmul(ts[0].T, ztz_0r.reshape(first.size, first.width, -1)).reshape(n0, rest)
+        lam_rest_t = np.zeros((rest, rest))
+        for g, t, off, size in zip(self.groups[1:], ts[1:], self.offsets[1:], self.sizes[1:], strict=True):
+            for level in range(g.size):
+                at = off - n0 + level * g.width
+                lam_rest_t[at:at + g.width, at:at + g.width] = t.T
+        return g00, g01, lam_rest_t @ ztz_0r.T, lam_rest_t @ ztz_rr
+
+    def level_blocks(self, v: np.ndarray) -> list[np.ndarray]:
+        """A stacked vector (or matrix of columns) split per factor into levels × effects (× columns)."""
+        return [v[off:off + size].reshape(g.size, g.width, *v.shape[1:])
+                for g, off, size in zip(self.groups, self.offsets, self.sizes, strict=True)]
+
+    def _scaled(self, block: np.ndarray, a: int, b: int, ts: list[np.ndarray]) -> np.ndarray:
+        """T_a' (block) T_b, level by level of both factors."""
+        ga, gb = self.groups[a], self.groups[b]
+        shaped = block.reshape(ga.size, ga.width, gb.size, gb.width)
+        left = np.tensordot(ts[a], shaped, axes=([0], [1]))  # i, l, m, n
+        return np.moveaxis(left @ ts[b], 0, 1).reshape(block.shape)
