@@ -70,7 +70,9 @@ def report_cmd(export_dir, db_url, study, out, resamples, seed, unit, completed_
 @click.option("--response", required=True, help="Column to model.")
 @click.option("--fixed", required=True, help="Fixed effect column (tested by a likelihood-ratio test).")
 @click.option("--random", "random", required=True, multiple=True,
-              help="Grouping column for a random intercept (repeat for crossed factors); X|G adds a slope.")
+              help="A random-effects term (repeat for crossed factors): G, a random intercept per level of column G; "
+                   "X|G adds correlated slopes of X (a number or a factor: lme4's (1 + X | G)); X||G the same "
+                   "uncorrelated; 0 + X|G slopes without the intercept.")
 @click.option("--family", type=click.Choice(["gaussian", "poisson"]), default="gaussian", show_default=True)
 @click.option("--reference", default=None, help="Reference level of --fixed (default: its first level).")
 @click.option("--reml", is_flag=True, help="Report the REML fit as well (the test always uses ML).")
@@ -80,7 +82,6 @@ def lmm_cmd(csv_file, response, fixed, random, family, reference, reml, as_json)
     glmer Laplace)."""
     from .design import build_design
     from .mixed import compare, fit
-    from .tables import SINGULAR
 
     data = _read_csv(csv_file)
     design = build_design(data, response, [fixed], list(random), reference)
@@ -88,7 +89,8 @@ def lmm_cmd(csv_file, response, fixed, random, family, reference, reml, as_json)
     f, t = result.full, result.lrt
     out = {"nobs": f.nobs, "loglik": f.loglik, "formula": f.formula, "family": family, "dropped_rows": f.dropped,
            "fixed": {k: {"estimate": v, "se": f.se[k]} for k, v in f.fixed.items()}, "variance": f.variance,
-           "lrt": {"chi2": t.chi2, "df": t.df, "p": t.p, "null_loglik": t.null_loglik}, "singular": f.singular}
+           "lrt": {"chi2": t.chi2, "df": t.df, "p": t.p, "null_loglik": t.null_loglik}, "singular": f.singular,
+           "messages": list(f.messages)}
     if reml and family == "gaussian":
         r = fit(design, reml=True)
         out["reml"] = {"reml_criterion": -2 * r.loglik, "variance": r.variance,
@@ -100,7 +102,7 @@ def lmm_cmd(csv_file, response, fixed, random, family, reference, reml, as_json)
     lines += [f"  {'fixed effects':<{w}} {'estimate':>10} {'SE':>9}"]
     lines += [f"  {k:<{w}} {v:>10.4g} {f.se[k]:>9.4g}" for k, v in f.fixed.items()]
     lines += ["", "  variance components"] + [f"  {k:<{w}} {v:>10.4g}" for k, v in f.variance.items()]
-    lines += ["", f"LR test of {fixed}: {t.text()}"] + ([f"note: {SINGULAR}"] if f.singular else [])
+    lines += ["", f"LR test of {fixed}: {t.text()}"] + [f"note: {m}" for m in f.messages]
     _emit(out, as_json, "\n".join(lines))
 
 

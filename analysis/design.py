@@ -155,21 +155,27 @@ def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None, role: s
             [(values == lv).to_numpy(float) for lv in levels[1:]], levels)
 
 
-def _random_terms(data: pd.DataFrame, spec: str, references: dict[str, str | None]) -> list[RandomTerm]:
-    """The terms of one ``--random`` spec (see the module's docstring); ``references`` holds the reference level
-    of each categorical fixed term, so a factor's slope is coded as its fixed effect is."""
+def _parse(spec: str) -> tuple[list[str], str, bool]:
+    """A ``--random`` spec's parts: (what is left of the bar, split at +), the group, and whether it is ``||``."""
     uncorrelated = "||" in spec
     left, _, group = spec.replace("||", "|").rpartition("|")
     group, left = group.strip(), left.strip()
     if not group or "|" in left:
         raise AnalysisError(f"{spec!r} is not a random term (GROUP, X|GROUP or X||GROUP)", "--random")
+    parts = [p.strip() for p in left.split("+")] if left else []
+    if any(not p for p in parts):
+        raise AnalysisError(f"{spec!r} has an empty term", "--random")
+    return parts, group, uncorrelated
+
+
+def _random_terms(data: pd.DataFrame, spec: str, references: dict[str, str | None]) -> list[RandomTerm]:
+    """The terms of one ``--random`` spec (see the module's docstring); ``references`` holds the reference level
+    of each categorical fixed term, so a factor's slope is coded as its fixed effect is."""
+    parts, group, uncorrelated = _parse(spec)
     _require(data, group, "--random")
     levels = levels_of(data[group])
     index = {lv: i for i, lv in enumerate(levels)}
     codes = data[group].map(index).to_numpy(int)
-    parts = [p.strip() for p in left.split("+")] if left else []
-    if any(not p for p in parts):
-        raise AnalysisError(f"{spec!r} has an empty term", "--random")
     intercept = "0" not in parts
     names, columns = (["(Intercept)"], [np.ones(len(data))]) if intercept else ([], [])
     for part in parts:
@@ -259,8 +265,8 @@ def build_design(data: pd.DataFrame, response: str, fixed: list[str], random: li
 
 def _parts(spec: str) -> list[str]:
     """The group and the columns a ``--random`` spec names (not 0 or 1)."""
-    left, _, group = spec.replace("||", "|").rpartition("|")
-    return [group] + [p for p in (q.strip() for q in left.split("+")) if p and p not in ("0", "1")]
+    parts, group, _ = _parse(spec)
+    return [group] + [p for p in parts if p not in ("0", "1")]
 
 
 def _column_of(term: str) -> str:

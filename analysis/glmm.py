@@ -35,9 +35,10 @@ from scipy.special import gammaln
 from statsmodels.genmod.families import Poisson
 from statsmodels.genmod.generalized_linear_model import GLM
 
+from .convergence import is_singular, messages
 from .design import Design, formula_of
 from .errors import AnalysisError
-from .lmm import components, is_singular
+from .lmm import components
 from .optimum import minimize
 from .random_effects import Curvature, RandomEffects, term_factors
 from .results import MixedFit
@@ -145,18 +146,21 @@ class _Laplace:
         return float((log_sum + np.log(scale) - 0.5 * np.log(2 * np.pi)).sum() - self.const)
 
 
-def _hessian(f, x: np.ndarray) -> np.ndarray:
+def _derivatives(f, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The gradient and Hessian of ``f`` at ``x`` by central differences of step STEP (lme4's ``deriv12``)."""
     n = len(x)
-    h = np.empty((n, n))
+    h, g = np.empty((n, n)), np.empty(n)
     f0 = f(x)
     for i in range(n):
         for j in range(i, n):
             ei, ej = np.eye(n)[i] * STEP, np.eye(n)[j] * STEP
             if i == j:
-                h[i, i] = (f(x + ei) - 2 * f0 + f(x - ei)) / STEP**2
+                plus, minus = f(x + ei), f(x - ei)
+                h[i, i] = (plus - 2 * f0 + minus) / STEP**2
+                g[i] = (plus - minus) / (2 * STEP)
             else:
                 h[i, j] = h[j, i] = (f(x + ei + ej) - f(x + ei - ej) - f(x - ei + ej) + f(x - ei - ej)) / (4 * STEP**2)
-    return h
+    return g, h
 
 
 def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
@@ -181,7 +185,7 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
     best = minimize(model.deviance, starts, bounds, list(np.flatnonzero(model.z.diagonal)), before=reset)
     x = np.concatenate([model.theta(best.x), best.x[k:]])
     dev = model.deviance(x)
-    hess = _hessian(model.deviance, x)
+    grad, hess = _derivatives(model.deviance, x)
     try:
         cov = 2 * np.linalg.inv(hess)[k:, k:]
     except np.linalg.LinAlgError:
@@ -198,4 +202,5 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
         se=dict(zip(design.fixed_names, map(float, se), strict=True)), cov_fixed=cov,
         variance=components(design.random, term_factors(design.random, theta), 1.0),
         loglik=-dev / 2, n_params=model.p + k, optimizer="bobyqa", singular=is_singular(theta, model.z.diagonal),
+        messages=tuple(messages(theta, model.z.diagonal, grad, hess)), theta=tuple(map(float, theta)),
         dropped=design.dropped, extra={"n_agq": n_agq})

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import block_diag, cho_factor, cho_solve, solve_triangular
 
+from .convergence import is_singular, messages
 from .design import Design, formula_of
 from .errors import AnalysisError
 from .optimum import minimize
@@ -30,6 +31,7 @@ from .random_effects import RandomEffects, term_factors
 from .results import MixedFit
 
 STARTS = (1.0, 0.1, 3.0)
+ROUNDING = 1e-12  # a penalised residual sum of squares below this share of y'y is rounding
 
 
 class _Profiled:
@@ -95,7 +97,7 @@ class _Profiled:
     def deviance(self, theta: np.ndarray) -> float:
         try:
             return self.solve(theta)["deviance"]
-        except np.linalg.LinAlgError:
+        except (np.linalg.LinAlgError, ValueError):  # not positive definite, or θ not finite
             return 1e300
 
     def deviance_and_gradient(self, theta: np.ndarray) -> tuple[float, np.ndarray]:
@@ -115,11 +117,13 @@ class _Profiled:
             s = a.solve(b)
             xvx = self.xtx - b[:, 1:].T @ s[:, 1:]
             rx = np.linalg.cholesky(xvx)
-        except np.linalg.LinAlgError:
+        except (np.linalg.LinAlgError, ValueError):
             return 1e300, np.zeros_like(theta)
         cu_cu, rzx_cu = float(b[:, 0] @ s[:, 0]), b[:, 1:].T @ s[:, 0]
         cb = solve_triangular(rx, self.xty - rzx_cu, lower=True)
-        r2 = max(self.yty - cu_cu - cb @ cb, 1e-300)
+        r2 = self.yty - cu_cu - cb @ cb
+        if r2 < ROUNDING * self.yty:  # r² is rounding: the model fits every value, and the gradient says nothing
+            return self.deviance(theta), np.full_like(theta, np.nan)
         beta = solve_triangular(rx.T, cb, lower=False)
         dof = self.n - self.p if self.reml else self.n
         dev = a.logdet() + dof * (1 + np.log(2 * np.pi * r2 / dof))
@@ -151,6 +155,19 @@ class _Profiled:
                 grad[g.theta] -= 2 * np.einsum("lip,lip->i", fs_g[:, g.cols], zr_g[:, g.rows])
         return float(dev), grad
 
+    def convergence(self, theta: np.ndarray, step: float = 1e-5) -> list[str]:
+        """lme4's convergence messages at θ (:mod:`analysis.convergence`): the exact gradient, and its central
+        differences for the Hessian — only when the fit is not singular, as lme4 checks."""
+        diagonal = self.effects.diagonal
+        if is_singular(theta, diagonal):
+            return messages(theta, diagonal)
+        gradient = self.deviance_and_gradient(theta)[1]
+        hessian = np.empty((len(theta), len(theta)))
+        for i, e in enumerate(np.eye(len(theta)) * step):
+            plus, minus = self.deviance_and_gradient(theta + e)[1], self.deviance_and_gradient(theta - e)[1]
+            hessian[i] = (plus - minus) / (2 * step)
+        return messages(theta, diagonal, gradient, (hessian + hessian.T) / 2)
+
     def start(self, value: float) -> np.ndarray:
         """θ with every term's factor ``value`` times the identity (lme4 starts from 1)."""
         return np.where(self.effects.diagonal, value, 0.0)
@@ -180,17 +197,8 @@ def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
         fixed=dict(zip(design.fixed_names, map(float, sol["beta"]), strict=True)),
         se=dict(zip(design.fixed_names, map(float, se), strict=True)), cov_fixed=cov_fixed, variance=variance,
         loglik=-sol["deviance"] / 2, n_params=model.p + len(theta) + 1, reml=reml, optimizer="bobyqa",
-        singular=is_singular(theta, model.effects.diagonal), dropped=design.dropped)
-
-
-#: lme4's isSingular tolerance: a θ on a factor's diagonal below it is a boundary fit
-SINGULAR_TOL = 1e-4
-
-
-def is_singular(theta: np.ndarray, diagonal: np.ndarray) -> bool:
-    """lme4's ``isSingular``: a diagonal entry of a relative covariance factor below SINGULAR_TOL (a variance at
-    zero, or a correlation at ±1)."""
-    return bool(np.any(np.abs(np.asarray(theta)[diagonal]) < SINGULAR_TOL))
+        singular=is_singular(theta, model.effects.diagonal), dropped=design.dropped,
+        messages=tuple(model.convergence(theta)), theta=tuple(map(float, theta)))
 
 
 def components(terms, blocks: list[np.ndarray], scale: float) -> dict[str, float]:

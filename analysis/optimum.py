@@ -85,11 +85,22 @@ def bobyqa(deviance: Callable[[np.ndarray], float], x0: np.ndarray, bounds: list
                                    success=status > 0 or status == nlopt.ROUNDOFF_LIMITED)
 
 
+class _NoGradient(ArithmeticError):
+    """The gradient is not a finite number here (a residual variance at zero: the deviance falls without bound)."""
+
+
 def gradient_descent(with_gradient: Callable[[np.ndarray], tuple[float, np.ndarray]], x0: np.ndarray,
                      bounds: list) -> optimize.OptimizeResult:
     """Bounded L-BFGS-B on a deviance with its exact gradient (``with_gradient`` returns both), run until its
-    line search can no longer lower the deviance."""
-    return optimize.minimize(with_gradient, x0, jac=True, method="L-BFGS-B", bounds=bounds,
+    line search can no longer lower the deviance; raises _NoGradient where the gradient is not finite."""
+
+    def checked(x):
+        value, gradient = with_gradient(x)
+        if not (np.all(np.isfinite(gradient)) and np.all(np.isfinite(x))):
+            raise _NoGradient
+        return value, gradient
+
+    return optimize.minimize(checked, x0, jac=True, method="L-BFGS-B", bounds=bounds,
                              options={"ftol": 1e-15, "gtol": 1e-10, "maxiter": 5000, "maxcor": 20})
 
 
@@ -100,12 +111,16 @@ def minimize(deviance: Callable[[np.ndarray], float], starts: list[np.ndarray], 
     """The best optimum from ``starts`` (``before`` runs before each fit, e.g. to reset warm starts), restarted —
     from a scanned point off zero where one beats it, else from itself — until no restart improves it by more
     than IMPROVES. Each local fit is BOBYQA on ``deviance``, or, where the deviance has an exact gradient
-    (``with_gradient``: the linear mixed model's), L-BFGS-B on it: a few dozen evaluations instead of hundreds."""
+    (``with_gradient``: the linear mixed model's), L-BFGS-B on it: a few dozen evaluations instead of hundreds
+    (BOBYQA again from a start where that gradient is not finite)."""
 
     def fit(x, step=START_STEP):
         before()
         if with_gradient is not None:
-            return gradient_descent(with_gradient, x, bounds)
+            try:
+                return gradient_descent(with_gradient, x, bounds)
+            except _NoGradient:
+                pass  # BOBYQA needs no gradient
         return bobyqa(deviance, x, bounds, step)
 
     best = min((fit(x) for x in starts), key=lambda r: r.fun)

@@ -262,7 +262,7 @@ class RandomEffects:
                 ztz_rr[sb, sa] = block.T
         g01 = np.matmul(ts[0].T, ztz_0r.reshape(first.size, first.width, -1)).reshape(n0, rest)
         lam_rest_t = np.zeros((rest, rest))
-        for g, t, off, size in zip(self.groups[1:], ts[1:], self.offsets[1:], self.sizes[1:], strict=True):
+        for g, t, off in zip(self.groups[1:], ts[1:], self.offsets[1:], strict=True):
             for level in range(g.size):
                 at = off - n0 + level * g.width
                 lam_rest_t[at:at + g.width, at:at + g.width] = t.T

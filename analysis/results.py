@@ -28,7 +28,9 @@ class MixedFit:
     ``fixed``'s order); ``groups`` is ``ngrps`` (levels per grouping factor); ``n_params`` counts what lme4's
     ``df`` of ``logLik`` counts (fixed effects, covariance parameters and σ for Gaussian models); the LR test's
     degrees of freedom come from it. ``dropped`` rows had a missing value; ``extra`` is family-specific
-    (``n_agq`` for Poisson) and goes into :meth:`to_dict` as it is.
+    (``n_agq`` for Poisson) and goes into :meth:`to_dict` as it is. ``singular`` and ``messages`` are lme4's
+    ``isSingular`` and its convergence messages, in its words (:mod:`analysis.convergence`); ``theta`` the
+    relative covariance factors' entries at the optimum, term by term as the formula lists them.
     """
 
     family: str
@@ -46,12 +48,15 @@ class MixedFit:
     singular: bool = False
     dropped: int = 0
     extra: dict = field(default_factory=dict)
+    messages: tuple[str, ...] = ()
+    theta: tuple[float, ...] = ()
 
     def to_dict(self) -> dict:
         return {"family": self.family, "formula": self.formula, "nobs": self.nobs, "groups": self.groups,
                 "loglik": self.loglik, "reml": self.reml, "n_params": self.n_params,
                 "fixed": {k: {"estimate": v, "se": self.se[k]} for k, v in self.fixed.items()},
-                "variance": self.variance, "singular": self.singular, "optimizer": self.optimizer,
+                "variance": self.variance, "singular": self.singular, "messages": list(self.messages),
+                "optimizer": self.optimizer,
                 "dropped_rows": self.dropped, **self.extra}
 
 

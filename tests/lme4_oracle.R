@@ -1,9 +1,11 @@
 # The lme4 side of the oracle test (tests/test_lme4_oracle.py): fits every model the report fits to one study's
 # trial table and writes what lme4 finds as JSON.
 #
-#   Rscript tests/lme4_oracle.R TRIALS.csv OUT.json
+#   Rscript tests/lme4_oracle.R TRIALS.csv OUT.json [slopes]
 #
 # TRIALS.csv: participant, scene, condition (levels none, basic, full; none the reference), total_time, n_queries.
+# With "slopes": the random-slope models instead (maximal, uncorrelated, slopes by participant only; LMM ML and
+# REML, Poisson GLMM by Laplace), each with vcov, the optimum's θ and its lme4 convergence messages.
 # Each fit: fixef, its SEs, variance components, logLik, isSingular. lmer runs to convergence (BOBYQA to rhoend =
 # 1e-12: its default stops early where the likelihood is flat). Poisson fits are lme4's own deviance function,
 # restarted from its last linear predictor until its value stops changing (glmer's PIRLS evaluates the log-
@@ -18,23 +20,46 @@ d$condition <- factor(d$condition, levels = c("none", "basic", "full"))
 d$participant <- factor(d$participant)
 d$scene <- factor(d$scene)
 d$log_time <- log(d$total_time)
+# the condition's treatment dummies as numbers: an uncorrelated term is one (0 + dummy | group) per dummy
+d$conditionbasic <- as.numeric(d$condition == "basic")
+d$conditionfull <- as.numeric(d$condition == "full")
 
+# VarCorr by the names analysis.lmm.components gives: group, group:column, group:cor(a,b) (sdcor), residual
 varcomp <- function(m) {
   v <- as.data.frame(VarCorr(m))
-  setNames(as.list(v$vcov), ifelse(v$grp == "Residual", "residual", v$grp))
+  grp <- sub("\\..*$", "", v$grp)
+  name <- ifelse(v$grp == "Residual", "residual",
+          ifelse(!is.na(v$var2), sprintf("%s:cor(%s,%s)", grp, v$var1, v$var2),
+          ifelse(v$var1 == "(Intercept)", grp, sprintf("%s:%s", grp, v$var1))))
+  setNames(as.list(ifelse(is.na(v$var2), v$vcov, v$sdcor)), name)
 }
 
 describe <- function(m, reml = FALSE) {
   list(fixef = as.list(fixef(m)), se = as.list(sqrt(diag(as.matrix(vcov(m))))), varcomp = varcomp(m),
+       vcov = unname(as.matrix(vcov(m))), theta = unname(getME(m, "theta")),
        logLik = as.numeric(logLik(m)), REMLcrit = if (reml) as.numeric(REMLcrit(m)) else NULL,
-       df = attr(logLik(m), "df"), nobs = nobs(m), singular = isSingular(m))
+       df = attr(logLik(m), "df"), nobs = nobs(m), singular = isSingular(m),
+       messages = as.list(m@optinfo$conv$lme4$messages))
 }
 
 CONVERGED <- glmerControl(optimizer = "bobyqa", tolPwrss = 1e-13, optCtrl = list(rhoend = 1e-10, maxfun = 1e5))
 
 # lmer's default BOBYQA stops at ~1e-6 on θ, which in a flat likelihood (two scenes) leaves a variance ~1% off
 LMM_CONVERGED <- lmerControl(optimizer = "bobyqa", optCtrl = list(rhoend = 1e-12, maxfun = 1e5))
-lmm <- function(formula, reml = FALSE) describe(lmer(formula, d, REML = reml, control = LMM_CONVERGED), reml)
+# lme4 from several starts (θ = s times the identity; lme4's own is s = 1), the best kept: where the likelihood has
+# more than one optimum (random slopes with small counts), lme4's one start can stop on the boundary of a worse one
+# (a Poisson study with logLik -777.6 from s = 1 and -752.1 from every other start)
+STARTS <- c(1, 0.5, 0.2, 2)
+start_theta <- function(formula, s) {
+  lower <- lFormula(formula, d)$reTrms$lower
+  ifelse(lower == 0, s, 0)
+}
+best_of <- function(fits) fits[[which.max(sapply(fits, function(m) as.numeric(logLik(m))))]]
+lmm <- function(formula, reml = FALSE) {
+  fits <- lapply(STARTS, function(s) lmer(formula, d, REML = reml, control = LMM_CONVERGED,
+                                          start = list(theta = start_theta(formula, s))))
+  describe(best_of(fits), reml)
+}
 # glmer's deviance function, restarted from its own last linear predictor until its value stops changing: the
 # Laplace (or quadrature) deviance with the inner solve converged, which glmer's one pass leaves ~1e-7–1e-6 off.
 restarted_deviance <- function(formula, n_agq) {
@@ -53,25 +78,57 @@ restarted_deviance <- function(formula, n_agq) {
   }
 }
 
-# The fit at the optimum of that deviance (BOBYQA from glmer's converged fit, as lme4 optimizes), its SEs from lme4's
+# The fit at the optimum of that deviance (BOBYQA from glmer's best converged fit, as lme4 optimizes), its SEs from lme4's
 # deriv12 there; "glmer" is glmer's own fit with tolPwrss = 1e-13, "default" glmer with its defaults.
 pois <- function(formula, n_agq = 1) {
-  m <- glmer(formula, d, family = poisson, nAGQ = n_agq, control = CONVERGED)
+  m <- best_of(lapply(STARTS, function(s) glmer(formula, d, family = poisson, nAGQ = n_agq, control = CONVERGED,
+                                                start = list(theta = start_theta(formula, s)))))
   deviance <- restarted_deviance(formula, n_agq)
   theta <- getME(m, "theta")
   k <- length(theta)
-  opt <- minqa::bobyqa(c(theta, fixef(m)), deviance, lower = c(rep(0, k), rep(-Inf, length(fixef(m)))),
+  lower <- getME(m, "lower")
+  opt <- minqa::bobyqa(c(theta, fixef(m)), deviance, lower = c(lower, rep(-Inf, length(fixef(m)))),
                        control = list(rhobeg = 1e-3, rhoend = 1e-11, maxfun = 1e5))
   x <- opt$par
   h <- lme4:::deriv12(deviance, x)$Hessian
   v <- tryCatch(2 * solve(h)[-seq_len(k), -seq_len(k), drop = FALSE], error = function(e) NULL)
   se <- if (is.null(v) || any(!is.finite(diag(v))) || any(diag(v) <= 0)) NULL else
     as.list(setNames(sqrt(diag(v)), names(fixef(m))))
+  # the converged optimum as a fit of its own, for VarCorr's names
+  devfun <- glmer(formula, d, family = poisson, nAGQ = n_agq, devFunOnly = TRUE)
+  devfun(x)
+  gf <- glFormula(formula, d, family = poisson)
+  at <- lme4:::mkMerMod(environment(devfun), list(par = x, fval = opt$fval, conv = 0, message = ""), gf$reTrms,
+                        gf$fr)
   list(fixef = as.list(setNames(x[-seq_len(k)], names(fixef(m)))), se = se,
-       varcomp = as.list(setNames(x[seq_len(k)]^2, sub("\\..*$", "", names(theta)))),
-       logLik = -opt$fval / 2, nobs = nobs(m), singular = any(x[seq_len(k)] < 1e-4),
+       vcov = if (is.null(v)) NULL else unname(v), theta = unname(x[seq_len(k)]),
+       varcomp = varcomp(at), logLik = -opt$fval / 2, nobs = nobs(m),
+       singular = any(x[seq_len(k)][lower == 0] < 1e-4),
        se_glmer = as.list(sqrt(diag(as.matrix(vcov(m))))), glmer = describe(m),
        default = describe(glmer(formula, d, family = poisson, nAGQ = n_agq)))
+}
+
+if (length(args) > 2 && args[3] == "slopes") {
+  maximal <- ~ (1 + condition | participant) + (1 + condition | scene)
+  uncorrelated <- ~ (1 | participant) + (0 + conditionbasic | participant) + (0 + conditionfull | participant) +
+    (1 | scene) + (0 + conditionbasic | scene) + (0 + conditionfull | scene)
+  by_participant <- ~ (1 + condition | participant) + (1 | scene)
+  text <- function(x) paste(deparse(x, width.cutoff = 500L), collapse = " ")
+  with_random <- function(fixed, random) as.formula(paste(text(fixed), "+", text(random[[2]])))
+  out <- list(versions = list(R = R.version.string, lme4 = as.character(packageVersion("lme4"))))
+  for (structure in c("maximal", "uncorrelated", "by_participant")) {
+    random <- get(structure)
+    out[[paste0("time_", structure)]] <- lmm(with_random(log_time ~ condition, random))
+    out[[paste0("time_", structure, "_null")]] <- lmm(with_random(log_time ~ 1, random))
+    out[[paste0("time_", structure, "_reml")]] <- lmm(with_random(log_time ~ condition, random), reml = TRUE)
+  }
+  for (structure in c("maximal", "by_participant")) {
+    random <- get(structure)
+    out[[paste0("queries_", structure)]] <- pois(with_random(n_queries ~ condition, random))
+    out[[paste0("queries_", structure, "_null")]] <- pois(with_random(n_queries ~ 1, random))
+  }
+  write_json(out, args[2], digits = NA, auto_unbox = TRUE, null = "null", pretty = TRUE)
+  quit(save = "no")
 }
 
 out <- list(

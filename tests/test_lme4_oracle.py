@@ -29,14 +29,17 @@ import pytest
 from support import LME4_SEED, ROOT, require_lme4
 
 from analysis.design import build_design
-from analysis.mixed import fit, lr_test
+from analysis.mixed import fit, lr_test, pairwise
 
 STUDIES = 3  # random studies per run
+SLOPE_STUDIES = 2  # random studies with random slopes per run
 LEVELS = ["none", "basic", "full"]
 
 
-def random_study(rng: np.random.Generator) -> tuple[pd.DataFrame, dict]:
-    """A random study's trial table and the truth it was drawn from."""
+def random_study(rng: np.random.Generator, slopes: bool = False) -> tuple[pd.DataFrame, dict]:
+    """A random study's trial table and the truth it was drawn from; with ``slopes``, the condition effects also
+    vary by participant and by scene (random slopes, drawn from a stream of their own, so that a study without
+    them is the same study as before)."""
     n_people, n_scenes = int(rng.integers(6, 61)), int(rng.integers(2, 9))
     maybe_zero = lambda low, high: 0.0 if rng.random() < 0.25 else float(rng.uniform(low, high))  # noqa: E731
     truth = {"participants": n_people, "scenes": n_scenes,
@@ -47,6 +50,11 @@ def random_study(rng: np.random.Generator) -> tuple[pd.DataFrame, dict]:
     scenes = [f"S{i + 1}" for i in range(n_scenes)]
     b_scene = dict(zip(scenes, rng.normal(0, truth["sd_scene"], n_scenes), strict=True))
     c_scene = dict(zip(scenes, rng.normal(0, truth["sd_scene"], n_scenes), strict=True))
+    slope = np.random.default_rng(rng.integers(2**63)) if slopes else None  # its own stream: see above
+    if slopes:
+        truth["sd_slope_participant"], truth["sd_slope_scene"] = (0.0 if slope.random() < 0.2 else
+                                                                  float(slope.uniform(0.05, 0.4)) for _ in range(2))
+        s_scene = {s: np.r_[0.0, slope.normal(0, truth["sd_slope_scene"], 2)] for s in scenes}
     rows = []
     for p in range(n_people):
         own = rng.choice(scenes, size=min(3, n_scenes), replace=False)
@@ -54,10 +62,11 @@ def random_study(rng: np.random.Generator) -> tuple[pd.DataFrame, dict]:
         if rng.random() < truth["p_drop_out"]:
             plan = plan[:int(rng.integers(1, len(plan)))]
         b_p, c_p = rng.normal(0, truth["sd_participant"], 2)
+        s_p = np.r_[0.0, slope.normal(0, truth["sd_slope_participant"], 2)] if slopes else np.zeros(3)
         for c, s in plan:
             if rng.random() < truth["p_missing"]:
                 continue
-            effect = truth["effects"][c]
+            effect = truth["effects"][c] + s_p[c] + (s_scene[s][c] if slopes else 0.0)
             log_t = np.log(300) + effect + b_p + b_scene[s] + rng.normal(0, truth["sd_residual"])
             rate = truth["mean_queries"] * np.exp(effect + c_p + c_scene[s])
             rows.append({"participant": f"P{p + 1:02d}", "scene": s, "condition": LEVELS[c],
@@ -84,6 +93,27 @@ def python_fits(d: pd.DataFrame) -> dict:
         "queries_laplace_participant": fit(by_participant, "poisson"),
         "queries_agq_participant": fit(by_participant, "poisson", n_agq=10),
     }
+
+
+#: The random-slope structures compared with lme4 (``--random`` specs; lme4's formulas in tests/lme4_oracle.R)
+SLOPES = {"maximal": ["condition|participant", "condition|scene"],
+          "uncorrelated": ["condition||participant", "condition||scene"],
+          "by_participant": ["condition|participant", "scene"]}
+POISSON_SLOPES = ("maximal", "by_participant")
+
+
+def python_slope_fits(d: pd.DataFrame) -> dict:
+    d = d.assign(condition=pd.Categorical(d["condition"], LEVELS), log_time=np.log(d["total_time"]))
+    out = {}
+    for name, random in SLOPES.items():
+        design = build_design(d, "log_time", ["condition"], random)
+        out[f"time_{name}"], out[f"time_{name}_null"] = fit(design), fit(design.without("condition"))
+        out[f"time_{name}_reml"] = fit(design, reml=True)
+    for name in POISSON_SLOPES:
+        design = build_design(d, "n_queries", ["condition"], SLOPES[name])
+        out[f"queries_{name}"] = fit(design, "poisson")
+        out[f"queries_{name}_null"] = fit(design.without("condition"), "poisson")
+    return out
 
 
 def saturated_loglik(y: np.ndarray) -> float:
@@ -118,10 +148,24 @@ def compare(name: str, ours, theirs: dict, *, saturated: float = 0.0) -> list[st
         if ses and not singular and not near(ours.se[term], se, 1e-4 * se):
             problems.append(f"{name}: SE of {term} {ours.se[term]!r} vs lme4 {se!r}")
     residual = theirs["varcomp"].get("residual", 0.0)
+    floor = 1e-6 * residual if gaussian else 1e-4
+    if set(ours.variance) != set(theirs["varcomp"]):
+        return problems + [f"{name}: components {sorted(ours.variance)} vs lme4 {sorted(theirs['varcomp'])}"]
     for group, value in theirs["varcomp"].items():
-        floor = 1e-6 * residual if gaussian else 1e-4
-        if not near(ours.variance[group], value, max(1e-3 * abs(value), floor)):
+        if ":cor(" in group:
+            # a correlation is compared where both its variances are determined (above the floor a hundredfold):
+            # of a variance at zero it is arbitrary, and lme4's and these optimisers leave it where they stop
+            grp, pair = group.split(":cor(")
+            sides = [grp if side == "(Intercept)" else f"{grp}:{side}" for side in pair[:-1].split(",")]
+            if min(theirs["varcomp"][side] for side in sides) > 100 * floor \
+                    and not near(ours.variance[group], value, 1e-3):
+                problems.append(f"{name}: correlation {group} {ours.variance[group]!r} vs lme4 {value!r}")
+        elif not near(ours.variance[group], value, max(1e-3 * abs(value), floor)):
             problems.append(f"{name}: variance of {group} {ours.variance[group]!r} vs lme4 {value!r}")
+    theta = np.atleast_1d(theirs.get("theta", []))  # (a single θ comes as a number)
+    borderline = bool(np.any((np.abs(theta) > 0.5e-4) & (np.abs(theta) < 2e-4)))
+    if ours.singular != theirs["singular"] and not borderline:
+        problems.append(f"{name}: singular {ours.singular} vs lme4 {theirs['singular']}")
     return problems
 
 
@@ -154,6 +198,51 @@ def test_every_model_of_the_report_matches_lme4_on_a_random_study(study, tmp_pat
     for full, null in (("time_ml", "time_ml_null"), ("log_time_ml", "log_time_ml_null"), ("queries", "queries_null")):
         problems += lr_problems(full, lr_test(ours[null], ours[full]), lme4[full], lme4[null], 2)
     assert not problems, f"{len(problems)} difference(s) from lme4 on {where}:\n" + "\n".join(problems)
+
+
+@pytest.mark.parametrize("study", range(SLOPE_STUDIES))
+@pytest.mark.slow
+def test_random_slope_models_match_lme4_on_a_random_study(study, tmp_path):
+    """Maximal, uncorrelated and participant-only random slopes of condition: LMM (ML, REML, the LR test of
+    condition, the pairwise contrasts) and Poisson GLMM (Laplace), against lme4 run to convergence."""
+    rscript = require_lme4()
+    seed = [LME4_SEED, 100 + study]
+    data, truth = random_study(np.random.default_rng(seed), slopes=True)
+    csv = tmp_path / f"lme4-slopes-{LME4_SEED}-{study}.csv"
+    data.to_csv(csv, index=False)
+    where = (f"seed {LME4_SEED}, slope study {study} (SCENESUGGEST_LME4_SEED={LME4_SEED} repeats it); data: {csv}; "
+             f"drawn from {json.dumps(truth)}")
+    ran = subprocess.run([rscript, str(ROOT / "tests" / "lme4_oracle.R"), str(csv), str(tmp_path / "lme4.json"),
+                          "slopes"], capture_output=True, text=True, timeout=900)
+    assert ran.returncode == 0, f"lme4 failed on {where}:\n{ran.stderr[-2000:]}"
+    lme4 = json.loads((tmp_path / "lme4.json").read_text())
+    ours = python_slope_fits(data)
+    problems = []
+    for name, fitted in ours.items():
+        problems += compare(name, fitted, lme4[name])
+    for name in [f"time_{s}" for s in SLOPES] + [f"queries_{s}" for s in POISSON_SLOPES]:
+        test = lr_test(ours[f"{name}_null"], ours[name])
+        problems += lr_problems(name, test, lme4[name], lme4[f"{name}_null"], 2)
+        if lme4[name]["vcov"] is not None and not (ours[name].singular and name.startswith("queries")):
+            problems += contrast_problems(name, ours[name], lme4[name])
+    assert not problems, f"{len(problems)} difference(s) from lme4 on {where}:\n" + "\n".join(problems)
+
+
+def contrast_problems(name: str, ours, theirs: dict) -> list[str]:
+    """Every pairwise contrast of condition (estimate and SE, from lme4's fixef and vcov) against pairwise()."""
+    beta, cov = np.array(list(theirs["fixef"].values())), np.array(theirs["vcov"])
+    index = {"none": None, "basic": 1, "full": 2}
+    problems = []
+    for contrast in pairwise(ours, "condition", LEVELS):
+        c = np.zeros(3)
+        for level, sign in ((contrast.a, 1), (contrast.b, -1)):
+            if index[level] is not None:
+                c[index[level]] += sign
+        estimate, se = float(c @ beta), float(np.sqrt(c @ cov @ c))
+        if not (near(contrast.estimate, estimate, 1e-4 * max(abs(estimate), se)) and near(contrast.se, se, 1e-4 * se)):
+            problems.append(f"{name}: {contrast.a} − {contrast.b} {contrast.estimate!r} ± {contrast.se!r} "
+                            f"vs lme4 {estimate!r} ± {se!r}")
+    return problems
 
 
 def test_the_oracle_studies_cover_what_they_claim():

@@ -1,0 +1,164 @@
+"""Random slopes: the ``--random`` grammar and the terms it makes, random effects the data cannot support refused
+by name, the linear mixed model's exact gradient, and lme4's singularity and convergence checks in its words.
+(The numbers against lme4 are in tests/test_lme4_oracle.py.)"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_lme4_oracle import random_study
+
+from analysis import AnalysisError
+from analysis.convergence import SINGULAR, is_singular, messages
+from analysis.design import build_design, formula_of
+from analysis.mixed import fit
+
+LEVELS = ["none", "basic", "full"]
+
+
+@pytest.fixture(scope="module")
+def study() -> pd.DataFrame:
+    data, _ = random_study(np.random.default_rng([7, 0]), slopes=True)
+    return data.assign(condition=pd.Categorical(data["condition"], LEVELS), log_time=np.log(data["total_time"]),
+                       practice=np.arange(len(data)) % 5 * 0.5)
+
+
+@pytest.mark.parametrize("random,formula", [
+    (["participant", "scene"], "(1 | participant) + (1 | scene)"),
+    (["condition|participant", "scene"], "(1 + conditionbasic + conditionfull | participant) + (1 | scene)"),
+    (["condition||participant"], "(1 | participant) + (0 + conditionbasic | participant) + "
+                                 "(0 + conditionfull | participant)"),
+    (["0 + condition|participant"], "(0 + conditionbasic + conditionfull | participant)"),
+    (["1 + practice|participant"], "(1 + practice | participant)"),
+    (["condition + practice|scene"], "(1 + conditionbasic + conditionfull + practice | scene)"),
+])
+def test_random_terms_read_as_lme4_writes_them(study, random, formula):
+    design = build_design(study, "log_time", ["condition"], random)
+    assert formula_of(design) == f"log_time ~ condition + {formula}"
+
+
+def test_a_factors_slope_is_coded_as_its_fixed_effect(study):
+    """--reference reorders the fixed effect's levels, and the slope's dummies follow it."""
+    design = build_design(study, "log_time", ["condition"], ["condition|participant"], reference="full")
+    assert design.fixed_names == ("(Intercept)", "conditionnone", "conditionbasic")
+    assert design.random[0].names == ("(Intercept)", "conditionnone", "conditionbasic")
+    column = design.random[0].columns()[:, 1]
+    assert np.array_equal(column, (study["condition"] == "none").to_numpy(float))
+
+
+def test_uncorrelated_slopes_are_terms_of_their_own_and_fit_as_independent_variances(study):
+    design = build_design(study, "log_time", ["condition"], ["condition||participant", "scene"])
+    assert [(t.group, t.names) for t in design.random] == [
+        ("participant", ("(Intercept)",)), ("participant", ("conditionbasic",)),
+        ("participant", ("conditionfull",)), ("scene", ("(Intercept)",))]
+    fitted = fit(design)
+    assert set(fitted.variance) == {"participant", "participant:conditionbasic", "participant:conditionfull",
+                                    "scene", "residual"}
+    assert fitted.n_params == 3 + 4 + 1
+
+
+@pytest.mark.parametrize("random,message", [
+    (["condition|participant", "participant"], "repeats the effect (Intercept)"),
+    (["group_condition|participant"], "never varies within a level of participant"),
+    (["condition|trial"], "random effects for"),
+    (["nope|participant"], "no column 'nope'"),
+    (["condition|nope"], "no column 'nope'"),
+    (["condition + |participant"], "has an empty term"),
+    (["0|participant"], "has no random effect"),
+    (["condition + condition|participant"], "names a column twice"),
+    (["a|b|participant"], "is not a random term"),
+    (["condition|"], "is not a random term"),
+    (["one_level|participant"], "a random slope needs at least 2"),
+])
+def test_random_effects_the_design_cannot_support_are_refused_by_name(study, random, message):
+    """A between-participant column's slope by participant, as many effects as observations, a term twice: a
+    clear error naming the term, never a numerical failure."""
+    data = study.assign(group_condition=study["participant"].map(lambda p: "a" if int(p[1:]) % 2 else "b"),
+                        trial=np.arange(len(study)).astype(str), one_level="x")
+    with pytest.raises(AnalysisError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        build_design(data, "log_time", ["condition"], random)
+
+
+@pytest.mark.parametrize("random", [["condition|participant", "condition|scene"], ["condition||participant", "scene"],
+                                    ["participant", "scene"]])
+@pytest.mark.parametrize("reml", [False, True])
+def test_the_lmm_gradient_is_the_deviances_derivative(study, random, reml):
+    from analysis.lmm import _Profiled
+
+    model = _Profiled(build_design(study, "log_time", ["condition"], random), reml)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        theta = np.where(model.effects.diagonal, rng.uniform(0.1, 2, len(model.bounds)),
+                         rng.normal(0, 0.7, len(model.bounds)))
+        value, gradient = model.deviance_and_gradient(theta)
+        assert value == pytest.approx(model.deviance(theta), abs=1e-9)
+        step = 1e-5
+        numeric = [(model.deviance(theta + e) - model.deviance(theta - e)) / (2 * step)
+                   for e in np.eye(len(theta)) * step]
+        assert gradient == pytest.approx(numeric, rel=1e-5, abs=1e-4)
+
+
+def test_a_correlation_at_one_is_a_singular_fit_as_in_lme4():
+    diagonal = np.array([True, False, True])
+    assert not is_singular(np.array([0.5, 0.2, 0.3]), diagonal)
+    assert is_singular(np.array([0.5, 0.2, 0.0]), diagonal)  # the slope is the intercept times 0.4: cor = 1
+    assert is_singular(np.array([0.0, 0.2, 0.3]), diagonal)  # no intercept variance
+    assert not is_singular(np.array([0.5, 0.0, 0.3]), diagonal)  # an off-diagonal zero is a correlation of 0
+
+
+def test_convergence_is_checked_as_lme4_checks_it_in_its_words():
+    diagonal = np.array([True, True])
+    theta, hessian = np.array([0.5, 0.4]), np.array([[4.0, 0.5], [0.5, 2.0]])
+    assert messages(np.array([0.5, 0.0]), diagonal, np.array([9.0, 9.0]), hessian) == [SINGULAR]
+    assert messages(theta, diagonal, np.array([1e-6, -2e-6]), hessian) == []
+    failed = messages(theta, diagonal, np.array([1e-6, 0.05]), hessian)
+    # R: H <- matrix(c(4, .5, .5, 2), 2); s <- solve(chol(H), c(1e-6, .05)); max(pmin(abs(s), abs(g))) = 0.0359211
+    assert failed == ["Model failed to converge with max|grad| = 0.0359211 (tol = 0.002, component 2)"]
+    assert messages(theta, diagonal, np.zeros(2), np.array([[1.0, 0.0], [0.0, -1.0]]))[-1] == \
+        "Model failed to converge: degenerate  Hessian with 1 negative eigenvalues"
+    assert messages(theta, diagonal, np.zeros(2), np.diag([1.0, 1e-7]))[-1] == \
+        "Hessian is numerically singular: parameters are not uniquely determined"
+    assert messages(theta, diagonal, np.zeros(2), np.diag([10.0, 5e-6]))[-1] == \
+        "Model is nearly unidentifiable: large eigenvalue ratio - Rescale variables?"
+
+
+def test_fits_carry_lme4s_messages(study):
+    design = build_design(study, "log_time", ["condition"], ["condition|participant", "condition|scene"])
+    lmm = fit(design)
+    assert lmm.singular == (SINGULAR in lmm.messages)
+    assert all(m == SINGULAR or "converge" not in m for m in lmm.messages)
+    intercepts = fit(build_design(study, "log_time", ["condition"], ["participant"]))
+    assert intercepts.messages == () and not intercepts.singular
+    poisson = fit(build_design(study, "n_queries", ["condition"], ["condition|participant", "scene"]), "poisson")
+    assert poisson.singular == (SINGULAR in poisson.messages)
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "scenesuggest.cli", "analyze", *args], capture_output=True,
+                          text=True, env=dict(os.environ))
+
+
+def test_the_cli_fits_random_slopes_and_refuses_what_it_cannot_fit(study, tmp_path):
+    csv = tmp_path / "trials.csv"
+    study.to_csv(csv, index=False)
+    run = _cli("lmm", str(csv), "--response", "total_time", "--fixed", "condition", "--random",
+               "condition|participant", "--random", "scene", "--reference", "none", "--json")
+    assert run.returncode == 0, run.stderr
+    out = json.loads(run.stdout)
+    assert out["formula"] == ("total_time ~ condition + (1 + conditionbasic + conditionfull | participant) + "
+                              "(1 | scene)")
+    assert "participant:cor((Intercept),conditionbasic)" in out["variance"]
+    assert out["lrt"]["df"] == 2 and isinstance(out["messages"], list)
+    text = _cli("lmm", str(csv), "--response", "n_queries", "--family", "poisson", "--fixed", "condition",
+                "--random", "condition||participant", "--random", "scene", "--reference", "none")
+    assert text.returncode == 0 and "(0 + conditionfull | participant)" in text.stdout
+    study.assign(group=study["participant"].str[-1]).to_csv(csv, index=False)
+    bad = _cli("lmm", str(csv), "--response", "total_time", "--fixed", "condition", "--random", "participant|group")
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert "participant" in bad.stderr and "group" in bad.stderr
