@@ -44,12 +44,13 @@ def lr_test(null: MixedFit, full: MixedFit) -> LRTest:
     return LRTest(chi2, df, float(stats.chi2.sf(chi2, df)), full.nobs, null.loglik, full.loglik)
 
 
-def compare(design: Design, term: str, family: str = "gaussian") -> Comparison:
-    """Fit with and without the fixed ``term`` and test it; a test the data cannot inform, or a degenerate
-    fit, raises :class:`analysis.degenerate.NotModelled` naming why (never a test or contrast from it)."""
+def compare(design: Design, term: str, family: str = "gaussian", full: MixedFit | None = None) -> Comparison:
+    """Fit with and without the fixed ``term`` (``full``: the fit with it, when it is already made) and test it; a
+    test the data cannot inform, or a degenerate fit, raises :class:`analysis.degenerate.NotModelled` naming why
+    (never a test or contrast from it)."""
     if term in dict(design.levels):
         check_data(design, term, family)
-    full = fit(design, family)
+    full = full or fit(design, family)
     null = fit(design.without(term), family)
     comparison = Comparison(full, null, lr_test(null, full))
     check_fit(design, comparison)

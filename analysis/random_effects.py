@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import sparse
 from scipy.linalg import cho_factor, cho_solve
 
 from .design import RandomTerm
@@ -65,23 +64,22 @@ class Curvature:
         levels, k, _ = self.d.shape
         p = self._d_solve(self.c).reshape(levels, k, -1)  # D⁻¹C, level by level
         cd_g00 = np.einsum("lkq,lkj->qlj", self.c.reshape(levels, k, -1), first).reshape(-1, levels * k)
-        q = cho_solve(self.schur, cd_g00 - g10).reshape(-1, levels, k)  # S⁻¹(C'D⁻¹G00 − G10)
+        s_inv = cho_solve(self.schur, np.eye(len(self.schur[0])))  # small: q₂ × q₂
+        q = (s_inv @ (cd_g00 - g10)).reshape(-1, levels, k)  # S⁻¹(C'D⁻¹G00 − G10)
         first = first + np.matmul(p, np.moveaxis(q, 0, 1))
-        rest = cho_solve(self.schur, g11 - self._d_solve(self.c).T @ g01)  # S⁻¹(G11 − C'D⁻¹G01)
+        rest = s_inv @ (g11 - p.reshape(levels * k, -1).T @ g01)  # S⁻¹(G11 − C'D⁻¹G01)
         return first, rest
 
 
 @dataclass(frozen=True)
 class _Group:
-    """One grouping factor's stacked terms: ``x`` its rows' effect columns (n × K), ``z`` the sparse Z (n × LK, level
-    major), and where each θ goes in the factor's K×K block: ``theta``, ``rows``, ``cols``."""
+    """One grouping factor's stacked terms: ``x`` its rows' effect columns (n × K; Z is these, level by level), and
+    where each θ goes in the factor's K×K block: ``theta``, ``rows``, ``cols``."""
 
     name: str
     size: int
     codes: np.ndarray
     x: np.ndarray
-    z: sparse.csr_matrix
-    zt: sparse.csr_matrix
     theta: np.ndarray
     rows: np.ndarray
     cols: np.ndarray
@@ -134,12 +132,8 @@ class RandomEffects:
                     cols.append(off + c)
             first = terms[members[0]]
             x = np.column_stack([terms[i].columns() for i in members])
-            n, k = x.shape
-            z = sparse.csr_matrix((x.ravel(), (np.repeat(np.arange(n), k), (first.codes[:, None] * k
-                                                                            + np.arange(k)).ravel())),
-                                  shape=(n, len(first.levels) * k))
-            groups.append(_Group(name, len(first.levels), first.codes, x, z, z.T.tocsr(), np.array(theta),
-                                 np.array(rows), np.array(cols)))
+            groups.append(_Group(name, len(first.levels), first.codes, x, np.array(theta), np.array(rows),
+                                 np.array(cols)))
         self.groups = sorted(groups, key=lambda g: -g.size)
         self.sizes = [g.size * g.width for g in self.groups]
         self.offsets = np.concatenate([[0], np.cumsum(self.sizes)[:-1]]).astype(int)
@@ -164,7 +158,10 @@ class RandomEffects:
 
     def zt(self, r: np.ndarray) -> np.ndarray:
         """Z'r (r a vector, or a matrix with a column per right-hand side)."""
-        return np.concatenate([g.zt @ r for g in self.groups])
+        if r.ndim == 2:
+            return np.column_stack([self.zt(r[:, m]) for m in range(r.shape[1])])
+        return np.concatenate([np.column_stack([np.bincount(g.codes, g.x[:, k] * r, minlength=g.size)
+                                                for k in range(g.width)]).ravel() for g in self.groups])
 
     def scale_t(self, theta: np.ndarray, zt_r: np.ndarray) -> np.ndarray:
         """Λ' times a stacked Z'r (from :meth:`zt`)."""
@@ -191,7 +188,15 @@ class RandomEffects:
         tabs = {(0, 0): diag}
         for a, ga in enumerate(self.groups):
             for b in range(max(a, 1), len(self.groups)):
-                tabs[a, b] = (ga.zt @ self.groups[b].z.multiply(w[:, None])).toarray()
+                gb = self.groups[b]
+                cells = ga.codes * gb.size + gb.codes
+                block = np.empty((ga.size, ga.width, gb.size, gb.width))
+                for i in range(ga.width):
+                    wx = w * ga.x[:, i]
+                    for j in range(gb.width):
+                        block[:, i, :, j] = np.bincount(cells, wx * gb.x[:, j],
+                                                        minlength=ga.size * gb.size).reshape(ga.size, gb.size)
+                tabs[a, b] = block.reshape(ga.size * ga.width, gb.size * gb.width)
         return tabs
 
     def curvature(self, theta: np.ndarray, tabs: dict) -> Curvature:

@@ -162,3 +162,60 @@ def test_the_cli_fits_random_slopes_and_refuses_what_it_cannot_fit(study, tmp_pa
     bad = _cli("lmm", str(csv), "--response", "total_time", "--fixed", "condition", "--random", "participant|group")
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert "participant" in bad.stderr and "group" in bad.stderr
+
+
+def _slope_study(seed: int) -> pd.DataFrame:
+    data, _ = random_study(np.random.default_rng(seed), slopes=True)
+    return data.assign(condition=pd.Categorical(data["condition"], LEVELS), log_time=np.log(data["total_time"]))
+
+
+def test_the_structure_is_chosen_by_the_stated_rule_step_by_step():
+    """Maximal first; a singular or unconverged fit loses its correlations, then the slope with the smallest variance
+    of that fit, one at a time; the first fit that is neither is kept and tested; intercepts are the floor."""
+    from analysis.selection import select
+
+    for seed in ([11, 0], [11, 3]):
+        chosen = select(_slope_study(seed), "log_time", "gaussian")
+        steps = chosen.steps
+        assert steps[0].structure == "correlated slopes of basic, full by participant; basic, full by scene"
+        for before, after in zip(steps, steps[1:], strict=False):
+            assert before.singular or before.messages
+            if before.structure.startswith("correlated"):
+                assert before.decision.endswith("leave out the correlations")
+                assert after.structure.startswith("uncorrelated")
+            elif after.structure != "intercepts only" or "slope" in before.decision:
+                smallest = min((v, k) for k, v in before.variances.items()
+                               if ":" in k and k.split(":")[0] in ("participant", "scene"))
+                group, slope = smallest[1].split(":")
+                assert f"the slope of {slope.removeprefix('condition')} by {group}" in before.decision
+        last = steps[-1]
+        assert last.decision.startswith("kept")
+        assert chosen.comparison.full.formula == last.formula or last.structure == "intercepts only"
+        assert (not last.messages) or last.structure == "intercepts only"
+        assert chosen.comparison.lrt.df == 2
+
+
+def test_the_kept_models_test_is_set_beside_the_intercept_only_test():
+    from analysis.selection import select
+
+    chosen = select(_slope_study([11, 1]), "log_time", "gaussian")
+    assert chosen.kept.name() == "uncorrelated slopes of basic, full by participant; basic, full by scene"
+    p, p0 = chosen.comparison.lrt.p, chosen.intercepts.lrt.p
+    assert p0 < 0.05 < p  # varying effects between people and scenes: intercepts alone are anti-conservative
+    assert chosen.sentence() == ("With random intercepts only, the test of condition gives p = .006 against "
+                                 "p = .665 under the uncorrelated slopes of basic, full by participant; basic, full "
+                                 "by scene: a different conclusion at α = 0.05.")
+    assert chosen.intercepts.full.formula.endswith("(1 | participant) + (1 | scene)")
+
+
+def test_a_slope_the_design_cannot_support_is_left_out_before_fitting():
+    """Each scene seen in one condition only: no slope of condition by scene can be estimated."""
+    from analysis.selection import select
+
+    data = _slope_study([11, 2])
+    data = data[data["scene"].map(lambda s: int(s[1:]) % 3) == data["condition"].cat.codes].copy()
+    chosen = select(data, "log_time", "gaussian")
+    scene = next(step for step in chosen.steps if step.structure == "slopes of condition by scene")
+    assert scene.decision.startswith("left out before fitting") and "never varies within a level of scene" in \
+        scene.decision
+    assert not any("by scene" in step.structure for step in chosen.steps if step.formula)
