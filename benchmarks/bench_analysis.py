@@ -7,8 +7,14 @@ Budgets on a 2-core machine: 200 × 9 ≤ 10 s; 2,000 × 9 (a large online study
 of an earlier revision), in the same run, for comparison: those reports run with that checkout first on
 PYTHONPATH.
 
+``--maximal`` times instead one maximal model fit of the same synthetic studies — total time (LMM, ML) and model
+queries (Poisson GLMM, Laplace), each ``condition + (1 + condition | participant) + (1 + condition | scene)`` — and
+lme4's fits of the same trials in the same run (Rscript; lme4's defaults, and run to convergence with BOBYQA to
+rhoend = 1e-12 as tests/lme4_oracle.R does), with each fit's log-likelihood beside its time.
+
 Usage: .venv/bin/python benchmarks/bench_analysis.py [--sizes 20,200,2000] [--runs 3] [--resamples 1000]
                                                       [--baseline DIR [--baseline-sizes 20,200]]
+       .venv/bin/python benchmarks/bench_analysis.py --maximal [--sizes 200] [--runs 3]
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ import time
 from pathlib import Path
 
 import checkout
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -72,6 +79,75 @@ def measure(root: Path, export: Path, runs: int, resamples: int) -> dict:
             "peak_rss_mb": round(max(r["peak_rss_mb"] for r in results), 1)}
 
 
+MAXIMAL = ["condition|participant", "condition|scene"]
+LME4 = r"""
+suppressMessages(library(lme4))
+args <- commandArgs(trailingOnly = TRUE)
+d <- read.csv(args[1], colClasses = c(participant = "character", scene = "character"))
+d$condition <- factor(d$condition, levels = c("none", "basic", "full"))
+runs <- as.integer(args[2])
+converged <- lmerControl(optimizer = "bobyqa", optCtrl = list(rhoend = 1e-12, maxfun = 1e5))
+random <- "(1 + condition | participant) + (1 + condition | scene)"
+models <- list(
+  lmm = function() lmer(as.formula(paste("total_time ~ condition +", random)), d, REML = FALSE),
+  lmm_converged = function() lmer(as.formula(paste("total_time ~ condition +", random)), d, REML = FALSE,
+                                  control = converged),
+  glmm = function() glmer(as.formula(paste("n_queries ~ condition +", random)), d, family = poisson))
+out <- lapply(models, function(f) {
+  seconds <- numeric(runs)
+  for (i in seq_len(runs)) seconds[i] <- system.time(m <- suppressWarnings(suppressMessages(f())))[["elapsed"]]
+  list(seconds = seconds, logLik = as.numeric(logLik(m)), singular = isSingular(m),
+       messages = as.list(m@optinfo$conv$lme4$messages))
+})
+cat(jsonlite::toJSON(out, auto_unbox = TRUE, digits = NA))
+"""
+
+
+def _summary(seconds) -> dict:
+    seconds = sorted(np.atleast_1d(seconds).tolist())  # (one run comes from R's JSON as a number)
+    return {"median_s": round(statistics.median(seconds), 3), "range_s": [round(seconds[0], 3),
+                                                                          round(seconds[-1], 3)]}
+
+
+def maximal(export: Path, runs: int, work: Path) -> dict:
+    """Maximal model fits of ``export``'s completed trials, ``runs`` times each, here and in lme4."""
+    import shutil
+
+    import pandas as pd
+
+    from analysis.design import build_design
+    from analysis.load import read_export
+    from analysis.mixed import fit
+    from analysis.report import select
+
+    trials, *_ , conditions, _ = select(read_export(export))
+    trials = trials[trials["complete"]].copy()
+    trials["condition"] = pd.Categorical(trials["condition"], conditions)
+    out = {"trials": len(trials), "participants": int(trials["participant"].nunique()),
+           "scenes": int(trials["scene"].nunique()), "here": {}}
+    for name, measure, family in (("lmm", "total_time", "gaussian"), ("glmm", "n_queries", "poisson")):
+        seconds = []
+        for _ in range(runs):
+            start = time.perf_counter()
+            fitted = fit(build_design(trials, measure, ["condition"], MAXIMAL), family)
+            seconds.append(time.perf_counter() - start)
+        out["here"][name] = {**_summary(seconds), "loglik": fitted.loglik, "singular": fitted.singular,
+                             "messages": list(fitted.messages)}
+    rscript = shutil.which("Rscript")
+    if rscript is None:
+        out["lme4"] = "Rscript is not installed (Debian: apt-get install r-cran-lme4 r-cran-jsonlite)"
+        return out
+    csv, script = work / "trials.csv", work / "lme4_maximal.R"
+    trials[["participant", "scene", "condition", "total_time", "n_queries"]].to_csv(csv, index=False)
+    script.write_text(LME4)
+    ran = subprocess.run([rscript, "--vanilla", str(script), str(csv), str(runs)], capture_output=True, text=True)
+    if ran.returncode != 0:
+        raise SystemExit(f"lme4 failed:\n{ran.stderr[-2000:]}")
+    out["lme4"] = {name: {**_summary(r["seconds"]), "loglik": r["logLik"], "singular": r["singular"],
+                          "messages": r["messages"]} for name, r in json.loads(ran.stdout).items()}
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default="20,200,2000", help="participants per study, comma-separated")
@@ -79,6 +155,7 @@ def main() -> int:
     parser.add_argument("--resamples", type=int, default=1000)
     parser.add_argument("--baseline", help="another checkout whose analysis package to time in the same run")
     parser.add_argument("--baseline-sizes", default="20,200", help="the sizes to time the baseline at")
+    parser.add_argument("--maximal", action="store_true", help="time maximal model fits here and in lme4")
     parser.add_argument("--one", help=argparse.SUPPRESS)
     parser.add_argument("--root", default=str(ROOT), help=argparse.SUPPRESS)
     parser.add_argument("--work", help=argparse.SUPPRESS)
@@ -90,6 +167,15 @@ def main() -> int:
     from analysis.synthetic import write_export
 
     sizes = [int(n) for n in args.sizes.split(",")]
+    if args.maximal:
+        result = {"benchmark": "analysis-maximal-models", "trials_per_participant": 9, "runs": args.runs,
+                  "random": MAXIMAL, "studies": {}}
+        with tempfile.TemporaryDirectory() as tmp:
+            for n in sizes:
+                export = write_export(Path(tmp) / f"export{n}", participants=n, seed=n)
+                result["studies"][f"{n}x9"] = maximal(export, args.runs, Path(tmp))
+        print(json.dumps(result))
+        return 0
     baseline_sizes = [int(n) for n in args.baseline_sizes.split(",")] if args.baseline else []
     out = {"benchmark": "analysis", "trials_per_participant": 9, "resamples": args.resamples, "runs": args.runs,
            "reports": {}}
