@@ -179,25 +179,22 @@ class RandomEffects:
         """Z'WZ by blocks of factors: ``(0, 0)`` the first factor's L×K×K diagonal blocks, ``(a, b)`` for a ≤ b
         otherwise (dense)."""
         first = self.groups[0]
-        k = first.width
-        diag = np.empty((first.size, k, k))
-        for i in range(k):
-            for j in range(i, k):
-                diag[:, i, j] = diag[:, j, i] = np.bincount(first.codes, w * first.x[:, i] * first.x[:, j],
-                                                            minlength=first.size)
-        tabs = {(0, 0): diag}
+        tabs = {(0, 0): self._tabulate(first.codes, first.size, first.x, first.x, w)}
         for a, ga in enumerate(self.groups):
             for b in range(max(a, 1), len(self.groups)):
                 gb = self.groups[b]
-                cells = ga.codes * gb.size + gb.codes
-                block = np.empty((ga.size, ga.width, gb.size, gb.width))
-                for i in range(ga.width):
-                    wx = w * ga.x[:, i]
-                    for j in range(gb.width):
-                        block[:, i, :, j] = np.bincount(cells, wx * gb.x[:, j],
-                                                        minlength=ga.size * gb.size).reshape(ga.size, gb.size)
-                tabs[a, b] = block.reshape(ga.size * ga.width, gb.size * gb.width)
+                block = self._tabulate(ga.codes * gb.size + gb.codes, ga.size * gb.size, ga.x, gb.x, w)
+                tabs[a, b] = block.reshape(ga.size, gb.size, ga.width, gb.width).transpose(0, 2, 1, 3) \
+                    .reshape(ga.size * ga.width, gb.size * gb.width)
         return tabs
+
+    @staticmethod
+    def _tabulate(cells: np.ndarray, size: int, xa: np.ndarray, xb: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Σ over the rows of each cell of w xa xb' (cells × Ka × Kb), in one bincount."""
+        ka, kb = xa.shape[1], xb.shape[1]
+        products = (w[:, None] * xa)[:, :, None] * xb[:, None, :]
+        index = cells[:, None] * (ka * kb) + np.arange(ka * kb)
+        return np.bincount(index.ravel(), products.ravel(), minlength=size * ka * kb).reshape(size, ka, kb)
 
     def curvature(self, theta: np.ndarray, tabs: dict) -> Curvature:
         """Λ'Z'WZΛ + I from the cross-tabulations of :meth:`crosstabs`."""
