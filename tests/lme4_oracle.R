@@ -1,7 +1,7 @@
 # The lme4 side of the oracle test (tests/test_lme4_oracle.py): fits every model the report fits to one study's
 # trial table and writes what lme4 finds as JSON.
 #
-#   Rscript tests/lme4_oracle.R TRIALS.csv OUT.json [slopes]
+#   Rscript tests/lme4_oracle.R TRIALS.csv OUT.json [slopes | at PARAMS.json]
 #
 # TRIALS.csv: participant, scene, condition (levels none, basic, full; none the reference), total_time, n_queries.
 # With "slopes": the random-slope models instead (maximal, uncorrelated, slopes by participant only; LMM ML and
@@ -108,24 +108,54 @@ pois <- function(formula, n_agq = 1) {
        default = describe(glmer(formula, d, family = poisson, nAGQ = n_agq)))
 }
 
-if (length(args) > 2 && args[3] == "slopes") {
+if (length(args) > 2 && args[3] %in% c("slopes", "at")) {
   maximal <- ~ (1 + condition | participant) + (1 + condition | scene)
   uncorrelated <- ~ (1 | participant) + (0 + conditionbasic | participant) + (0 + conditionfull | participant) +
     (1 | scene) + (0 + conditionbasic | scene) + (0 + conditionfull | scene)
   by_participant <- ~ (1 + condition | participant) + (1 | scene)
   text <- function(x) paste(deparse(x, width.cutoff = 500L), collapse = " ")
   with_random <- function(fixed, random) as.formula(paste(text(fixed), "+", text(random[[2]])))
+  # a model of the test by its name: time_maximal, time_maximal_null, time_maximal_reml, queries_by_participant, …
+  model <- function(name) {
+    parts <- regmatches(name, regexec("^(time|queries)_(maximal|uncorrelated|by_participant)(_null|_reml)?$", name))[[1]]
+    response <- if (parts[2] == "time") "log_time" else "n_queries"
+    fixed <- as.formula(paste(response, if (parts[4] == "_null") "~ 1" else "~ condition"))
+    list(formula = with_random(fixed, get(parts[3])), poisson = parts[2] == "queries", reml = parts[4] == "_reml")
+  }
+  if (args[3] == "at") {
+    # lme4's own deviance at the parameters another fit found (PARAMS.json: per model, θ by lme4's names, β):
+    # whether a log-likelihood above lme4's optimum is lme4's likelihood at a better optimum
+    at <- fromJSON(args[4])
+    out <- list()
+    for (name in names(at)) {
+      m <- model(name)
+      if (m$poisson) {
+        devfun <- restarted_deviance(m$formula, 1)
+        names_theta <- names(getME(glmer(m$formula, d, family = poisson), "theta"))
+        value <- devfun(c(unlist(at[[name]]$theta)[names_theta], unlist(at[[name]]$beta)))
+      } else {
+        fitted <- lmer(m$formula, d, REML = m$reml)
+        devfun <- lmer(m$formula, d, REML = m$reml, devFunOnly = TRUE)
+        value <- devfun(unlist(at[[name]]$theta)[names(getME(fitted, "theta"))])
+      }
+      out[[name]] <- -value / 2
+    }
+    write_json(out, args[2], digits = NA, auto_unbox = TRUE, pretty = TRUE)
+    quit(save = "no")
+  }
   out <- list(versions = list(R = R.version.string, lme4 = as.character(packageVersion("lme4"))))
   for (structure in c("maximal", "uncorrelated", "by_participant")) {
-    random <- get(structure)
-    out[[paste0("time_", structure)]] <- lmm(with_random(log_time ~ condition, random))
-    out[[paste0("time_", structure, "_null")]] <- lmm(with_random(log_time ~ 1, random))
-    out[[paste0("time_", structure, "_reml")]] <- lmm(with_random(log_time ~ condition, random), reml = TRUE)
+    for (suffix in c("", "_null", "_reml")) {
+      name <- paste0("time_", structure, suffix)
+      m <- model(name)
+      out[[name]] <- lmm(m$formula, reml = m$reml)
+    }
   }
   for (structure in c("maximal", "by_participant")) {
-    random <- get(structure)
-    out[[paste0("queries_", structure)]] <- pois(with_random(n_queries ~ condition, random))
-    out[[paste0("queries_", structure, "_null")]] <- pois(with_random(n_queries ~ 1, random))
+    for (suffix in c("", "_null")) {
+      name <- paste0("queries_", structure, suffix)
+      out[[name]] <- pois(model(name)$formula)
+    }
   }
   write_json(out, args[2], digits = NA, auto_unbox = TRUE, null = "null", pretty = TRUE)
   quit(save = "no")
