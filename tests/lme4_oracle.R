@@ -46,17 +46,18 @@ CONVERGED <- glmerControl(optimizer = "bobyqa", tolPwrss = 1e-13, optCtrl = list
 
 # lmer's default BOBYQA stops at ~1e-6 on θ, which in a flat likelihood (two scenes) leaves a variance ~1% off
 LMM_CONVERGED <- lmerControl(optimizer = "bobyqa", optCtrl = list(rhoend = 1e-12, maxfun = 1e5))
-# lme4 from several starts (θ = s times the identity; lme4's own is s = 1), the best kept: where the likelihood has
-# more than one optimum (random slopes with small counts), lme4's one start can stop on the boundary of a worse one
-# (a Poisson study with logLik -777.6 from s = 1 and -752.1 from every other start)
+# The random-slope models run lme4 from several starts (θ = s times the identity; lme4's own is s = 1), the best
+# kept: where the likelihood has more than one optimum (random slopes with small counts), lme4's one start can stop
+# on the boundary of a worse one (a Poisson study with logLik -777.6 from s = 1 and -752.1 from every other start).
+# The intercept models keep lme4's one start.
 STARTS <- c(1, 0.5, 0.2, 2)
 start_theta <- function(formula, s) {
   lower <- lFormula(formula, d)$reTrms$lower
   ifelse(lower == 0, s, 0)
 }
 best_of <- function(fits) fits[[which.max(sapply(fits, function(m) as.numeric(logLik(m))))]]
-lmm <- function(formula, reml = FALSE) {
-  fits <- lapply(STARTS, function(s) lmer(formula, d, REML = reml, control = LMM_CONVERGED,
+lmm <- function(formula, reml = FALSE, starts = 1) {
+  fits <- lapply(starts, function(s) lmer(formula, d, REML = reml, control = LMM_CONVERGED,
                                           start = list(theta = start_theta(formula, s))))
   describe(best_of(fits), reml)
 }
@@ -80,8 +81,8 @@ restarted_deviance <- function(formula, n_agq) {
 
 # The fit at the optimum of that deviance (BOBYQA from glmer's best converged fit, as lme4 optimizes), its SEs from lme4's
 # deriv12 there; "glmer" is glmer's own fit with tolPwrss = 1e-13, "default" glmer with its defaults.
-pois <- function(formula, n_agq = 1) {
-  m <- best_of(lapply(STARTS, function(s) glmer(formula, d, family = poisson, nAGQ = n_agq, control = CONVERGED,
+pois <- function(formula, n_agq = 1, starts = 1) {
+  m <- best_of(lapply(starts, function(s) glmer(formula, d, family = poisson, nAGQ = n_agq, control = CONVERGED,
                                                 start = list(theta = start_theta(formula, s)))))
   deviance <- restarted_deviance(formula, n_agq)
   theta <- getME(m, "theta")
@@ -148,13 +149,13 @@ if (length(args) > 2 && args[3] %in% c("slopes", "at")) {
     for (suffix in c("", "_null", "_reml")) {
       name <- paste0("time_", structure, suffix)
       m <- model(name)
-      out[[name]] <- lmm(m$formula, reml = m$reml)
+      out[[name]] <- lmm(m$formula, reml = m$reml, starts = STARTS)
     }
   }
   for (structure in c("maximal", "by_participant")) {
     for (suffix in c("", "_null")) {
       name <- paste0("queries_", structure, suffix)
-      out[[name]] <- pois(model(name)$formula)
+      out[[name]] <- pois(model(name)$formula, starts = STARTS)
     }
   }
   write_json(out, args[2], digits = NA, auto_unbox = TRUE, null = "null", pretty = TRUE)
