@@ -10,10 +10,11 @@
   (parameters not determined), a very large eigenvalue or a large eigenvalue ratio; for a GLMM its fixed-effect
   block first.
 
-lme4 computes g and H by finite differences of the deviance (``deriv12``, step 1e-4); the linear mixed model here
-has the exact gradient, and its Hessian is the central difference of that (:mod:`analysis.lmm`); the Poisson GLMM's
-are lme4's own (:mod:`analysis.glmm`). A fit run to convergence, as these are, rarely fails the gradient check; the
-check says so when it does.
+The messages are lme4's to the character (its "component 1" whichever component it is, its line breaks and
+spaces). lme4 computes g and H by finite differences of the deviance (``deriv12``, step 1e-4); the linear mixed
+model here has the exact gradient, and its Hessian is the central difference of that (:mod:`analysis.lmm`); the
+Poisson GLMM's are lme4's own (:mod:`analysis.glmm`). A fit run to convergence, as these are, rarely fails the
+gradient check; the check says so when it does.
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ def messages(theta: np.ndarray, diagonal: np.ndarray, gradient=None, hessian=Non
     out = []
     if gradient is not None and hessian is not None:
         gradient, hessian = np.asarray(gradient, float), np.asarray(hessian, float)
+        if np.any(np.isnan(gradient)):
+            return ["Gradient contains NAs"]
         try:
             scaled = np.linalg.solve(np.linalg.cholesky(hessian).T, gradient)
         except np.linalg.LinAlgError:
@@ -49,8 +52,10 @@ def messages(theta: np.ndarray, diagonal: np.ndarray, gradient=None, hessian=Non
         else:
             smallest = np.minimum(np.abs(scaled), np.abs(gradient))
             if smallest.max() > GRADIENT_TOL:
+                # lme4 names "component 1" whichever component it is (which.max of the maximum); so does this,
+                # to say what lme4 says
                 out.append(f"Model failed to converge with max|grad| = {smallest.max():.6g} "
-                           f"(tol = {GRADIENT_TOL:g}, component {int(smallest.argmax()) + 1})")
+                           f"(tol = {GRADIENT_TOL:g}, component 1)")
         k = len(theta)
         if len(gradient) > k:
             out += _hessian_messages(hessian[k:, k:], "fixed-effect")
@@ -73,10 +78,16 @@ def _hessian_messages(hessian: np.ndarray, kind: str = "") -> list[str]:
     except np.linalg.LinAlgError:
         positive = False
     if np.any(np.abs(values) < HESSIAN_TOL) or not positive:
-        return [f"{kind} Hessian is numerically singular: parameters are not uniquely determined".strip()]
+        return [f"{kind} Hessian is numerically singular: parameters are not uniquely determined"]
     out = []
     if values.max() * HESSIAN_TOL > 1:
-        out.append("Model is nearly unidentifiable: very large eigenvalue - Rescale variables?")
+        out.append("Model is nearly unidentifiable: very large eigenvalue\n - Rescale variables?")
     if values.min() / values.max() < HESSIAN_TOL:
-        out.append("Model is nearly unidentifiable: large eigenvalue ratio - Rescale variables?")
+        out.append("Model is nearly unidentifiable: large eigenvalue ratio\n - Rescale variables?")
     return out
+
+
+def failed(messages: list[str] | tuple[str, ...]) -> bool:
+    """Whether lme4's messages say the fit did not converge (not only that it is singular or badly scaled)."""
+    return any(m.startswith(("Model failed to converge", "unable to evaluate scaled gradient",
+                             "Gradient contains NAs")) for m in messages)

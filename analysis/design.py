@@ -9,7 +9,8 @@ per level of GROUP, correlated (lme4's ``(1 + X | GROUP)``); X is a numeric colu
 treatment dummies (the same coding as the fixed term). Several slopes: ``X + W|GROUP``; no intercept: ``0 + X|GROUP``.
 ``X||GROUP`` is the same with every correlation left out: the intercept and each column of X (each dummy of a factor)
 get a variance of their own (afex's ``expand_re = TRUE``; lme4's own ``(1 + X || GROUP)`` keeps a factor's dummies
-correlated, so reproduce.R writes such a term out as lme4's ``(1 | GROUP) + (0 + dummy(X, "b") | GROUP) + …``).
+correlated: in lme4 such a term is ``(1 | GROUP) + (0 + dummy(X, "b") | GROUP) + …``). Without an intercept the first
+factor is coded by every level, as R codes it.
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from scipy import sparse
 from .errors import AnalysisError
 
 _FACTOR = re.compile(r"^factor\((.+)\)$")
+#: The most random effects one term may have per level of its group (a covariance of 55 parameters)
+MAX_EFFECTS = 10
 
 
 @dataclass(frozen=True)
@@ -160,6 +163,9 @@ def _parse(spec: str) -> tuple[list[str], str, bool]:
     uncorrelated = "||" in spec
     left, _, group = spec.replace("||", "|").rpartition("|")
     group, left = group.strip(), left.strip()
+    if re.search(r"[()]", re.sub(r"factor\([^()]*\)", "", spec)):  # parentheses only as factor(COLUMN)
+        raise AnalysisError(f"{spec!r}: write a random term without lme4's parentheses, as GROUP, X|GROUP or "
+                            "X||GROUP", "--random")
     if not group or "|" in left:
         raise AnalysisError(f"{spec!r} is not a random term (GROUP, X|GROUP or X||GROUP)", "--random")
     parts = [p.strip() for p in left.split("+")] if left else []
@@ -184,8 +190,15 @@ def _random_terms(data: pd.DataFrame, spec: str, references: dict[str, str | Non
         n, c, lv = _fixed_columns(data, part, references.get(part), role="--random")
         if lv is not None and len(lv) < 2:
             raise AnalysisError(f"{part!r} has one level; a random slope needs at least 2", "--random")
+        if lv is not None and not names:  # no intercept: R codes the first factor by every level, the first too
+            values = data[_column_of(part)]
+            n, c = [f"{part}{level}" for level in lv], [(values == level).to_numpy(float) for level in lv]
         names += n
         columns += c
+    if len(names) > MAX_EFFECTS:
+        raise AnalysisError(f"{spec!r} has {len(names)} random effects per level of {group} (a covariance of "
+                            f"{len(names) * (len(names) + 1) // 2} parameters); at most {MAX_EFFECTS} are fitted — "
+                            "is a numeric column read as text?", "--random")
     if not names:
         raise AnalysisError(f"{spec!r} has no random effect (0 and nothing else)", "--random")
     if len(set(names)) < len(names):
@@ -204,6 +217,9 @@ def _check_random(terms: list[RandomTerm], n: int) -> None:
     any level of its group (a between-group column: it is the intercept over again)."""
     seen: dict[tuple[str, str], RandomTerm] = {}
     for t in terms:
+        if len(t.levels) < 2:
+            raise AnalysisError(f"{t.label()}: {t.group} has {len(t.levels)} level(s) with data; a grouping factor "
+                                "needs at least 2", "--random")
         for name in t.names:
             if (t.group, name) in seen:
                 raise AnalysisError(f"{t.label()} repeats the effect {name} of {seen[t.group, name].label()}",
@@ -241,6 +257,9 @@ def build_design(data: pd.DataFrame, response: str, fixed: list[str], random: li
     if y_all.isna().all():
         raise AnalysisError("has no numeric values", f"response {response!r}")
     complete = y_all.notna() & data[used[1:]].notna().all(axis=1) & np.isfinite(y_all.fillna(0))
+    for column in set(used[1:]):  # an infinite number is as missing as an empty cell
+        if pd.api.types.is_numeric_dtype(data[column]) and not pd.api.types.is_bool_dtype(data[column]):
+            complete &= np.isfinite(data[column].astype(float).fillna(0))
     rows = data.loc[complete].reset_index(drop=True)
     if len(rows) < 3:
         raise AnalysisError(f"only {len(rows)} complete row(s)", f"response {response!r}")

@@ -64,11 +64,9 @@ class _Laplace:
         self.u = np.zeros(self.q)
 
     def theta(self, params: np.ndarray) -> np.ndarray:
-        """θ of (θ, β), with the factors' diagonals taken positive (the deviance of an intercept-only factor is even
-        in its θ; the finite differences of the Hessian step across zero)."""
-        theta = np.array(params[:self.k], dtype=float)
-        theta[self.z.diagonal] = np.abs(theta[self.z.diagonal])
-        return theta
+        """θ of (θ, β). A negative diagonal entry is a valid factor too (the finite differences of the Hessian step
+        across a zero one, as lme4's deriv12 does)."""
+        return np.array(params[:self.k], dtype=float)
 
     def _h(self, theta, mu) -> Curvature:
         """Λ'Z'WZΛ + I with W = diag(μ)."""
@@ -168,7 +166,7 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
     y = design.y
     if np.any(y < 0) or np.any(y != np.round(y)):
         raise AnalysisError("a Poisson model needs counts (whole numbers ≥ 0)", f"response {design.response!r}")
-    if n_agq > 1 and (len(design.random) > 1 or design.random[0].width > 1):
+    if n_agq > 1 and (len(design.random) > 1 or design.random[0].values is not None):
         raise AnalysisError("adaptive quadrature needs a single random intercept (as lme4's nAGQ > 1); use the "
                             "Laplace approximation", "--random")
     if y.sum() == 0:
@@ -183,6 +181,9 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
         model.u = np.zeros(model.q)
 
     best = minimize(model.deviance, starts, bounds, list(np.flatnonzero(model.z.diagonal)), before=reset)
+    if not best.fun < WILD:
+        raise AnalysisError("the likelihood could not be evaluated anywhere the optimiser looked",
+                            f"response {design.response!r}")
     x = np.concatenate([model.theta(best.x), best.x[k:]])
     dev = model.deviance(x)
     grad, hess = _derivatives(model.deviance, x)

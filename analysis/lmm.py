@@ -117,10 +117,10 @@ class _Profiled:
             s = a.solve(b)
             xvx = self.xtx - b[:, 1:].T @ s[:, 1:]
             rx = np.linalg.cholesky(xvx)
-        except (np.linalg.LinAlgError, ValueError):
+            cu_cu, rzx_cu = float(b[:, 0] @ s[:, 0]), b[:, 1:].T @ s[:, 0]
+            cb = solve_triangular(rx, self.xty - rzx_cu, lower=True)
+        except (np.linalg.LinAlgError, ValueError):  # not positive definite, or not finite
             return 1e300, np.zeros_like(theta)
-        cu_cu, rzx_cu = float(b[:, 0] @ s[:, 0]), b[:, 1:].T @ s[:, 0]
-        cb = solve_triangular(rx, self.xty - rzx_cu, lower=True)
         r2 = self.yty - cu_cu - cb @ cb
         if r2 < ROUNDING * self.yty:  # r² is rounding: the model fits every value, and the gradient says nothing
             return self.deviance(theta), np.full_like(theta, np.nan)
@@ -196,7 +196,8 @@ def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
         groups={t.group: len(t.levels) for t in design.random},
         fixed=dict(zip(design.fixed_names, map(float, sol["beta"]), strict=True)),
         se=dict(zip(design.fixed_names, map(float, se), strict=True)), cov_fixed=cov_fixed, variance=variance,
-        loglik=-sol["deviance"] / 2, n_params=model.p + len(theta) + 1, reml=reml, optimizer="bobyqa",
+        loglik=-sol["deviance"] / 2, n_params=model.p + len(theta) + 1, reml=reml,
+        optimizer="L-BFGS-B (exact gradient)",
         singular=is_singular(theta, model.effects.diagonal), dropped=design.dropped,
         messages=tuple(model.convergence(theta)), theta=tuple(map(float, theta)))
 

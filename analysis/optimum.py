@@ -54,8 +54,8 @@ def off_zero(deviance: Callable[[np.ndarray], float], best: optimize.OptimizeRes
 def bobyqa(deviance: Callable[[np.ndarray], float], x0: np.ndarray, bounds: list,
            step: float = 0.2) -> optimize.OptimizeResult:
     """One BOBYQA run from ``x0`` within ``bounds`` ((low, high) per parameter, None for none), first trust region
-    ``step`` times each parameter's scale (at least 0.05 of it), last XTOL; the best point it evaluated (NLopt can
-    stop on rounding before it reports one)."""
+    ``step`` times each parameter's size (a size below 0.25 counting as 0.25), last XTOL; the best point it
+    evaluated (NLopt can stop on rounding before it reports one)."""
     x0 = np.asarray(x0, dtype=float)
     low = np.array([-np.inf if lo is None else lo for lo, _ in bounds])
     high = np.array([np.inf if hi is None else hi for _, hi in bounds])

@@ -90,8 +90,8 @@ class _Group:
 
 
 def theta_layout(terms) -> list[tuple[int, int]]:
-    """Per θ in lme4's order (term by term, each term's lower triangle column by column): (row, column) in its
-    term's factor T."""
+    """Per θ, term by term in the order given, each term's lower triangle column by column as lme4 lays it out:
+    (row, column) in its term's factor T."""
     return [(r, c) for t in terms for c in range(t.width) for r in range(c, t.width)]
 
 

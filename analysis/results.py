@@ -19,7 +19,7 @@ class MixedFit:
     """A fitted mixed model.
 
     ``variance`` holds random-effect variances by grouping factor (``"Subject:Days"`` for a slope,
-    ``"Subject:cor"`` for the intercept–slope correlation) and ``"residual"`` for Gaussian models: lme4's
+    ``"Subject:cor((Intercept),Days)"`` for a correlation) and ``"residual"`` for Gaussian models: lme4's
     ``VarCorr`` as ``vcov`` in the linear predictor's units squared (log rate² for Poisson; per slope unit
     squared for a slope), the correlation as ``sdcor``.
     ``loglik`` is the maximised log-likelihood (for REML fits, the REML criterion is ``-2 * loglik``).
@@ -30,7 +30,8 @@ class MixedFit:
     degrees of freedom come from it. ``dropped`` rows had a missing value; ``extra`` is family-specific
     (``n_agq`` for Poisson) and goes into :meth:`to_dict` as it is. ``singular`` and ``messages`` are lme4's
     ``isSingular`` and its convergence messages, in its words (:mod:`analysis.convergence`); ``theta`` the
-    relative covariance factors' entries at the optimum, term by term as the formula lists them.
+    relative covariance factors' entries at the optimum, term by term as the formula lists them (lme4 lists terms
+    by decreasing number of levels when that order differs: compare by name, not position).
     """
 
     family: str

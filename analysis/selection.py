@@ -5,8 +5,9 @@ under the structure kept.
    (Barr, Levy, Scheepers & Tily 2013, "keep it maximal"). A slope the design cannot support — condition never
    varies within a level of the factor, or more random effects than observations — is left out before fitting,
    and the step says why.
-2. While the fit is singular (a variance at zero or a correlation at ±1, lme4's ``isSingular``) or fails lme4's
-   convergence check: first leave out the correlations (the zero-correlation-parameter model of Bates, Kliegl,
+2. While the fit is singular (a variance at zero or a correlation at ±1, lme4's ``isSingular``) or lme4's
+   convergence check says it failed to converge (:func:`analysis.convergence.failed`; a badly scaled Hessian alone
+   is reported, not acted on): first leave out the correlations (the zero-correlation-parameter model of Bates, Kliegl,
    Vasishth & Baayen 2015, "Parsimonious mixed models"), then the random slope with the smallest variance, one
    at a time (Matuschek, Kliegl, Vasishth, Baayen & Bates 2017: simplify until the model is supported by the
    data). Random intercepts are never left out: the intercept-only model is where the rule stops, singular or not
@@ -23,6 +24,7 @@ from dataclasses import dataclass, field
 
 import pandas as pd
 
+from .convergence import failed
 from .design import build_design
 from .errors import AnalysisError
 from .mixed import compare, fit
@@ -52,14 +54,13 @@ class Structure:
                 out += [group] + [f"0 + {s}|{group}" for s in slopes]
         return out
 
-    def name(self) -> str:
-        """A short name: maximal, uncorrelated, or what is left."""
+    def name(self, term: str = "condition") -> str:
+        """A short name: which slopes (``term``'s levels) by which factor, correlated or not."""
         with_slopes = [(g, s) for g, s in self.slopes if s]
         if not with_slopes:
             return "intercepts only"
         kind = "correlated" if self.correlated else "uncorrelated"
-        parts = [f"{', '.join(s.removeprefix('condition') for s in slopes)} by {group}"
-                 for group, slopes in with_slopes]
+        parts = [f"{', '.join(s.removeprefix(term) for s in slopes)} by {group}" for group, slopes in with_slopes]
         return f"{kind} slopes of " + "; ".join(parts)
 
     def without(self, group: str, slope: str) -> Structure:
@@ -116,11 +117,12 @@ def with_dummies(frame: pd.DataFrame, term: str, levels: list[str]) -> pd.DataFr
     return frame.assign(**extra)
 
 
-def select(frame: pd.DataFrame, measure: str, family: str, term: str = "condition",
+def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "condition",
            groups: tuple[str, ...] = GROUPS) -> Selection:
     """The rule of this module for ``measure`` of ``frame`` (``term`` a pandas Categorical; ``groups`` with a
     single level are left out, as they are from every model). A measure the data cannot inform raises
     :class:`analysis.degenerate.NotModelled` from the intercept-only test, as before."""
+    frame = frame.dropna(subset=[measure])
     groups = tuple(g for g in groups if frame[g].nunique() > 1)
     levels = [str(c) for c in frame[term].cat.categories if (frame[term] == c).any()]
     data = with_dummies(frame, term, levels)
@@ -139,10 +141,10 @@ def select(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
     while any(s for _, s in structure.slopes):
         design = build_design(data, measure, [term], structure.specs(term))
         fitted = fit(design, family)
-        step = Step(fitted.formula, structure.name(), fitted.singular, fitted.messages,
+        step = Step(fitted.formula, structure.name(term), fitted.singular, fitted.messages,
                     variances={k: v for k, v in fitted.variance.items() if ":cor(" not in k})
         selection.steps.append(step)
-        if not fitted.messages:
+        if not (fitted.singular or failed(fitted.messages)):
             step.decision = "kept: not singular, converged"
             selection.kept = structure
             selection.comparison = compare(design, term, family, full=fitted)

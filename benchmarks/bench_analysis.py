@@ -9,8 +9,8 @@ PYTHONPATH.
 
 ``--maximal`` times instead one maximal model fit of the same synthetic studies — total time (LMM, ML) and model
 queries (Poisson GLMM, Laplace), each ``condition + (1 + condition | participant) + (1 + condition | scene)`` — and
-lme4's fits of the same trials in the same run (Rscript; lme4's defaults, and run to convergence with BOBYQA to
-rhoend = 1e-12 as tests/lme4_oracle.R does), with each fit's log-likelihood beside its time.
+lme4's fits of the same trials in the same run (Rscript; lme4's defaults, and for the LMM also run to convergence
+with BOBYQA to rhoend = 1e-12 as tests/lme4_oracle.R does), with each fit's log-likelihood beside its time.
 
 Usage: .venv/bin/python benchmarks/bench_analysis.py [--sizes 20,200,2000] [--runs 3] [--resamples 1000]
                                                       [--baseline DIR [--baseline-sizes 20,200]]

@@ -36,7 +36,7 @@ varcomp <- function(m) {
 
 describe <- function(m, reml = FALSE) {
   list(fixef = as.list(fixef(m)), se = as.list(sqrt(diag(as.matrix(vcov(m))))), varcomp = varcomp(m),
-       vcov = unname(as.matrix(vcov(m))), theta = unname(getME(m, "theta")),
+       vcov = unname(as.matrix(vcov(m))), theta = unname(getME(m, "theta")), lower = getME(m, "lower"),
        logLik = as.numeric(logLik(m)), REMLcrit = if (reml) as.numeric(REMLcrit(m)) else NULL,
        df = attr(logLik(m), "df"), nobs = nobs(m), singular = isSingular(m),
        messages = as.list(m@optinfo$conv$lme4$messages))
@@ -102,7 +102,7 @@ pois <- function(formula, n_agq = 1, starts = 1) {
   at <- lme4:::mkMerMod(environment(devfun), list(par = x, fval = opt$fval, conv = 0, message = ""), gf$reTrms,
                         gf$fr)
   list(fixef = as.list(setNames(x[-seq_len(k)], names(fixef(m)))), se = se,
-       vcov = if (is.null(v)) NULL else unname(v), theta = unname(x[seq_len(k)]),
+       vcov = if (is.null(v)) NULL else unname(v), theta = unname(x[seq_len(k)]), lower = lower,
        varcomp = varcomp(at), logLik = -opt$fval / 2, nobs = nobs(m),
        singular = any(x[seq_len(k)][lower == 0] < 1e-4),
        se_glmer = as.list(sqrt(diag(as.matrix(vcov(m))))), glmer = describe(m),

@@ -158,7 +158,8 @@ def compare(name: str, ours, theirs: dict, *, saturated: float = 0.0) -> list[st
         se = (ses or theirs["se_glmer"])[term]
         if not near(value, theirs["fixef"][term], 1e-4 * max(abs(theirs["fixef"][term]), se)):
             problems.append(f"{name}: {term} {value!r} vs lme4 {theirs['fixef'][term]!r} (SE {se:.3g})")
-        if ses and not singular and not near(ours.se[term], se, 1e-4 * se):
+        # lmer's vcov comes from its fit's RX, defined at a singular fit too; a Poisson SE needs curvature in θ
+        if ses and (gaussian or not singular) and not near(ours.se[term], se, 1e-4 * se):
             problems.append(f"{name}: SE of {term} {ours.se[term]!r} vs lme4 {se!r}")
     residual = theirs["varcomp"].get("residual", 0.0)
     floor = 1e-6 * residual if gaussian else 1e-4
@@ -176,9 +177,13 @@ def compare(name: str, ours, theirs: dict, *, saturated: float = 0.0) -> list[st
         elif not near(ours.variance[group], value, max(1e-3 * abs(value), floor)):
             problems.append(f"{name}: variance of {group} {ours.variance[group]!r} vs lme4 {value!r}")
     theta = np.atleast_1d(theirs.get("theta", []))  # (a single θ comes as a number)
-    borderline = bool(np.any((np.abs(theta) > 0.5e-4) & (np.abs(theta) < 2e-4)))
+    diagonal = np.atleast_1d(theirs.get("lower", np.zeros_like(theta))) == 0
+    borderline = bool(np.any((np.abs(theta) > 0.5e-4) & (np.abs(theta) < 2e-4) & diagonal))
     if ours.singular != theirs["singular"] and not borderline:
         problems.append(f"{name}: singular {ours.singular} vs lme4 {theirs['singular']}")
+    messages = theirs.get("messages")
+    if gaussian and messages is not None and not borderline and list(ours.messages) != np.atleast_1d(messages).tolist():
+        problems.append(f"{name}: lme4's messages {ours.messages} vs lme4 {messages}")
     return problems
 
 
@@ -236,13 +241,14 @@ def test_random_slope_models_match_lme4_on_a_random_study(study, tmp_path):
     # not compared further; anything else is a difference.
     above = {name: lme4_parameters(fitted, designs[name]) for name, fitted in ours.items()
              if fitted.loglik > (-lme4[name]["REMLcrit"] / 2 if fitted.reml else lme4[name]["logLik"]) + 1e-4}
-    better, problems = set(), []
+    better, problems, at_values = set(), [], {}
     if above:
         (tmp_path / "at.json").write_text(json.dumps(above))
         at = subprocess.run([rscript, str(ROOT / "tests" / "lme4_oracle.R"), str(csv), str(tmp_path / "at-out.json"),
                              "at", str(tmp_path / "at.json")], capture_output=True, text=True, timeout=900)
         assert at.returncode == 0, f"lme4 failed on {where}:\n{at.stderr[-2000:]}"
-        for name, value in json.loads((tmp_path / "at-out.json").read_text()).items():
+        at_values = json.loads((tmp_path / "at-out.json").read_text())
+        for name, value in at_values.items():
             if near(value, ours[name].loglik, 1e-4):
                 better.add(name)
             else:
@@ -251,12 +257,15 @@ def test_random_slope_models_match_lme4_on_a_random_study(study, tmp_path):
     for name, fitted in ours.items():
         if name not in better:
             problems += compare(name, fitted, lme4[name])
+    # the LR tests from lme4's log-likelihoods: at its optimum, or at ours where ours is the better one
+    assert len(better) <= 2, f"lme4 stopped short of our optimum on {sorted(better)} ({where})"
+    lme4_at = {name: {**lme4[name], "logLik": at_values[name]} if name in better else lme4[name] for name in lme4
+               if name != "versions"}
     for name in [f"time_{s}" for s in SLOPES] + [f"queries_{s}" for s in POISSON_SLOPES]:
-        if {name, f"{name}_null"} & better:
-            continue
         test = lr_test(ours[f"{name}_null"], ours[name])
-        problems += lr_problems(name, test, lme4[name], lme4[f"{name}_null"], 2)
-        if lme4[name]["vcov"] is not None and not (ours[name].singular and name.startswith("queries")):
+        problems += lr_problems(name, test, lme4_at[name], lme4_at[f"{name}_null"], 2)
+        if name not in better and lme4[name]["vcov"] is not None \
+                and not (ours[name].singular and name.startswith("queries")):
             problems += contrast_problems(name, ours[name], lme4[name])
     assert not problems, f"{len(problems)} difference(s) from lme4 on {where}:\n" + "\n".join(problems)
 
