@@ -13,9 +13,8 @@ effect), in process: the study's own scenes, model list, search index and engine
 would send are measured with the analysis' own definitions (:func:`analysis.measures.measures_by_trial`,
 :func:`scenesuggest.contract.picks.picks`). The loss is the squared distance to the paper in units of its standard
 errors (from the 95% intervals; rank shares in units of RANK_SE) plus a weak prior pulling each parameter to its
-default (looser for the defaults that are guesses: :func:`.human.prior_sd`). It is minimised by Nelder–Mead (scipy)
-over the parameters mapped to their ranges, from the best point of a screen of the loosely held parameters, with
-common random numbers: every evaluation replays the same bots from the same seeds.
+default. It is minimised by Nelder–Mead (scipy) over the parameters mapped to their ranges, with common random
+numbers: every evaluation replays the same bots from the same seeds.
 
 :func:`explain` measures what each condition can tell: how far each cell moves when each parameter moves.
 """
@@ -43,16 +42,13 @@ from scenesuggest.errors import SceneSuggestError
 from scenesuggest.npz import read_npz
 
 from . import paper_tables
-from .human import FIRM, Human, bounds, free_parameters, prior_sd, used_in
+from .human import Human, bounds, free_parameters, used_in
 from .paper_tables import PARTICIPANTS, SPREAD_MEASURES, Cell
 from .transport import Response
 
 FORMAT = "scenesuggest-calibration"
 VERSION = 2  # 2: fitted on named conditions ("on"), measured by condition
-#: Before Nelder–Mead, the fit screens the loosely held parameters (:data:`.human.LOOSE`): every corner of them at
-#: their defaults ± SCREEN logits, the others at the start, and starts from the best point seen. Their cells move
-#: only far from the defaults, where a simplex from the start does not look.
-SCREEN = 3.0
+PRIOR_SD = 1.0  # the prior: each parameter's logit-scale distance from its default, in these units
 #: The calibration's uncertainty: evaluated parameter sets whose loss is within this of the best (the loss is in
 #: squared standard errors: 4 is two standard errors along one direction), at most PLAUSIBLE_SETS of them.
 PLAUSIBLE_DELTA, PLAUSIBLE_SETS = 4.0, 5
@@ -286,13 +282,12 @@ def _from_unit(name: str, u: float) -> float:
 
 
 def loss(measured: dict[str, dict[str, float]], cells: tuple[Cell, ...], u: np.ndarray | None = None,
-         u0: np.ndarray | None = None, sd: np.ndarray | float = 1.0) -> float:
+         u0: np.ndarray | None = None) -> float:
     """Squared distance of ``measured`` (condition → measure → value) to the paper's ``cells`` in their standard
-    errors, plus the prior on the parameters' logits ``u``: their distance from the defaults ``u0`` in the prior's
-    standard deviations ``sd`` (:func:`.human.prior_sd`)."""
+    errors, plus the prior on the parameters' logits ``u`` (distance from the defaults ``u0``)."""
     total = sum(((measured[c.condition][c.measure] - c.mean) / c.se) ** 2 for c in cells)
     if u is not None:
-        total += float(np.sum(((u - u0) / sd) ** 2))
+        total += float(np.sum(((u - u0) / PRIOR_SD) ** 2))
     return total if math.isfinite(total) else 1e9
 
 
@@ -321,7 +316,7 @@ def add_draws(rehearsal: Rehearsal, document: dict, draws: int, evaluations: int
     for k in range(len(done), draws):
         drawn = drawn_cells(cells, np.random.default_rng([seed, k]))
         refit = _fit(rehearsal, drawn, evaluations, best,
-                     lambda message, k=k: progress(f"draw {k + 1}/{draws}: {message}"), screen=False)
+                     lambda message, k=k: progress(f"draw {k + 1}/{draws}: {message}"))
         done.append({"cells": {c.key: c.mean for c in drawn}, "loss": refit["loss"],
                      "parameters": refit["parameters"], "evaluations": refit["evaluations"],
                      "seconds": round(time.perf_counter() - started, 1)})
@@ -341,13 +336,12 @@ def drawn_cells(cells: tuple[Cell, ...], rng: np.random.Generator) -> tuple[Cell
 
 
 def _fit(rehearsal: Rehearsal, cells: tuple[Cell, ...], evaluations: int, start: Human | None,
-         progress, screen: bool = True) -> dict:
+         progress) -> dict:
     on = paper_tables.conditions_of(rehearsal.conditions)
     names = free_parameters(on)
     # only the parameters this fold fits come from a start; every other keeps its default
     start = Human().with_values({n: getattr(start, n) for n in names}) if start else Human()
     u0 = np.array([_to_unit(n, getattr(Human(), n)) for n in names])
-    sd = np.array([prior_sd(n) for n in names])
     u_start = np.array([_to_unit(n, getattr(start, n)) for n in names])
     seen: dict[tuple, tuple[float, dict]] = {}
     started = time.perf_counter()
@@ -359,19 +353,15 @@ def _fit(rehearsal: Rehearsal, cells: tuple[Cell, ...], evaluations: int, start:
         key = tuple(np.round(u, 10))
         if key not in seen:
             measured = rehearsal.measure(human_of(u))
-            seen[key] = (loss(measured, cells, u, u0, sd), measured)
+            seen[key] = (loss(measured, cells, u, u0), measured)
             best = min(v[0] for v in seen.values())
             progress(f"evaluation {len(seen)}: loss {seen[key][0]:.2f} (best {best:.2f}), "
                      f"{time.perf_counter() - started:.0f} s")
         return seen[key][0]
 
-    for u in [u_start, *(_screen(u_start, u0, sd > FIRM) if screen else [])][:evaluations]:
-        objective(u)
-    u_simplex = np.asarray(min(seen, key=lambda k: seen[k][0]))  # evaluated already: Nelder–Mead's first call
-    result = minimize(objective, u_simplex, method="Nelder-Mead",
-                      options={"maxfev": max(evaluations - len(seen), 0) + 1, "xatol": 1e-3, "fatol": 1e-3,
-                               "initial_simplex": u_simplex + np.vstack([np.zeros(len(names)),
-                                                                         0.7 * np.eye(len(names))])})
+    result = minimize(objective, u_start, method="Nelder-Mead",
+                      options={"maxfev": evaluations, "xatol": 1e-3, "fatol": 1e-3, "initial_simplex":
+                               u_start + np.vstack([np.zeros(len(names)), 0.7 * np.eye(len(names))])})
     best_u = min(seen, key=lambda k: seen[k][0])
     human = human_of(np.asarray(best_u))
     value, measured = seen[best_u]
@@ -385,19 +375,6 @@ def _fit(rehearsal: Rehearsal, cells: tuple[Cell, ...], evaluations: int, start:
             "seed": rehearsal.seed, "participants": rehearsal.participants, "evaluations": len(seen),
             "converged": bool(result.success), "seconds": round(time.perf_counter() - started, 1),
             "created": datetime.now(UTC).isoformat(timespec="seconds")}
-
-
-def _screen(u_start: np.ndarray, u0: np.ndarray, loose: np.ndarray) -> list[np.ndarray]:
-    """The screen's points: ``u_start`` with the ``loose`` parameters at every corner of their defaults ``u0`` ±
-    SCREEN (logits), in a fixed order."""
-    index = np.flatnonzero(loose)
-    points = []
-    for corner in range(2 ** len(index)):
-        u = u_start.copy()
-        for bit, i in enumerate(index):
-            u[i] = u0[i] + (SCREEN if corner >> bit & 1 else -SCREEN)
-        points.append(u)
-    return points
 
 
 #: A parameter informs a condition when a one-logit move of it moves one of the condition's cells by at least

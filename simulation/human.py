@@ -20,21 +20,13 @@ from .paper_tables import CONDITIONS as EVERY
 LIST, SUGGESTIONS = ("none",), ("basic", "full")
 
 
-#: How firmly a calibration holds a free parameter to its default: the prior's standard deviation on the logit of
-#: the parameter's place in its range. FIRM for defaults with a source (an interface's layout, a measured operator
-#: time, a typical person); LOOSE for the search-word habits, whose defaults are guesses and whose cells move only
-#: far from them (a first search mistyped 90% of the time instead of 20% gives `none` the paper's queries).
-FIRM, LOOSE = 1.0, 2.5
-
-
 def _p(default: float, unit: str, low: float, high: float, source: str, free: bool = True,
-       used: tuple[str, ...] = EVERY, prior_sd: float = FIRM) -> float:
+       used: tuple[str, ...] = EVERY) -> float:
     """A parameter's declaration: its default, and its metadata for :func:`describe` and validation. ``used``: the
     conditions whose trials the parameter acts in (a bot in any other condition behaves the same whatever its
-    value; a test holds it so), and so the only ones whose numbers can inform it. ``prior_sd``: how firmly a
-    calibration holds it to its default (FIRM or LOOSE)."""
+    value; a test holds it so), and so the only ones whose numbers can inform it."""
     return field(default=default, metadata={"unit": unit, "low": low, "high": high, "source": source,
-                                             "free": free, "used": used, "prior_sd": prior_sd})
+                                             "free": free, "used": used})
 
 
 @dataclass(frozen=True)
@@ -57,19 +49,15 @@ class Human:
                                                        "while looking at it (per person: Beta, strength 10); "
                                                        "fitted")
     category_words: float = _p(0.5, "probability", 0.0, 1.0, "chance that a search uses the category's words "
-                                                             "(else words of the model's name and tags); fitted",
-                                prior_sd=LOOSE)
+                                                             "(else words of the model's name and tags); fitted")
     generic_words: float = _p(0.3, "probability", 0.0, 1.0, "chance that a person types only the category's "
-                                                            "head noun first (lamp for a desk lamp); fitted",
-                               prior_sd=LOOSE)
+                                                            "head noun first (lamp for a desk lamp); fitted")
     tag_words: float = _p(0.2, "probability", 0.0, 1.0, "chance that a person's own words for an object are one "
                                                         "word of what it is for or looks like (a tag several models "
-                                                        "share), not its name; fitted",
-                           prior_sd=LOOSE)
+                                                        "share), not its name; fitted")
     unknown_words: float = _p(0.2, "probability", 0.0, 1.0, "chance that a person's first search for an object uses "
                                                             "a word the library does not know (a typo, their own word "
-                                                            "for it): they look, and try again; fitted",
-                               prior_sd=LOOSE)
+                                                            "for it): they look, and try again; fitted")
     drag_error: float = _p(0.3, "fraction", 0.0, 2.0, "standard deviation of where a drag ends, as a fraction of "
                                                       "its distance (each miss is corrected by another drag); "
                                                       "fitted")
@@ -149,11 +137,6 @@ def used_in(name: str) -> tuple[str, ...]:
     return {f.name: f for f in fields(Human)}[name].metadata["used"]
 
 
-def prior_sd(name: str) -> float:
-    """How firmly a calibration holds parameter ``name`` to its default (FIRM or LOOSE; logit units)."""
-    return {f.name: f for f in fields(Human)}[name].metadata["prior_sd"]
-
-
 def bounds(name: str) -> tuple[float, float]:
     f = {f.name: f for f in fields(Human)}[name]
     return f.metadata["low"], f.metadata["high"]
@@ -164,5 +147,4 @@ def describe(human: Human | None = None) -> list[dict]:
     human = human or Human()
     return [{"name": f.name, "value": getattr(human, f.name), "default": f.default, "unit": f.metadata["unit"],
              "low": f.metadata["low"], "high": f.metadata["high"], "free": f.metadata["free"],
-             "used": list(f.metadata["used"]), "prior_sd": f.metadata["prior_sd"],
-             "source": f.metadata["source"]} for f in fields(Human)]
+             "used": list(f.metadata["used"]), "source": f.metadata["source"]} for f in fields(Human)]

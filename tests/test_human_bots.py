@@ -124,51 +124,6 @@ def test_the_loss_is_zero_at_the_paper_and_grows_away_from_it():
     assert loss(wide, fold) == pytest.approx(1.0)  # people 20% more spread than the interval says: one SE
 
 
-def test_the_prior_is_loose_only_on_the_guessed_search_habits():
-    from simulation.human import FIRM, LOOSE, prior_sd
-
-    assert [n for n in free_parameters(("none",)) if prior_sd(n) == LOOSE] == \
-        ["category_words", "generic_words", "tag_words", "unknown_words"]
-    assert all(prior_sd(n) in (FIRM, LOOSE) for n in free_parameters())
-    fold = cells(("none",))
-    at_paper = {"none": {c.measure: c.mean for c in fold}}
-    u0, u = np.zeros(2), np.array([2.0, 2.0])
-    assert loss(at_paper, fold, u, u0, np.array([1.0, 2.0])) == pytest.approx(4.0 + 1.0)
-
-
-class _Stage:
-    """A stand-in rehearsal of `none` whose bots hit the paper's cells exactly, except keyword queries: those
-    reach the paper's only when nearly every first search is mistyped (unknown_words ≥ 0.9), far from the default
-    of 0.2, where one Nelder–Mead simplex from the defaults does not look."""
-
-    conditions, seed, participants = ("none",), 0, 2
-
-    def __init__(self, study):
-        self.study = study
-
-    def measure(self, human):
-        out = {c.measure: c.mean for c in cells(("none",))}
-        out["n_text_queries"] -= 40.0 * max(0.0, 0.9 - human.unknown_words)
-        return {"none": out}
-
-
-def test_the_fit_screens_the_loosely_held_parameters_before_its_simplex(rehearsal):
-    from simulation.calibrate import SCREEN, _screen
-
-    names = free_parameters(("none",))
-    loose = np.array([n in ("category_words", "generic_words", "tag_words", "unknown_words") for n in names])
-    u0, start = np.zeros(len(names)), np.full(len(names), 0.5)
-    points = _screen(start, u0, loose)
-    assert len({tuple(p) for p in points}) == 16
-    for p in points:
-        assert np.all(p[~loose] == 0.5) and np.all(np.abs(p[loose]) == SCREEN)
-    document = fit(_Stage(rehearsal.study), evaluations=40)
-    assert document["parameters"]["unknown_words"] > 0.88 and document["loss_without_prior"] < 0.5
-    assert document["evaluations"] <= 40
-    unscreened = calibrate._fit(_Stage(rehearsal.study), cells(("none",)), 40, None, lambda m: None, screen=False)
-    assert unscreened["parameters"]["unknown_words"] < 0.5 and unscreened["loss_without_prior"] > 100
-
-
 @pytest.mark.parametrize(("text", "message"), [
     ("none,basic,full", "a calibration fitted on all three conditions predicts none"),
     ("none,oriented", "no condition 'oriented' in the paper (it has none, basic, full)"),
