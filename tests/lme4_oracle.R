@@ -4,8 +4,8 @@
 #   Rscript tests/lme4_oracle.R TRIALS.csv OUT.json [slopes | at PARAMS.json]
 #
 # TRIALS.csv: participant, scene, condition (levels none, basic, full; none the reference), total_time, n_queries.
-# With "slopes": the random-slope models instead (maximal, uncorrelated, slopes by participant only; LMM ML and
-# REML, Poisson GLMM by Laplace), each with vcov, the optimum's θ and its lme4 convergence messages.
+# With "slopes": the random-slope models instead (maximal, uncorrelated, slopes by participant only, LMM ML and
+# REML; the maximal Poisson GLMM by Laplace), each with vcov, the optimum's θ and its lme4 convergence messages.
 # Each fit: fixef, its SEs, variance components, logLik, isSingular. lmer runs to convergence (BOBYQA to rhoend =
 # 1e-12: its default stops early where the likelihood is flat). Poisson fits are lme4's own deviance function,
 # restarted from its last linear predictor until its value stops changing (glmer's PIRLS evaluates the log-
@@ -152,7 +152,7 @@ if (length(args) > 2 && args[3] %in% c("slopes", "at")) {
       out[[name]] <- lmm(m$formula, reml = m$reml, starts = STARTS)
     }
   }
-  for (structure in c("maximal", "by_participant")) {
+  for (structure in c("maximal")) {
     for (suffix in c("", "_null")) {
       name <- paste0("queries_", structure, suffix)
       out[[name]] <- pois(model(name)$formula, starts = STARTS)
