@@ -99,7 +99,9 @@ def python_fits(d: pd.DataFrame) -> dict:
 SLOPES = {"maximal": ["condition|participant", "condition|scene"],
           "uncorrelated": ["condition||participant", "condition||scene"],
           "by_participant": ["condition|participant", "scene"]}
-POISSON_SLOPES = ("maximal",)  # the Poisson GLMM with the most parameters (15); each takes ~10 s in R and here
+#: Poisson models with slopes: none while analysis.glmm refuses them (its optimiser stopped short of lme4's optimum on
+#: SCENESUGGEST_LME4_SEED=261415 and 31); tests/lme4_oracle.R fits the maximal one
+POISSON_SLOPES: tuple[str, ...] = ()
 
 
 def python_slope_fits(d: pd.DataFrame) -> tuple[dict, dict]:
@@ -222,7 +224,7 @@ def test_every_model_of_the_report_matches_lme4_on_a_random_study(study, tmp_pat
 @pytest.mark.slow
 def test_random_slope_models_match_lme4_on_a_random_study(study, tmp_path):
     """Maximal, uncorrelated and participant-only random slopes of condition: LMM (ML, REML, the LR test of
-    condition, the pairwise contrasts) and the maximal Poisson GLMM (Laplace), against lme4 run to convergence."""
+    condition, the pairwise contrasts), against lme4 run to convergence."""
     rscript = require_lme4()
     seed = [LME4_SEED, 100 + study]
     data, truth = random_study(np.random.default_rng(seed), slopes=True)

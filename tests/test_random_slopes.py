@@ -168,9 +168,12 @@ def test_the_cli_fits_random_slopes_and_refuses_what_it_cannot_fit(study, tmp_pa
                               "(1 | scene)")
     assert "participant:cor((Intercept),conditionbasic)" in out["variance"]
     assert out["lrt"]["df"] == 2 and isinstance(out["messages"], list)
-    text = _cli("lmm", str(csv), "--response", "n_queries", "--family", "poisson", "--fixed", "condition",
+    text = _cli("lmm", str(csv), "--response", "total_time", "--fixed", "condition",
                 "--random", "condition||participant", "--random", "scene", "--reference", "none")
     assert text.returncode == 0 and "(0 + conditionfull | participant)" in text.stdout
+    poisson = _cli("lmm", str(csv), "--response", "n_queries", "--family", "poisson", "--fixed", "condition",
+                   "--random", "condition|participant", "--random", "scene")
+    assert poisson.returncode == 2 and "random slopes are fitted for Gaussian models only" in poisson.stderr
     study.assign(group=study["participant"].str[-1]).to_csv(csv, index=False)
     bad = _cli("lmm", str(csv), "--response", "total_time", "--fixed", "condition", "--random", "participant|group")
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
