@@ -12,7 +12,14 @@ const browser = await puppeteer.launch({
   extraPrefsFirefox: { "browser.shell.checkDefaultBrowser": false, "datareporting.policy.dataSubmissionEnabled": false },
 });
 const page = (await browser.pages())[0] ?? await browser.newPage();
-await page.setViewport({ width: Number(width), height: Number(height) });
+try {
+  await page.setViewport({ width: Number(width), height: Number(height) });
+} catch (error) {
+  // puppeteer sets the viewport and the screen orientation together; a Firefox ESR without BiDi's
+  // emulation.setScreenOrientationOverride refuses the second after carrying out the first
+  if (!String(error?.message).includes("setScreenOrientationOverride")) throw error;
+}
+
 const problems = [];
 page.on("console", (m) => { if (m.type() === "error") problems.push(m.text()); });
 page.on("pageerror", (e) => problems.push(String(e?.message ?? e)));
