@@ -64,11 +64,6 @@ class _Laplace:
         self.const = gammaln(self.y + 1).sum()
         self.u = np.zeros(self.q)
 
-    def theta(self, params: np.ndarray) -> np.ndarray:
-        """θ of (θ, β). A negative diagonal entry is a valid factor too (the finite differences of the Hessian step
-        across a zero one, as lme4's deriv12 does)."""
-        return np.array(params[:self.k], dtype=float)
-
     def _h(self, theta, mu) -> Curvature:
         """Λ'Z'WZΛ + I with W = diag(μ)."""
         return self.z.curvature(theta, self.z.crosstabs(mu))
@@ -112,7 +107,7 @@ class _Laplace:
         return u, eta, self._h(theta, np.exp(eta))
 
     def deviance(self, params: np.ndarray) -> float:
-        theta, beta = self.theta(params), params[self.k:]
+        theta, beta = params[:self.k], params[self.k:]  # a negative diagonal θ is a valid factor too
         try:
             with np.errstate(over="ignore", invalid="ignore"):
                 u, eta, h = self._mode(theta, beta, self.u)
@@ -191,7 +186,7 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
     if not best.fun < WILD:
         raise AnalysisError("the likelihood could not be evaluated anywhere the optimiser looked",
                             f"response {design.response!r}")
-    x = np.concatenate([model.theta(best.x), best.x[k:]])
+    x = best.x
     dev = model.deviance(x)
     grad, hess = _derivatives(model.deviance, x)
     try:

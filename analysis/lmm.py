@@ -80,19 +80,23 @@ class _Profiled:
         return float(cu @ cu), rzx.T @ cu, rzx.T @ rzx, 2 * float(np.log(np.diag(chol)).sum())
 
     def solve(self, theta: np.ndarray) -> dict:
-        cu_cu, rzx_cu, rzx_rzx, logdet_l = self._products(theta)
+        return self._profile(*self._products(theta))
+
+    def _profile(self, cu_cu: float, rzx_cu: np.ndarray, rzx_rzx: np.ndarray, logdet_l: float) -> dict:
+        """The deviance (or REML criterion), β̂, σ², X'V⁻¹X (scaled), its Cholesky factor and the penalised residual
+        sum of squares r², from :meth:`_products`."""
         xvx = self.xtx - rzx_rzx
         rx = np.linalg.cholesky(xvx)
         cb = solve_triangular(rx, self.xty - rzx_cu, lower=True)
-        r2 = max(self.yty - cu_cu - cb @ cb, 1e-300)
+        r2 = self.yty - cu_cu - cb @ cb
+        floored = max(r2, 1e-300)
+        dof = self.n - self.p if self.reml else self.n
+        dev = logdet_l + dof * (1 + np.log(2 * np.pi * floored / dof))
         if self.reml:
-            dof = self.n - self.p
-            dev = logdet_l + 2 * np.log(np.diag(rx)).sum() + dof * (1 + np.log(2 * np.pi * r2 / dof))
-        else:
-            dof = self.n
-            dev = logdet_l + dof * (1 + np.log(2 * np.pi * r2 / dof))
+            dev += 2 * np.log(np.diag(rx)).sum()
         beta = solve_triangular(rx.T, cb, lower=False)
-        return {"deviance": float(dev), "beta": beta, "sigma2": r2 / dof, "xvx": xvx}
+        return {"deviance": float(dev), "beta": beta, "sigma2": floored / dof, "xvx": xvx, "rx": rx, "r2": r2,
+                "dof": dof}
 
     def deviance(self, theta: np.ndarray) -> float:
         try:
@@ -115,20 +119,12 @@ class _Profiled:
             a = effects.curvature(theta, self.tabs)
             b = effects.scale_t(theta, self.zt_yx)
             s = a.solve(b)
-            xvx = self.xtx - b[:, 1:].T @ s[:, 1:]
-            rx = np.linalg.cholesky(xvx)
-            cu_cu, rzx_cu = float(b[:, 0] @ s[:, 0]), b[:, 1:].T @ s[:, 0]
-            cb = solve_triangular(rx, self.xty - rzx_cu, lower=True)
+            sol = self._profile(float(b[:, 0] @ s[:, 0]), b[:, 1:].T @ s[:, 0], b[:, 1:].T @ s[:, 1:], a.logdet())
         except (np.linalg.LinAlgError, ValueError):  # not positive definite, or not finite
             return 1e300, np.zeros_like(theta)
-        r2 = self.yty - cu_cu - cb @ cb
+        r2, dof, beta, rx = sol["r2"], sol["dof"], sol["beta"], sol["rx"]
         if r2 < ROUNDING * self.yty:  # r² is rounding: the model fits every value, and the gradient says nothing
-            return self.deviance(theta), np.full_like(theta, np.nan)
-        beta = solve_triangular(rx.T, cb, lower=False)
-        dof = self.n - self.p if self.reml else self.n
-        dev = a.logdet() + dof * (1 + np.log(2 * np.pi * r2 / dof))
-        if self.reml:
-            dev += 2 * np.log(np.diag(rx)).sum()
+            return sol["deviance"], np.full_like(theta, np.nan)
         f = s[:, 1:]
         u = s[:, 0] - f @ beta
         ze = self.zt_yx[:, 0] - self.zt_yx[:, 1:] @ beta - effects.ztz_times(self.tabs, effects.scale(theta, u))
@@ -136,24 +132,17 @@ class _Profiled:
         if self.reml:
             zr = self.zt_yx[:, 1:] - effects.ztz_times(self.tabs, effects.scale(theta, f))
             fs = f @ cho_solve((rx, True), np.eye(self.p))  # F S_X⁻¹
+            fs_levels, zr_levels = effects.level_blocks(fs), effects.level_blocks(zr)
         grad = np.zeros_like(theta)
-        n0 = effects.sizes[0]
         for k, (g, ze_g, u_g) in enumerate(zip(effects.groups, effects.level_blocks(ze), effects.level_blocks(u),
                                                strict=True)):
-            if k == 0:
-                h = h00
-            else:
-                at = effects.offsets[k] - n0
-                h = np.stack([h_rest[at + lv * g.width:at + (lv + 1) * g.width,
-                                     at + lv * g.width:at + (lv + 1) * g.width] for lv in range(g.size)])
+            h = h00 if k == 0 else effects.rest_diagonal(h_rest, k)
             logdet_part = 2 * h[:, g.cols, g.rows].sum(axis=0)
             r2_part = -2 * (ze_g[:, g.rows] * u_g[:, g.cols]).sum(axis=0)
             grad[g.theta] = logdet_part + dof / r2 * r2_part
             if self.reml:
-                fs_g = effects.level_blocks(fs)[k]
-                zr_g = effects.level_blocks(zr)[k]
-                grad[g.theta] -= 2 * np.einsum("lip,lip->i", fs_g[:, g.cols], zr_g[:, g.rows])
-        return float(dev), grad
+                grad[g.theta] -= 2 * np.einsum("lip,lip->i", fs_levels[k][:, g.cols], zr_levels[k][:, g.rows])
+        return sol["deviance"], grad
 
     def convergence(self, theta: np.ndarray, step: float = 1e-5) -> list[str]:
         """lme4's convergence messages at θ (:mod:`analysis.convergence`): the exact gradient, and its central

@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import block_diag, cho_factor, cho_solve
 
 from .design import RandomTerm
 
@@ -165,10 +165,14 @@ class RandomEffects:
 
     def scale_t(self, theta: np.ndarray, zt_r: np.ndarray) -> np.ndarray:
         """Λ' times a stacked Z'r (from :meth:`zt`)."""
+        return self._per_level(theta, zt_r, transpose=True)
+
+    def _per_level(self, theta: np.ndarray, v: np.ndarray, transpose: bool) -> np.ndarray:
+        """Λ v (or Λ'v), v stacked as u is (a vector, or a matrix of columns): each level's block times T (T')."""
         parts = []
         for g, t, off, size in zip(self.groups, self.factors(theta), self.offsets, self.sizes, strict=True):
-            block = zt_r[off:off + size].reshape(g.size, g.width, -1)
-            parts.append(np.matmul(t.T, block).reshape(zt_r[off:off + size].shape))
+            block = v[off:off + size].reshape(g.size, g.width, -1)
+            parts.append(np.matmul(t.T if transpose else t, block).reshape(v[off:off + size].shape))
         return np.concatenate(parts)
 
     def zl_t(self, theta: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -199,23 +203,25 @@ class RandomEffects:
     def curvature(self, theta: np.ndarray, tabs: dict) -> Curvature:
         """Λ'Z'WZΛ + I from the cross-tabulations of :meth:`crosstabs`."""
         ts = self.factors(theta)
-        first = self.groups[0]
-        d = ts[0].T @ tabs[0, 0] @ ts[0] + np.eye(first.width)
-        rest = self.q - self.sizes[0]
-        c = np.zeros((self.sizes[0], rest))
-        e = np.eye(rest)
-        for a in range(len(self.groups)):
-            for b in range(max(a, 1), len(self.groups)):
-                block = self._scaled(tabs[a, b], a, b, ts)
-                sb = slice(self.offsets[b] - self.sizes[0], self.offsets[b] - self.sizes[0] + self.sizes[b])
-                if a == 0:
-                    c[:, sb] = block
-                    continue
-                sa = slice(self.offsets[a] - self.sizes[0], self.offsets[a] - self.sizes[0] + self.sizes[a])
-                e[sa, sb] += block
-                if a != b:
-                    e[sb, sa] += block.T
-        return Curvature(d, c, e)
+        d = ts[0].T @ tabs[0, 0] @ ts[0] + np.eye(self.groups[0].width)
+        c, e = self._dense({key: self._scaled(block, *key, ts) for key, block in tabs.items() if key != (0, 0)})
+        return Curvature(d, c, e + np.eye(len(e)))
+
+    def _dense(self, blocks: dict) -> tuple[np.ndarray, np.ndarray]:
+        """Blocks (a, b), a ≤ b, of a symmetric matrix over the factors, but the first factor's own, as two dense
+        matrices: the first factor against the rest, and the rest against itself."""
+        n0, rest = self.sizes[0], self.q - self.sizes[0]
+        first_rest, rest_rest = np.zeros((n0, rest)), np.zeros((rest, rest))
+        for (a, b), block in blocks.items():
+            sb = slice(self.offsets[b] - n0, self.offsets[b] - n0 + self.sizes[b])
+            if a == 0:
+                first_rest[:, sb] = block
+                continue
+            sa = slice(self.offsets[a] - n0, self.offsets[a] - n0 + self.sizes[a])
+            rest_rest[sa, sb] = block
+            if a != b:
+                rest_rest[sb, sa] = block.T
+        return first_rest, rest_rest
 
     def ztz_times(self, tabs: dict, v: np.ndarray) -> np.ndarray:
         """Z'Z v (from :meth:`crosstabs` with unit weights), v stacked as u is (a vector, or a matrix of
@@ -236,39 +242,26 @@ class RandomEffects:
 
     def scale(self, theta: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Λ v, v stacked as u is (a vector, or a matrix of columns)."""
-        parts = []
-        for g, t, off, size in zip(self.groups, self.factors(theta), self.offsets, self.sizes, strict=True):
-            block = v[off:off + size].reshape(g.size, g.width, -1)
-            parts.append(np.matmul(t, block).reshape(v[off:off + size].shape))
-        return np.concatenate(parts)
+        return self._per_level(theta, v, transpose=False)
 
     def lam_t_ztz(self, theta: np.ndarray, tabs: dict) -> tuple:
         """Λ'Z'Z in the blocks :meth:`Curvature.inverse_times_diagonal` takes: (G00 level by level, G01, G10,
         G11), the first factor against the rest."""
         ts = self.factors(theta)
         first = self.groups[0]
-        g00 = np.matmul(ts[0].T, tabs[0, 0])
-        n0, rest = self.sizes[0], self.q - self.sizes[0]
-        ztz_0r = np.zeros((n0, rest))
-        ztz_rr = np.zeros((rest, rest))
-        for (a, b), block in tabs.items():
-            if (a, b) == (0, 0):
-                continue
-            sb = slice(self.offsets[b] - n0, self.offsets[b] - n0 + self.sizes[b])
-            if a == 0:
-                ztz_0r[:, sb] = block
-                continue
-            sa = slice(self.offsets[a] - n0, self.offsets[a] - n0 + self.sizes[a])
-            ztz_rr[sa, sb] = block
-            if a != b:
-                ztz_rr[sb, sa] = block.T
-        g01 = np.matmul(ts[0].T, ztz_0r.reshape(first.size, first.width, -1)).reshape(n0, rest)
-        lam_rest_t = np.zeros((rest, rest))
-        for g, t, off in zip(self.groups[1:], ts[1:], self.offsets[1:], strict=True):
-            for level in range(g.size):
-                at = off - n0 + level * g.width
-                lam_rest_t[at:at + g.width, at:at + g.width] = t.T
-        return g00, g01, lam_rest_t @ ztz_0r.T, lam_rest_t @ ztz_rr
+        ztz_0r, ztz_rr = self._dense({key: block for key, block in tabs.items() if key != (0, 0)})
+        g01 = np.matmul(ts[0].T, ztz_0r.reshape(first.size, first.width, -1)).reshape(ztz_0r.shape)
+        lam_rest_t = block_diag(*[np.kron(np.eye(g.size), t.T) for g, t in zip(self.groups[1:], ts[1:],
+                                                                                strict=True)])
+        return np.matmul(ts[0].T, tabs[0, 0]), g01, lam_rest_t @ ztz_0r.T, lam_rest_t @ ztz_rr
+
+    def rest_diagonal(self, rest: np.ndarray, k: int) -> np.ndarray:
+        """The level-by-level diagonal blocks (L×K×K) of factor ``k`` ≥ 1 in a matrix over the factors after the
+        first (the second part of :meth:`Curvature.inverse_times_diagonal`)."""
+        g, at = self.groups[k], self.offsets[k] - self.sizes[0]
+        own = rest[at:at + self.sizes[k], at:at + self.sizes[k]].reshape(g.size, g.width, g.size, g.width)
+        levels = np.arange(g.size)
+        return own[levels, :, levels, :]
 
     def level_blocks(self, v: np.ndarray) -> list[np.ndarray]:
         """A stacked vector (or matrix of columns) split per factor into levels × effects (× columns)."""
