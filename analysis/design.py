@@ -158,19 +158,24 @@ def _fixed_columns(data: pd.DataFrame, term: str, reference: str | None, role: s
             [(values == lv).to_numpy(float) for lv in levels[1:]], levels)
 
 
+def _shown(spec: str, limit: int = 80) -> str:
+    """A ``--random`` spec as an error message quotes it: its first ``limit`` characters."""
+    return repr(spec if len(spec) <= limit else spec[:limit] + "…")
+
+
 def _parse(spec: str) -> tuple[list[str], str, bool]:
     """A ``--random`` spec's parts: (what is left of the bar, split at +), the group, and whether it is ``||``."""
     uncorrelated = "||" in spec
     left, _, group = spec.replace("||", "|").rpartition("|")
     group, left = group.strip(), left.strip()
     if re.search(r"[()]", re.sub(r"factor\([^()]*\)", "", spec)):  # parentheses only as factor(COLUMN)
-        raise AnalysisError(f"{spec!r}: write a random term without lme4's parentheses, as GROUP, X|GROUP or "
+        raise AnalysisError(f"{_shown(spec)}: write a random term without lme4's parentheses, as GROUP, X|GROUP or "
                             "X||GROUP", "--random")
     if not group or "|" in left:
-        raise AnalysisError(f"{spec!r} is not a random term (GROUP, X|GROUP or X||GROUP)", "--random")
+        raise AnalysisError(f"{_shown(spec)} is not a random term (GROUP, X|GROUP or X||GROUP)", "--random")
     parts = [p.strip() for p in left.split("+")] if left else []
     if any(not p for p in parts):
-        raise AnalysisError(f"{spec!r} has an empty term", "--random")
+        raise AnalysisError(f"{_shown(spec)} has an empty term", "--random")
     return parts, group, uncorrelated
 
 
@@ -178,6 +183,9 @@ def _random_terms(data: pd.DataFrame, spec: str, references: dict[str, str | Non
     """The terms of one ``--random`` spec (see the module's docstring); ``references`` holds the reference level
     of each categorical fixed term, so a factor's slope is coded as its fixed effect is."""
     parts, group, uncorrelated = _parse(spec)
+    if len(parts) > MAX_EFFECTS:  # before any column is made
+        raise AnalysisError(f"{_shown(spec)} names {len(parts)} terms; at most {MAX_EFFECTS} random effects per "
+                            "level are fitted", "--random")
     _require(data, group, "--random")
     levels = levels_of(data[group])
     index = {lv: i for i, lv in enumerate(levels)}
@@ -196,13 +204,13 @@ def _random_terms(data: pd.DataFrame, spec: str, references: dict[str, str | Non
         names += n
         columns += c
     if len(names) > MAX_EFFECTS:
-        raise AnalysisError(f"{spec!r} has {len(names)} random effects per level of {group} (a covariance of "
+        raise AnalysisError(f"{_shown(spec)} has {len(names)} random effects per level of {group} (a covariance of "
                             f"{len(names) * (len(names) + 1) // 2} parameters); at most {MAX_EFFECTS} are fitted — "
                             "is a numeric column read as text?", "--random")
     if not names:
-        raise AnalysisError(f"{spec!r} has no random effect (0 and nothing else)", "--random")
+        raise AnalysisError(f"{_shown(spec)} has no random effect (0 and nothing else)", "--random")
     if len(set(names)) < len(names):
-        raise AnalysisError(f"{spec!r} names a column twice", "--random")
+        raise AnalysisError(f"{_shown(spec)} names a column twice", "--random")
     values = np.column_stack(columns)
     common = dict(group=group, levels=tuple(map(str, levels)), codes=codes)
     if not uncorrelated or len(names) == 1:

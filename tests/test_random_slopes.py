@@ -85,14 +85,17 @@ def test_uncorrelated_slopes_are_terms_of_their_own_and_fit_as_independent_varia
     (["(1|participant)"], "without lme4's parentheses"),
     (["condition|one_level"], "one_level has 1 level(s) with data; a grouping factor needs at least 2"),
     (["participant|scene"], "at most 10 are fitted"),
+    (["+".join(["practice"] * 5000) + "|participant"], "names 5000 terms; at most 10 random effects"),
+    (["(" * 100_000], "write a random term without lme4's parentheses"),
 ])
 def test_random_effects_the_design_cannot_support_are_refused_by_name(study, random, message):
     """A between-participant column's slope by participant, as many effects as observations, a term twice: a
     clear error naming the term, never a numerical failure."""
     data = study.assign(group_condition=study["participant"].map(lambda p: "a" if int(p[1:]) % 2 else "b"),
                         trial=np.arange(len(study)).astype(str), one_level="x")
-    with pytest.raises(AnalysisError, match=message.replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises(AnalysisError, match=message.replace("(", r"\(").replace(")", r"\)")) as raised:
         build_design(data, "log_time", ["condition"], random)
+    assert len(raised.value.message) < 400  # a huge spec is quoted by its start
 
 
 @pytest.mark.parametrize("random", [["condition|participant", "condition|scene"], ["condition||participant", "scene"],
