@@ -49,6 +49,10 @@ NEAR = 1e-8  # Newton decrement g'H⁻¹g below which PIRLS takes full steps (it
 DONE = 1e-14  # PIRLS stops after a step this small (largest |Δu|)
 WILD = 1e300  # deviance reported where the likelihood overflows, so line searches back off
 START_THETA = (1.0, 0.2)  # multi-start: lme4's θ = 1 and a small-variance start
+#: Why a Poisson model with random slopes is refused (:func:`fit_poisson`) and the report's selection starts a count's
+#: model at random intercepts (:mod:`analysis.selection`).
+SLOPES_GAUSSIAN_ONLY = ("random slopes are fitted for Gaussian models only for now: a Poisson model takes random "
+                        "intercepts")
 
 
 class _Laplace:
@@ -166,8 +170,7 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
         # The likelihood and its structure take slopes (the block structure is the LMM's), but the optimiser does not
         # yet find the optimum of a Poisson model with slopes reliably: on random studies it stopped 0.006 and 0.28
         # log-likelihood short of lme4's, at a variance of zero.
-        raise AnalysisError("random slopes are fitted for Gaussian models only for now: a Poisson model takes random "
-                            "intercepts", "--random")
+        raise AnalysisError(SLOPES_GAUSSIAN_ONLY, "--random")
     if n_agq > 1 and len(design.random) > 1:
         raise AnalysisError("adaptive quadrature needs a single random intercept (as lme4's nAGQ > 1); use the "
                             "Laplace approximation", "--random")

@@ -30,6 +30,8 @@ from .tables import (
     condition_tests,
     contrasts_table,
     fit_note,
+    selection_table,
+    sentences,
     survey_table,
     table1,
     table2,
@@ -138,10 +140,10 @@ def _tables_and_tests(out: Path, trials: pd.DataFrame, picks: pd.DataFrame, peop
     modelled = MEASURES + ([SCORE_TEST] if scored else [])
     results = condition_tests(trials, picks, conditions, progress, modelled)
     try:
-        write_reproduce_r(out, modelled, conditions)
+        write_reproduce_r(out, modelled, conditions, [_random_part(r, conditions) for r in results])
     except AnalysisError as e:
         notes.append(f"{REPRODUCE_R}: not written — {e}")
-    tables += [tests_table(results), contrasts_table(results), survey_table(people)]
+    tables += [tests_table(results), selection_table(results), contrasts_table(results), survey_table(people)]
     for r in results:
         if r.error:
             notes.append(f"{r.label}: not modelled — {r.error}")
@@ -149,6 +151,15 @@ def _tables_and_tests(out: Path, trials: pd.DataFrame, picks: pd.DataFrame, peop
         for ext, text in (("md", t.markdown()), ("tex", t.latex()), ("csv", t.csv())):
             (out / "tables" / f"{t.name}.{ext}").write_text(text, encoding="utf-8")
     return tables, close, results
+
+
+def _random_part(r: TestResult, conditions: list[str]) -> str:
+    """The random part of lme4's formula for a measure's models, as reproduce.R names the condition's dummies
+    (``.condition2`` for the second condition, whatever its name): "" for a measure that is not modelled."""
+    if r.selection is None or r.selection.kept is None:
+        return ""
+    columns = {f"condition{c}": f".condition{k}" for k, c in enumerate(conditions, 1)}
+    return r.selection.kept.lme4(columns.__getitem__)
 
 
 def _figures(out: Path, trials: pd.DataFrame, done: pd.DataFrame, picks: pd.DataFrame, over_time: pd.DataFrame,
@@ -202,7 +213,9 @@ def build_report(data: StudyData, out: str | Path, *, resamples: int = 1000, see
         "table1": tables[0].data, "table2": tables[1].data, "closeness": close.data if close is not None else None,
         "tests": {r.measure: (r.comparison.to_dict() | {"contrasts": [c.to_dict() for c in r.contrasts]}
                               if r.comparison else {"error": r.error}) | {"modelled": r.comparison is not None,
-                                                                         "note": fit_note(r)} for r in results},
+                                                                         "note": fit_note(r)}
+                  | ({"selection": r.selection.to_dict()} if r.selection else {}) for r in results},
+        "intercepts_only": sentences(results),
     }
     (out / "results.json").write_text(dumps(summary))
     progress("README")
@@ -235,12 +248,16 @@ def _readme(data, summary, tables, figure_files, out, conditions) -> str:
     for table in tables:
         lines += [table.markdown(), f"Also as `tables/{table.name}.tex` (booktabs) and `tables/{table.name}.csv`.",
                   ""]
+        if table.name == "random_effects" and summary["intercepts_only"]:
+            lines += ["Would random intercepts alone have changed a conclusion?", ""]
+            lines += [f"- {s}" for s in summary["intercepts_only"]] + [""]
     lines += ["## Figures", ""]
     lines += [f"![{f.stem}]({f.relative_to(out).as_posix()})" for f in figure_files if f.suffix == ".png"]
     lines += ["", "Each figure is also an SVG beside its PNG. Per-trial, per-pick and per-participant measures are "
                   "in `measures/`; every number above is in `results.json`.", "",
               "## In R", "",
               f"`Rscript {REPRODUCE_R}` (R with lme4) fits the likelihood-ratio tests' models again with lme4 from "
-              "`measures/` and prints each test and every fixed effect with its standard error, in the order above.",
+              "`measures/`, each with the random effects chosen above, and prints each test and every fixed effect "
+              "with its standard error, in the order above.",
               ""]
     return "\n".join(lines)

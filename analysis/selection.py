@@ -10,8 +10,9 @@ under the structure kept.
    is reported, not acted on): first leave out the correlations (the zero-correlation-parameter model of Bates, Kliegl,
    Vasishth & Baayen 2015, "Parsimonious mixed models"), then the random slope with the smallest variance, one
    at a time (Matuschek, Kliegl, Vasishth, Baayen & Bates 2017: simplify until the model is supported by the
-   data). Random intercepts are never left out: the intercept-only model is where the rule stops, singular or not
-   (the report marks it so).
+   data). Random intercepts are never left out: an uncorrelated fit that is singular only because a random
+   intercept's variance is at zero (a factor that explains nothing, as scenes of one difficulty) is kept, and the
+   intercept-only model is where the rule stops, singular or not (the report marks both so).
 3. Test condition by likelihood ratio under the structure kept (the null model keeps the same random effects).
 
 Beside it, the same test with random intercepts only, and whether that model would have reached another
@@ -22,11 +23,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
 import pandas as pd
 
-from .convergence import failed
-from .design import build_design
+from .convergence import SINGULAR_TOL, failed
+from .design import build_design, formula_of
 from .errors import AnalysisError
+from .glmm import SLOPES_GAUSSIAN_ONLY
 from .mixed import compare, fit
 from .results import Comparison, format_p
 
@@ -53,6 +56,17 @@ class Structure:
             else:
                 out += [group] + [f"0 + {s}|{group}" for s in slopes]
         return out
+
+    def lme4(self, column=lambda slope: slope) -> str:
+        """The random part of lme4's formula, a slope's column named by ``column`` (reproduce.R's dummies):
+        ``(1 + conditionbasic | participant) + (1 | scene)``, or ``(1 | g) + (0 + conditionbasic | g)`` uncorrelated."""
+        out = []
+        for group, slopes in self.slopes:
+            if self.correlated and slopes:
+                out.append(f"(1 + {' + '.join(map(column, slopes))} | {group})")
+            else:
+                out += [f"(1 | {group})"] + [f"(0 + {column(s)} | {group})" for s in slopes]
+        return " + ".join(out)
 
     def name(self, term: str = "condition") -> str:
         """A short name: which slopes (``term``'s levels) by which factor, correlated or not."""
@@ -94,6 +108,14 @@ class Selection:
     comparison: Comparison | None = None
     intercepts: Comparison | None = None
 
+    def to_dict(self) -> dict:
+        """The steps, the structure kept (name and lme4's random part), the intercept-only test and the sentence."""
+        return {"steps": [s.to_dict() for s in self.steps],
+                "kept": self.kept.name() if self.kept else None,
+                "random": self.kept.lme4() if self.kept else None,
+                "intercepts_only": self.intercepts.lrt.to_dict() if self.intercepts else None,
+                "sentence": self.sentence()}
+
     def sentence(self, term: str = "condition") -> str:
         """Whether random intercepts alone would have changed the conclusion, with both p-values."""
         if self.comparison is None or self.intercepts is None or self.kept is None:
@@ -104,7 +126,19 @@ class Selection:
         same = (p < ALPHA) == (p0 < ALPHA)
         verdict = "the same conclusion" if same else "a different conclusion"
         return (f"With random intercepts only, the test of {term} gives {format_p(p0)} against {format_p(p)} under "
-                f"the {self.kept.name()}: {verdict} at α = {ALPHA:g}.")
+                f"the {self.kept.name()}: {verdict} at α = {str(ALPHA).lstrip('0')}.")
+
+
+def _zero(fitted) -> list[str]:
+    """The variance components of a Gaussian fit at zero in lme4's sense: θ (the standard deviation relative to the
+    residual's) below ``check.conv.singular``'s tolerance."""
+    residual = fitted.variance["residual"]
+    return [k for k, v in fitted.variance.items()
+            if k != "residual" and ":cor(" not in k and v < SINGULAR_TOL ** 2 * residual]
+
+
+def _zero_slopes(fitted) -> list[str]:
+    return [k for k in _zero(fitted) if ":" in k]
 
 
 def with_dummies(frame: pd.DataFrame, term: str, levels: list[str]) -> pd.DataFrame:
@@ -131,8 +165,10 @@ def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
     # the intercept-only test first: it is the floor of the rule, and it names a measure nothing can inform
     selection.intercepts = compare(build_design(data, measure, [term], list(groups)), term, family)
     structure = Structure(tuple((g, dummies) for g in groups), correlated=True)
-    for group in groups:  # what the design cannot support is left out before fitting
+    for group in groups:  # what the design or the model cannot support is left out before fitting
         try:
+            if family != "gaussian":
+                raise AnalysisError(SLOPES_GAUSSIAN_ONLY)
             build_design(data, measure, [term], [f"{term}|{group}"])
         except AnalysisError as e:
             selection.steps.append(Step(formula="", structure=f"slopes of {term} by {group}",
@@ -140,24 +176,46 @@ def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
             structure = Structure(tuple((g, () if g == group else s) for g, s in structure.slopes), True)
     while any(s for _, s in structure.slopes):
         design = build_design(data, measure, [term], structure.specs(term))
-        fitted = fit(design, family)
-        step = Step(fitted.formula, structure.name(term), fitted.singular, fitted.messages,
-                    variances={k: v for k, v in fitted.variance.items() if ":cor(" not in k})
+        try:
+            fitted = fit(design, family)
+        except (AnalysisError, np.linalg.LinAlgError, ValueError, FloatingPointError) as e:
+            # a fit that fails outright is simplified as one that does not converge; the intercept-only model
+            # it ends in has been fitted already
+            message = e.message if isinstance(e, AnalysisError) else str(e)
+            fitted = None
+            step = Step(formula_of(design), structure.name(term), messages=(f"the fit failed: {message}",))
+        else:
+            step = Step(fitted.formula, structure.name(term), fitted.singular, fitted.messages,
+                        variances={k: v for k, v in fitted.variance.items() if ":cor(" not in k})
         selection.steps.append(step)
-        if not (fitted.singular or failed(fitted.messages)):
-            step.decision = "kept: not singular, converged"
-            selection.kept = structure
-            selection.comparison = compare(design, term, family, full=fitted)
-            return selection
-        why = "singular" if fitted.singular else "did not converge"
+        converged = fitted is not None and not failed(fitted.messages)
+        # an uncorrelated fit singular only in a random intercept stands: the rule never leaves one out
+        supported = converged and (not fitted.singular or not structure.correlated and not _zero_slopes(fitted))
+        if supported:
+            try:
+                selection.comparison = compare(design, term, family, full=fitted)
+            except AnalysisError as e:  # the null model of this structure failed, or the pair is degenerate
+                step.messages += (f"the test failed: {e.message}",)
+            else:
+                step.decision = "kept: not singular, converged" if not fitted.singular else \
+                    "kept: converged, singular only in a random intercept (" + ", ".join(_zero(fitted)) + \
+                    "), which the rule keeps"
+                selection.kept = structure
+                return selection
+        why = "singular" if fitted is not None and fitted.singular else "did not converge"
         if structure.correlated:
             step.decision = f"{why}: leave out the correlations"
             structure = Structure(structure.slopes, correlated=False)
             continue
-        group, slope, variance = min(((g, s, fitted.variance[f"{g}:{s}"]) for g, slopes in structure.slopes
-                                      for s in slopes), key=lambda x: x[2])
-        step.decision = f"{why}: leave out the slope of {slope.removeprefix(term)} by {group} (the smallest " \
-                        f"variance, {variance:.3g})"
+        if fitted is None:  # no variances to rank: the last slope named goes first
+            group, slope = [(g, s) for g, slopes in structure.slopes for s in slopes][-1]
+            step.decision = f"{why}: leave out the slope of {slope.removeprefix(term)} by {group} (the fit gave " \
+                            "no variances; the last slope named)"
+        else:
+            group, slope, variance = min(((g, s, fitted.variance[f"{g}:{s}"]) for g, slopes in structure.slopes
+                                          for s in slopes), key=lambda x: x[2])
+            step.decision = f"{why}: leave out the slope of {slope.removeprefix(term)} by {group} (the smallest " \
+                            f"variance, {variance:.3g})"
         structure = structure.without(group, slope)
     selection.steps.append(Step(selection.intercepts.full.formula, "intercepts only",
                                 selection.intercepts.full.singular, selection.intercepts.full.messages,

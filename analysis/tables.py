@@ -3,8 +3,9 @@
 - Table 1: per condition, mean total / rotation / translation time, translation distance, model queries and
   MRR, each with a 95% percentile bootstrap interval.
 - Table 2: the distribution of chosen ranks (1, 2, 3, 4+) per condition.
-- Likelihood-ratio tests of condition for every Table 1 measure (linear mixed models; Poisson for counts) and
-  Holm-corrected pairwise contrasts; Likert means and preference counts.
+- Likelihood-ratio tests of condition for every Table 1 measure (linear mixed models; Poisson for counts) under
+  the random effects chosen for it (:mod:`analysis.selection`, every step in its own table), Holm-corrected pairwise
+  contrasts; Likert means and preference counts.
 """
 
 from __future__ import annotations
@@ -17,10 +18,11 @@ import numpy as np
 import pandas as pd
 
 from .bootstrap import bootstrap_by
-from .design import build_design
+from .convergence import SINGULAR
 from .errors import AnalysisError
-from .mixed import compare, pairwise
-from .results import format_p
+from .mixed import pairwise
+from .results import Comparison, format_p
+from .selection import Selection, choose
 
 #: (column, label, digits, family, table) — what Table 1 and the tests cover; ``picks`` rows for MRR.
 MEASURES = [
@@ -48,7 +50,7 @@ class Table:
     def markdown(self) -> str:
         lines = [f"**{self.title}.** {self.caption}", "", "| " + " | ".join(self.columns) + " |",
                  "|" + "|".join(["---"] + ["---:"] * (len(self.columns) - 1)) + "|"]
-        lines += ["| " + " | ".join(r) + " |" for r in self.rows]
+        lines += ["| " + " | ".join(c.replace("|", "\\|") for c in r) + " |" for r in self.rows]
         return "\n".join(lines) + "\n"
 
     def latex(self) -> str:
@@ -129,18 +131,23 @@ def random_terms(frame: pd.DataFrame) -> list[str]:
 
 @dataclass
 class TestResult:
+    """A measure's test of condition: ``selection`` holds the structures tried (:mod:`analysis.selection`),
+    ``comparison`` the test under the one kept; ``error`` says why a measure is not modelled."""
+
     measure: str
     label: str
     family: str
-    comparison: object | None = None
+    comparison: Comparison | None = None
     contrasts: list = field(default_factory=list)
     error: str = ""
+    selection: Selection | None = None
 
 
 def condition_tests(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[str],
                     progress=lambda label: None, measures=None) -> list[TestResult]:
-    """Per measure (default: :data:`MEASURES`): the model with and without condition, the LR test, and pairwise
-    contrasts. A measure that cannot be modelled keeps its error message instead."""
+    """Per measure (default: :data:`MEASURES`): the random effects chosen by :func:`analysis.selection.choose`,
+    the model with and without condition under them, the LR test, and pairwise contrasts. A measure that cannot
+    be modelled keeps its error message instead."""
     out = []
     for m, label, _, family, table in measures or MEASURES:
         progress(f"model of {m}")
@@ -150,8 +157,8 @@ def condition_tests(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[
         result = TestResult(m, label, family)
         try:
             present = [c for c in conditions if (frame["condition"] == c).any()]
-            design = build_design(frame, m, ["condition"], random_terms(frame))
-            result.comparison = compare(design, "condition", family)
+            result.selection = choose(frame, m, family)
+            result.comparison = result.selection.comparison
             result.contrasts = pairwise(result.comparison.full, "condition", present)
         except AnalysisError as e:  # (the row names the measure: the message is the reason)
             result.error = e.message
@@ -161,42 +168,75 @@ def condition_tests(trials: pd.DataFrame, picks: pd.DataFrame, conditions: list[
     return out
 
 
-#: The note on a fit with a variance at zero or a correlation at ±1, in lme4's sense (``isSingular``), as
-#: reproduce.R words it.
-SINGULAR = "singular fit (a variance at zero)"
-
-
 def _model_name(family: str) -> str:
     return "LMM" if family == "gaussian" else "Poisson GLMM"
 
 
 def fit_note(r: TestResult) -> str:
-    """What a reader must know beside a measure's numbers: why it is not modelled, or that its fit is singular."""
+    """What a reader must know beside a measure's numbers: why it is not modelled, or lme4's messages on the fit
+    kept (a singular fit in lme4's words)."""
     if r.comparison is None:
         return f"not modelled: {r.error}"
-    return SINGULAR if r.comparison.full.singular else ""
+    return "; ".join(r.comparison.full.messages)
+
+
+def _kept(r: TestResult) -> str:
+    return r.selection.kept.name() if r.selection and r.selection.kept else "intercepts only"
 
 
 def tests_table(results: list[TestResult]) -> Table:
     rows, data = [], []
     for r in results:
         if r.comparison is None:
-            rows.append([r.label, _model_name(r.family), "–", "–", fit_note(r)])
-            data.append({"measure": r.measure, "family": r.family, "chi2": "", "df": "", "n": "", "p": "",
-                         "loglik_full": "", "loglik_null": "", "singular": "", "modelled": False, "note": fit_note(r)})
+            rows.append([r.label, _model_name(r.family), "–", "–", "–", "–", fit_note(r)])
+            data.append({"measure": r.measure, "family": r.family, "random": "", "chi2": "", "df": "", "n": "",
+                         "p": "", "loglik_full": "", "loglik_null": "", "singular": "", "intercepts_only_chi2": "",
+                         "intercepts_only_p": "", "modelled": False, "note": fit_note(r)})
             continue
-        t = r.comparison.lrt
-        rows.append([r.label, _model_name(r.family), f"χ²({t.df}, N = {t.nobs}) = {t.chi2:.2f}", format_p(t.p),
-                     fit_note(r)])
-        data.append({"measure": r.measure, "family": r.family, "chi2": t.chi2, "df": t.df, "n": t.nobs, "p": t.p,
-                     "loglik_full": t.full_loglik, "loglik_null": t.null_loglik,
-                     "singular": r.comparison.full.singular, "modelled": True, "note": fit_note(r)})
-    return Table("lr_tests", "Likelihood-ratio tests of condition", "Maximum-likelihood mixed models with crossed "
-                 "random intercepts for participant and scene, with and without condition (Poisson with log link "
-                 "for counts; reciprocal ranks per pick). A measure the data cannot inform a test of (no variance "
+        t, t0 = r.comparison.lrt, r.selection.intercepts.lrt
+        rows.append([r.label, _model_name(r.family), _kept(r), f"χ²({t.df}, N = {t.nobs}) = {t.chi2:.2f}",
+                     format_p(t.p), f"χ²({t0.df}) = {t0.chi2:.2f}, {format_p(t0.p)}", fit_note(r)])
+        data.append({"measure": r.measure, "family": r.family, "random": _kept(r), "chi2": t.chi2, "df": t.df,
+                     "n": t.nobs, "p": t.p, "loglik_full": t.full_loglik, "loglik_null": t.null_loglik,
+                     "singular": r.comparison.full.singular, "intercepts_only_chi2": t0.chi2,
+                     "intercepts_only_p": t0.p, "modelled": True, "note": fit_note(r)})
+    return Table("lr_tests", "Likelihood-ratio tests of condition", "Maximum-likelihood mixed models with and "
+                 "without condition, with the random effects chosen for each measure (table “Random effects chosen”: "
+                 "random slopes of condition by participant and by scene where the data support them, else crossed "
+                 "random intercepts); Poisson with log link for counts, reciprocal ranks per pick. Beside each test, "
+                 "the same test with random intercepts only. A measure the data cannot inform a test of (no variance "
                  "within a condition, a count that is zero throughout one, a degenerate fit) is not modelled, and "
-                 f"says why; “{SINGULAR}” marks a fit whose random-effect variance was estimated at zero "
-                 "(lme4's isSingular).", ["Measure", "Model", "Test", "p", "Note"], rows, data)
+                 f"says why; the note gives lme4's messages on the fit, “{SINGULAR}” where a variance is estimated at "
+                 "zero or a correlation at ±1 (isSingular).",
+                 ["Measure", "Model", "Random effects", "Test", "p", "Intercepts only", "Note"], rows, data)
+
+
+def selection_table(results: list[TestResult]) -> Table:
+    """Every random-effects structure tried, per measure, and what was done next and why."""
+    rows, data = [], []
+    for r in results:
+        if r.selection is None:
+            continue
+        for k, step in enumerate(r.selection.steps, 1):
+            formula = step.formula[step.formula.index("("):] if step.formula else "–"  # the random part
+            status = "–" if not step.formula else ("singular" if step.singular else "not singular")
+            rows.append([r.label, str(k), step.structure, formula, status, "; ".join(step.messages) or "–",
+                         step.decision])
+            data.append({"measure": r.measure, "step": k, "structure": step.structure, "formula": step.formula,
+                         "singular": step.singular if step.formula else "", "messages": "; ".join(step.messages),
+                         "decision": step.decision})
+    return Table("random_effects", "Random effects chosen", "For each measure, from the maximal structure the design "
+                 "supports (correlated random slopes of condition by participant and by scene) towards random "
+                 "intercepts: while a fit is singular or does not converge, leave out the correlations, then the "
+                 "random slope with the smallest variance, one at a time (Barr et al. 2013; Bates et al. 2015; "
+                 "Matuschek et al. 2017). Random intercepts are never left out. The last step of each measure is the "
+                 "structure its test uses.",
+                 ["Measure", "Step", "Structure", "Formula", "Fit", "lme4's messages", "Decision"], rows, data)
+
+
+def sentences(results: list[TestResult]) -> list[str]:
+    """Per modelled measure: whether random intercepts alone would have changed the conclusion."""
+    return [f"{r.label}: {r.selection.sentence()}" for r in results if r.comparison is not None and r.selection]
 
 
 def contrasts_table(results: list[TestResult]) -> Table:

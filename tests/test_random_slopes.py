@@ -210,7 +210,8 @@ def test_the_structure_is_chosen_by_the_stated_rule_step_by_step():
         last = steps[-1]
         assert last.decision.startswith("kept")
         assert chosen.comparison.full.formula == last.formula or last.structure == "intercepts only"
-        assert (not last.messages) or last.structure == "intercepts only"
+        assert (not last.messages) or last.structure == "intercepts only" or \
+            "singular only in a random intercept" in last.decision
         assert chosen.comparison.lrt.df == 2
 
 
@@ -223,8 +224,29 @@ def test_the_kept_models_test_is_set_beside_the_intercept_only_test():
     assert p0 < 0.05 < p  # varying effects between people and scenes: intercepts alone are anti-conservative
     assert chosen.sentence() == (f"With random intercepts only, the test of condition gives {format_p(p0)} against "
                                  f"{format_p(p)} under the uncorrelated slopes of basic, full by participant; basic, "
-                                 "full by scene: a different conclusion at α = 0.05.")
+                                 "full by scene: a different conclusion at α = .05.")
     assert chosen.intercepts.full.formula.endswith("(1 | participant) + (1 | scene)")
+
+
+def test_a_fit_singular_only_in_a_random_intercept_keeps_its_slopes():
+    """Scenes that explain nothing (their intercept's variance at zero) do not strip participants' slopes: the rule
+    never leaves an intercept out, so a fit singular only there is kept, and marked singular."""
+    from analysis.selection import choose
+
+    rng = np.random.default_rng(1)
+    rows = []
+    for p in range(40):
+        intercept, slopes = rng.normal(0, 0.3), np.r_[0.0, rng.normal(0, 0.3, 2)]
+        rows += [{"participant": f"P{p}", "scene": f"S{(k + c + p) % 3}", "condition": LEVELS[c],
+                  "log_time": 5 + (0, -0.2, -0.3)[c] + intercept + slopes[c] + rng.normal(0, 0.2)}
+                 for c in range(3) for k in range(3)]
+    data = pd.DataFrame(rows).assign(condition=lambda d: pd.Categorical(d["condition"], LEVELS))
+    chosen = choose(data, "log_time", "gaussian")
+    assert chosen.kept.name() == "uncorrelated slopes of basic, full by participant"
+    assert chosen.steps[-1].decision == ("kept: converged, singular only in a random intercept (scene), which the "
+                                         "rule keeps")
+    assert chosen.comparison.full.singular and chosen.comparison.full.variance["scene"] < 1e-8
+    assert min(chosen.comparison.full.variance[f"participant:condition{lv}"] for lv in LEVELS[1:]) > 0.01
 
 
 def test_a_slope_the_design_cannot_support_is_left_out_before_fitting():
