@@ -74,18 +74,26 @@ def priors_content_sha256(path: Path) -> str | None:
     return h.hexdigest()
 
 
+def library_content_sha256(path: Path) -> str | None:
+    """SHA-256 of what a model library's index holds (its models: names, tags, categories, sizes, …), leaving out
+    where its source corpus lay on the machine that built it and the hash of the builders' code: the same library
+    built from another checkout, or by code that builds the same models, keeps a calibration fresh."""
+    if not path.is_file():
+        return None
+    index = json.loads(path.read_bytes())
+    content = {k: v for k, v in index.items() if k not in ("source", "code")}
+    return hashlib.sha256(json.dumps(content, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
 def fingerprint(study) -> dict:
     """What a calibration depends on besides its parameters: the study, the content of its priors (the engine)
-    and its model library's index (SHA-256 of the file), and the simulation's code."""
+    and of its model library's index, and the simulation's code."""
     from scenesuggest.library.index import INDEX_FILE
-
-    def sha256(path: Path) -> str | None:
-        return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
 
     here = Path(__file__).parent
     code = hashlib.sha256(b"".join((here / name).read_bytes() for name in SIMULATION_FILES)).hexdigest()
     return {"study": study.id, "priors_content_sha256": priors_content_sha256(study.priors),
-            "library_sha256": sha256(study.library / INDEX_FILE), "simulation_sha256": code}
+            "library_content_sha256": library_content_sha256(study.library / INDEX_FILE), "simulation_sha256": code}
 
 
 @dataclass
@@ -525,6 +533,6 @@ def stale_keys(document: dict, study, on: tuple[str, ...] | None = None) -> list
     if document.get("paper") != targets:
         return ["paper's numbers"]
     now, then = fingerprint(study), document.get("fingerprint") or {}
-    names = {"study": "study", "priors_content_sha256": "priors (the engine)", "library_sha256": "model library",
-             "simulation_sha256": "simulation code"}
+    names = {"study": "study", "priors_content_sha256": "priors (the engine)",
+             "library_content_sha256": "model library", "simulation_sha256": "simulation code"}
     return [label for key, label in names.items() if then.get(key) != now[key]]

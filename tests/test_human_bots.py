@@ -305,7 +305,7 @@ def test_a_fit_writes_a_file_that_simulate_reads_and_refuses_when_stale(rehearsa
     human = read(path, rehearsal.study)
     assert human.values() == document["parameters"]
     other = json.loads(path.read_text())
-    other["fingerprint"]["library_sha256"] = "0" * 64
+    other["fingerprint"]["library_content_sha256"] = "0" * 64
     (tmp_path / "other.json").write_text(json.dumps(other))
     with pytest.raises(SceneSuggestError, match="another model library"):
         read(tmp_path / "other.json", rehearsal.study)
@@ -428,3 +428,18 @@ def test_two_runs_of_the_same_bots_pair_up_into_one_engine_comparison():
     assert both_trials.loc[both_trials["condition"] == f"full{OTHER}", "total_time"].tolist() == [70.0, 70.0]
     with pytest.raises(RuntimeError, match="do not pair up"):
         paired((trials, picks), (trials.assign(scene=["bed", "desk", "bed", "desk"]), picks))
+
+
+def test_a_calibration_holds_for_the_same_library_built_from_another_checkout(tmp_path):
+    """The library's fingerprint is what its models are, not where its corpus lay or which builder code made it:
+    a copy built from another folder keeps a calibration fresh; a renamed model makes it stale."""
+    index = {"format": "scenesuggest-library", "version": 1, "source": "stanford:/home/a/data", "code": "0" * 16,
+             "models": [{"id": "m1", "category": "Mug", "name": "a mug", "tags": ["cup"]}]}
+    path = tmp_path / "library.json"
+    path.write_text(json.dumps(index))
+    mine = calibrate.library_content_sha256(path)
+    path.write_text(json.dumps({**index, "source": "stanford:/srv/elsewhere/data", "code": "f" * 16}, indent=1))
+    assert calibrate.library_content_sha256(path) == mine
+    path.write_text(json.dumps({**index, "models": [{**index["models"][0], "name": "a cup"}]}))
+    assert calibrate.library_content_sha256(path) != mine
+    assert calibrate.library_content_sha256(tmp_path / "missing.json") is None

@@ -103,7 +103,8 @@ def test_scores_that_differ_by_condition_get_the_same_test_as_the_times(bot_stud
     trials.to_csv(tmp_path / "export" / "trials.csv", index=False)
     summary = build_report(read_export(tmp_path / "export"), tmp_path / "report", resamples=200)
     test = summary["tests"]["score"]
-    assert not test.get("error") and test["lrt"]["df"] == 2 and test["lrt"]["p"] < 1e-6, test
+    assert not test.get("error") and test["lrt"]["df"] == 2 and test["lrt"]["p"] < 1e-3, test
+    assert test["selection"]["intercepts_only"]["p"] < 1e-6  # (the structure kept may have slopes: more cautious)
     contrasts = {c["contrast"]: c["estimate"] for c in test["contrasts"]}
     assert contrasts["full − none"] == pytest.approx(0.3, abs=0.06)
     assert contrasts["basic − none"] == pytest.approx(0.15, abs=0.06)

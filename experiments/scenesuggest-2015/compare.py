@@ -103,7 +103,9 @@ def simulated(report: Path) -> dict[str, tuple[dict, ...]]:
         out[f"rank_{label}"] = tuple({"mean": shares[c].mean, "low": shares[c].low, "high": shares[c].high}
                                      for c in CONDITIONS)
     out["rank1_share"] = out["rank_1"]
-    out["_lrt"] = {k: v["lrt"] for k, v in results["tests"].items() if v and "lrt" in v}
+    chosen = lambda v: {"random": v["selection"]["kept"], "intercepts_only": v["selection"]["intercepts_only"]}  # noqa
+    out["_lrt"] = {k: v["lrt"] | (chosen(v) if v.get("selection") else {})
+                   for k, v in results["tests"].items() if v and "lrt" in v}
     out["_n"] = {"participants": results["participants"], "trials": results["trials"], "picks": results["picks"]}
     return out
 
@@ -407,11 +409,15 @@ def write(sim: dict, engine_rows: list[dict], out: Path, per_engine: list[dict] 
         ours = [s["mean"] for s in sim[key]]
         lines.append(f"| {LABELS[key]} | {paper[1] / paper[0]:.2f} | {paper[2] / paper[0]:.2f} | "
                      f"{ours[1] / ours[0]:.2f} | {ours[2] / ours[0]:.2f} |")
-    lines += ["", "Likelihood-ratio tests of condition (simulated; the report has the models):", "",
-              "| Measure | χ² | df | p |", "|---|---:|---:|---:|"]
+    lines += ["", "Likelihood-ratio tests of condition (simulated): under the random effects the report chose for each "
+              "measure (its table “Random effects chosen” has every step), and with random intercepts alone:", "",
+              "| Measure | Random effects | χ² | df | p | Intercepts only: χ² | p |",
+              "|---|---|---:|---:|---:|---:|---:|"]
+    p_text = lambda p: "< .001" if p < 0.001 else f"{p:.3f}"  # noqa: E731
     for key, lrt in sim["_lrt"].items():
-        p = "< .001" if lrt["p"] < 0.001 else f"{lrt['p']:.3f}"
-        lines.append(f"| {key} | {lrt['chi2']:.2f} | {lrt['df']} | {p} |")
+        alone = lrt.get("intercepts_only") or lrt
+        lines.append(f"| {key} | {lrt.get('random', 'intercepts only')} | {lrt['chi2']:.2f} | {lrt['df']} | "
+                     f"{p_text(lrt['p'])} | {alone['chi2']:.2f} | {p_text(alone['p'])} |")
     rows = predictions(sim)
     lines += prediction_lines(rows)
     if folds:
