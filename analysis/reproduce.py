@@ -120,11 +120,12 @@ fit_measure <- function(m) {
   random <- if (nzchar(m$random)) m$random else intercepts
   fit <- function(formula) suppressMessages(if (m$family == "poisson") {
     glmer(formula, d, family = poisson, control = converged)
-  } else if (grepl(".condition", deparse1(formula), fixed = TRUE)) {  # slopes: the best of several starts
-    fits <- lapply(starts, function(s) {
-      lower <- lFormula(formula, d)$reTrms$lower
-      lmer(formula, d, REML = FALSE, control = lmm_converged, start = list(theta = ifelse(lower == 0, s, 0)))
-    })
+  } else if (grepl(".condition", paste(deparse(formula), collapse = ""), fixed = TRUE)) {  # slopes: best of starts
+    lower <- lFormula(formula, d)$reTrms$lower
+    fits <- Filter(Negate(is.null), lapply(starts, function(s) tryCatch(
+      lmer(formula, d, REML = FALSE, control = lmm_converged, start = list(theta = ifelse(lower == 0, s, 0))),
+      error = function(e) NULL)))
+    if (!length(fits)) stop("no start of the model with random slopes could be fitted")
     fits[[which.max(sapply(fits, function(f) as.numeric(logLik(f))))]]
   } else {
     lmer(formula, d, REML = FALSE)
@@ -143,7 +144,8 @@ fit_measure <- function(m) {
   messages <- c(if (isSingular(f1)) "boundary (singular) fit: see help('isSingular')",
                 unlist(f1@optinfo$conv$lme4$messages))
   c(chosen[c("chisq", "df", "n", "p")], list(chisq0 = alone$chisq, p0 = alone$p, random = random,
-    fixef = fixef(f1), se = sqrt(diag(as.matrix(vcov(f1)))), note = paste(unique(messages), collapse = "; ")))
+    fixef = fixef(f1), se = sqrt(diag(as.matrix(vcov(f1)))),
+    note = gsub("\n", " ", paste(unique(messages), collapse = "; "))))
 }
 
 cat(sprintf("Likelihood-ratio tests of condition (%s, lme4 %s)\n", R.version.string, packageVersion("lme4")))

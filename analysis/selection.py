@@ -9,10 +9,14 @@ under the structure kept.
    convergence check says it failed to converge (:func:`analysis.convergence.failed`; a badly scaled Hessian alone
    is reported, not acted on): first leave out the correlations (the zero-correlation-parameter model of Bates, Kliegl,
    Vasishth & Baayen 2015, "Parsimonious mixed models"), then the random slope with the smallest variance, one
-   at a time (Matuschek, Kliegl, Vasishth, Baayen & Bates 2017: simplify until the model is supported by the
-   data). Random intercepts are never left out: an uncorrelated fit that is singular only because a random
-   intercept's variance is at zero (a factor that explains nothing, as scenes of one difficulty) is kept, and the
-   intercept-only model is where the rule stops, singular or not (the report marks both so).
+   at a time. Matuschek, Kliegl, Vasishth, Baayen & Bates (2017) argue for simplifying until the model is
+   supported by the data (they judge support by likelihood-ratio tests or AIC); the criterion here is lme4's own,
+   singularity and convergence, as in Bates et al.'s iterative reduction. Random intercepts are never left out:
+   an uncorrelated fit that is singular only because a random intercept's variance is at zero (a factor that
+   explains nothing, as scenes of one difficulty) is kept, and the intercept-only model is where the rule stops,
+   singular or not (the report marks both so). A group by which any level of condition never varies gets no
+   slopes at all (the pre-check fits the whole factor's slopes). Slopes are on the treatment dummies of the fixed
+   effect, so which slope is smallest depends on the reference level (sum coding would not).
 3. Test condition by likelihood ratio under the structure kept (the null model keeps the same random effects).
 
 Beside it, the same test with random intercepts only, and whether that model would have reached another
@@ -34,6 +38,8 @@ from .mixed import compare, fit
 from .results import Comparison, format_p
 
 ALPHA = 0.05
+#: What a fit of a structure with slopes may raise: the structure is then simplified, never the measure lost.
+FAILURES = (AnalysisError, np.linalg.LinAlgError, ValueError, FloatingPointError)
 GROUPS = ("participant", "scene")
 
 
@@ -132,7 +138,7 @@ class Selection:
 def _zero(fitted) -> list[str]:
     """The variance components of a Gaussian fit at zero in lme4's sense: θ (the standard deviation relative to the
     residual's) below ``check.conv.singular``'s tolerance."""
-    residual = fitted.variance["residual"]
+    residual = fitted.variance.get("residual", 1.0)  # a GLMM's θ is the standard deviation itself
     return [k for k, v in fitted.variance.items()
             if k != "residual" and ":cor(" not in k and v < SINGULAR_TOL ** 2 * residual]
 
@@ -175,15 +181,16 @@ def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
                                         decision=f"left out before fitting: {e.message}"))
             structure = Structure(tuple((g, () if g == group else s) for g, s in structure.slopes), True)
     while any(s for _, s in structure.slopes):
-        design = build_design(data, measure, [term], structure.specs(term))
+        design = fitted = None
         try:
+            design = build_design(data, measure, [term], structure.specs(term))
             fitted = fit(design, family)
-        except (AnalysisError, np.linalg.LinAlgError, ValueError, FloatingPointError) as e:
-            # a fit that fails outright is simplified as one that does not converge; the intercept-only model
-            # it ends in has been fitted already
+        except FAILURES as e:
+            # a model that cannot be made or fitted (a level's name the formula cannot hold, a numerical failure)
+            # is simplified as one that does not converge; the intercept-only model it ends in is fitted already
             message = e.message if isinstance(e, AnalysisError) else str(e)
-            fitted = None
-            step = Step(formula_of(design), structure.name(term), messages=(f"the fit failed: {message}",))
+            step = Step(formula_of(design) if design else "", structure.name(term),
+                        messages=(f"the fit failed: {message}",))
         else:
             step = Step(fitted.formula, structure.name(term), fitted.singular, fitted.messages,
                         variances={k: v for k, v in fitted.variance.items() if ":cor(" not in k})
@@ -191,18 +198,19 @@ def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
         converged = fitted is not None and not failed(fitted.messages)
         # an uncorrelated fit singular only in a random intercept stands: the rule never leaves one out
         supported = converged and (not fitted.singular or not structure.correlated and not _zero_slopes(fitted))
+        why = "singular" if fitted is not None and fitted.singular else "did not converge"
         if supported:
             try:
                 selection.comparison = compare(design, term, family, full=fitted)
-            except AnalysisError as e:  # the null model of this structure failed, or the pair is degenerate
-                step.messages += (f"the test failed: {e.message}",)
+            except FAILURES as e:  # the null model of this structure failed, or the pair is degenerate
+                step.messages += (f"the test failed: {e.message if isinstance(e, AnalysisError) else e}",)
+                why = "the test failed"
             else:
                 step.decision = "kept: not singular, converged" if not fitted.singular else \
                     "kept: converged, singular only in a random intercept (" + ", ".join(_zero(fitted)) + \
                     "), which the rule keeps"
                 selection.kept = structure
                 return selection
-        why = "singular" if fitted is not None and fitted.singular else "did not converge"
         if structure.correlated:
             step.decision = f"{why}: leave out the correlations"
             structure = Structure(structure.slopes, correlated=False)

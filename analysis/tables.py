@@ -50,7 +50,7 @@ class Table:
     def markdown(self) -> str:
         lines = [f"**{self.title}.** {self.caption}", "", "| " + " | ".join(self.columns) + " |",
                  "|" + "|".join(["---"] + ["---:"] * (len(self.columns) - 1)) + "|"]
-        lines += ["| " + " | ".join(c.replace("|", "\\|") for c in r) + " |" for r in self.rows]
+        lines += ["| " + " | ".join(_cell(c) for c in r) + " |" for r in self.rows]
         return "\n".join(lines) + "\n"
 
     def latex(self) -> str:
@@ -68,6 +68,11 @@ class Table:
             w.writeheader()
             w.writerows(self.data)
         return buf.getvalue()
+
+
+def _cell(text: str) -> str:
+    """A Markdown table cell: a pipe escaped, a line break (lme4's messages have them) a space."""
+    return " ".join(str(text).split("\n")).replace("|", "\\|")
 
 
 _TEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",

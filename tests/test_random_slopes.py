@@ -260,3 +260,38 @@ def test_a_slope_the_design_cannot_support_is_left_out_before_fitting():
     assert scene.decision.startswith("left out before fitting") and "never varies within a level of scene" in \
         scene.decision
     assert not any("by scene" in step.structure for step in chosen.steps if step.formula)
+
+
+def test_a_structure_that_cannot_be_made_is_simplified_and_the_measure_still_tested():
+    """Conditions named as a formula cannot spell ("c(d)", "a + b"): an uncorrelated slope's term cannot be written,
+    so that step fails, says why, and the rule goes on to a structure it can fit; the measure is never lost."""
+    from analysis.selection import choose
+
+    data = _slope_study([11, 1])
+    odd = ["none", "c(d)", "a + b"]
+    data["condition"] = pd.Categorical(data["condition"].map(dict(zip(LEVELS, odd, strict=True))), odd)
+    chosen = choose(data, "log_time", "gaussian")
+    failed = [step for step in chosen.steps if any(m.startswith("the fit failed: ") for m in step.messages)]
+    assert failed and all(step.structure.startswith("uncorrelated") for step in failed)
+    assert all("leave out the slope" in step.decision for step in failed)
+    assert chosen.kept is not None and chosen.comparison.lrt.df == 2
+    assert chosen.steps[-1].decision.startswith("kept")
+
+
+def test_a_counts_slopes_are_left_out_before_fitting_and_say_why():
+    from analysis.selection import choose
+
+    chosen = choose(_slope_study([11, 1]), "n_queries", "poisson")
+    assert [s.structure for s in chosen.steps] == ["slopes of condition by participant", "slopes of condition by scene",
+                                                   "intercepts only"]
+    assert all("Gaussian models only" in s.decision for s in chosen.steps[:2])
+    assert chosen.comparison is chosen.intercepts and chosen.kept.name() == "intercepts only"
+
+
+def test_a_table_cell_with_lme4s_line_break_or_a_formulas_pipe_stays_one_markdown_row():
+    from analysis.tables import Table
+
+    message = "Model is nearly unidentifiable: large eigenvalue ratio\n - Rescale variables?"
+    text = Table("t", "T", "c", ["Formula", "Note"], [["(1 | participant)", message]]).markdown()
+    assert text.splitlines()[-1] == ("| (1 \\| participant) | Model is nearly unidentifiable: large eigenvalue ratio "
+                                     " - Rescale variables? |")
