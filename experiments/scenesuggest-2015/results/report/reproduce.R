@@ -3,8 +3,11 @@
 #
 #   Rscript reproduce.R                 (needs R with lme4; Debian: apt-get install r-cran-lme4)
 #
-# Models (as the report fits them): each measure with and without condition, maximum likelihood, crossed random
-# intercepts for participant and scene (a factor with a single level is left out); counts as a Poisson GLMM
+# Models (as the report fits them): each measure with and without condition, maximum likelihood, with the random
+# effects the report chose for the measure (its table "Random effects chosen"; a slope of condition is a slope on
+# the condition's treatment dummies .condition2, .condition3, …, which this script makes), and again with crossed
+# random intercepts for participant and scene alone (a factor with a single level is left out); models with slopes
+# are fitted from four starts and the best kept, as one optimum can hide another; counts as a Poisson GLMM
 # (log link, Laplace) with glmer's inner solve tightened (tolPwrss = 1e-13): with its default 1e-7, glmer's
 # standard errors can be off by a percent or so; tightened, they match the report's to ~1e-4 on most data and
 # within ~0.5% on all (glmer evaluates the Laplace log-determinant one inner iteration behind; the report uses the
@@ -23,6 +26,7 @@ measures <- data.frame(
   label = c("Total time (s)", "Rotation time (s)", "Translation time (s)", "Translation distance (m)", "Model queries", "MRR", "Score (0–1)"),
   family = c("gaussian", "gaussian", "gaussian", "gaussian", "poisson", "gaussian", "gaussian"),
   rows = c("trials", "trials", "trials", "trials", "trials", "picks", "trials"),
+  random = c("(1 + .condition2 + .condition3 | participant) + (1 + .condition2 + .condition3 | scene)", "(1 | participant) + (0 + .condition2 | participant) + (1 | scene) + (0 + .condition3 | scene)", "(1 | participant) + (0 + .condition2 | participant) + (1 | scene) + (0 + .condition2 | scene) + (0 + .condition3 | scene)", "(1 | participant) + (0 + .condition2 | participant) + (0 + .condition3 | participant) + (1 | scene) + (0 + .condition3 | scene)", "(1 | participant) + (1 | scene)", "(1 | participant) + (1 | scene) + (0 + .condition2 | scene) + (0 + .condition3 | scene)", "(1 | participant) + (0 + .condition3 | participant) + (1 | scene) + (0 + .condition3 | scene)"),
   stringsAsFactors = FALSE)
 
 # Ids are text ("01" is not "1", and a scene called "NA" is a scene); only an empty field is missing.
@@ -31,6 +35,8 @@ trials <- read.csv(file.path(here, "measures", "trials.csv"), colClasses = ids, 
 trials <- trials[as.logical(as.character(trials$complete)), ]
 picks <- read.csv(file.path(here, "measures", "picks.csv"), colClasses = ids, na.strings = "")
 converged <- glmerControl(optimizer = "bobyqa", tolPwrss = 1e-13, optCtrl = list(rhoend = 1e-10, maxfun = 1e5))
+lmm_converged <- lmerControl(optimizer = "bobyqa", optCtrl = list(rhoend = 1e-12, maxfun = 1e5))
+starts <- c(1, 0.5, 0.2, 2)  # θ = s times the identity; lme4's own start is s = 1
 
 # A measure is not modelled when a test of condition would say nothing true — the report's rule
 # (analysis/degenerate.py), in its words: no variance, none within a condition (a ceiling or a floor), a count that
@@ -84,26 +90,42 @@ fit_measure <- function(m) {
     stop(sprintf("'condition' has %d level(s) with data; a fixed effect needs at least 2", nlevels(d$condition)))
   }
   check_data(d, m$family)
-  random <- paste(sprintf("(1 | %s)", groups), collapse = " + ")
-  full <- as.formula(paste("y ~ condition +", random))
-  null <- as.formula(paste("y ~ 1 +", random))
+  for (k in seq_along(conditions)[-1]) d[[paste0(".condition", k)]] <- as.numeric(d$condition == conditions[k])
+  intercepts <- paste(sprintf("(1 | %s)", groups), collapse = " + ")
+  random <- if (nzchar(m$random)) m$random else intercepts
   fit <- function(formula) suppressMessages(if (m$family == "poisson") {
     glmer(formula, d, family = poisson, control = converged)
+  } else if (grepl(".condition", paste(deparse(formula), collapse = ""), fixed = TRUE)) {  # slopes: best of starts
+    lower <- lFormula(formula, d)$reTrms$lower
+    fits <- Filter(Negate(is.null), lapply(starts, function(s) tryCatch(
+      lmer(formula, d, REML = FALSE, control = lmm_converged, start = list(theta = ifelse(lower == 0, s, 0))),
+      error = function(e) NULL)))
+    if (!length(fits)) stop("no start of the model with random slopes could be fitted")
+    fits[[which.max(sapply(fits, function(f) as.numeric(logLik(f))))]]
   } else {
     lmer(formula, d, REML = FALSE)
   })
-  f1 <- fit(full)
-  f0 <- fit(null)
-  check_fit(d, m$family, f1, f0)
-  test <- anova(f0, f1)
-  df <- if ("Chi Df" %in% names(test)) test[["Chi Df"]][2] else test$Df[2]  # lme4 before 1.1-23 named it so
-  list(chisq = test$Chisq[2], df = df, n = nobs(f1), p = test[["Pr(>Chisq)"]][2],
-       fixef = fixef(f1), se = sqrt(diag(as.matrix(vcov(f1)))),
-       note = if (isSingular(f1)) "singular fit (a variance at zero)" else "")
+  test <- function(random) {
+    f1 <- fit(as.formula(paste("y ~ condition +", random)))
+    f0 <- fit(as.formula(paste("y ~ 1 +", random)))
+    check_fit(d, m$family, f1, f0)
+    a <- anova(f0, f1)
+    df <- if ("Chi Df" %in% names(a)) a[["Chi Df"]][2] else a$Df[2]  # lme4 before 1.1-23 named it so
+    list(chisq = a$Chisq[2], df = df, n = nobs(f1), p = a[["Pr(>Chisq)"]][2], f1 = f1)
+  }
+  chosen <- test(random)
+  alone <- if (random == intercepts) chosen else test(intercepts)
+  f1 <- chosen$f1
+  messages <- c(if (isSingular(f1)) "boundary (singular) fit: see help('isSingular')",
+                unlist(f1@optinfo$conv$lme4$messages))
+  c(chosen[c("chisq", "df", "n", "p")], list(chisq0 = alone$chisq, p0 = alone$p, random = random,
+    fixef = fixef(f1), se = sqrt(diag(as.matrix(vcov(f1)))),
+    note = gsub("\n", " ", paste(unique(messages), collapse = "; "))))
 }
 
 cat(sprintf("Likelihood-ratio tests of condition (%s, lme4 %s)\n", R.version.string, packageVersion("lme4")))
-cat(sprintf("%-22s %-8s %14s %3s %6s %14s  %s\n", "measure", "model", "chisq", "df", "N", "p", "note"))
+cat(sprintf("%-22s %-8s %14s %3s %6s %14s %14s %14s  %s\n", "measure", "model", "chisq", "df", "N", "p",
+            "chisq (int.)", "p (int.)", "note"))
 fits <- list()
 for (i in seq_len(nrow(measures))) {
   m <- measures[i, ]
@@ -113,10 +135,12 @@ for (i in seq_len(nrow(measures))) {
   if (is.character(fitted)) {
     cat(sprintf("%-22s %-8s not modelled: %s\n", m$measure, model, fitted))
   } else {
-    cat(sprintf("%-22s %-8s %14.8g %3d %6d %14.8g  %s\n", m$measure, model, fitted$chisq, fitted$df, fitted$n,
-                fitted$p, fitted$note))
+    cat(sprintf("%-22s %-8s %14.8g %3d %6d %14.8g %14.8g %14.8g  %s\n", m$measure, model, fitted$chisq, fitted$df,
+                fitted$n, fitted$p, fitted$chisq0, fitted$p0, fitted$note))
   }
 }
+cat("\nRandom effects of each measure's models (int.: the same test with random intercepts alone)\n")
+for (name in names(fits)) if (!is.character(fits[[name]])) cat(sprintf("%-22s %s\n", name, fits[[name]]$random))
 cat("\nFixed effects of the full models (estimate, standard error)\n")
 cat(sprintf("%-22s %-28s %16s %16s\n", "measure", "term", "estimate", "se"))
 for (name in names(fits)) {
