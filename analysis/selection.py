@@ -198,7 +198,7 @@ def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
         converged = fitted is not None and not failed(fitted.messages)
         # an uncorrelated fit singular only in a random intercept stands: the rule never leaves one out
         supported = converged and (not fitted.singular or not structure.correlated and not _zero_slopes(fitted))
-        why = "singular" if fitted is not None and fitted.singular else "did not converge"
+        why = "the fit failed" if fitted is None else "singular" if fitted.singular else "did not converge"
         if supported:
             try:
                 selection.comparison = compare(design, term, family, full=fitted)

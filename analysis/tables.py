@@ -224,19 +224,22 @@ def selection_table(results: list[TestResult]) -> Table:
             continue
         for k, step in enumerate(r.selection.steps, 1):
             formula = step.formula[step.formula.index("("):] if step.formula else "–"  # the random part
-            status = "–" if not step.formula else ("singular" if step.singular else "not singular")
+            fitted = step.formula and not any(m.startswith("the fit failed") for m in step.messages)
+            status = ("failed" if step.formula or step.messages else "–") if not fitted else \
+                ("singular" if step.singular else "not singular")
             rows.append([r.label, str(k), step.structure, formula, status, "; ".join(step.messages) or "–",
                          step.decision])
             data.append({"measure": r.measure, "step": k, "structure": step.structure, "formula": step.formula,
-                         "singular": step.singular if step.formula else "", "messages": "; ".join(step.messages),
+                         "singular": step.singular if fitted else "", "messages": "; ".join(step.messages),
                          "decision": step.decision})
     return Table("random_effects", "Random effects chosen", "For each measure, from the maximal structure the design "
                  "supports (correlated random slopes of condition by participant and by scene) towards random "
                  "intercepts: while a fit is singular or does not converge, leave out the correlations, then the "
                  "random slope with the smallest variance, one at a time (Barr et al. 2013; Bates et al. 2015; "
-                 "Matuschek et al. 2017). Random intercepts are never left out. The last step of each measure is the "
-                 "structure its test uses.",
-                 ["Measure", "Step", "Structure", "Formula", "Fit", "lme4's messages", "Decision"], rows, data)
+                 "Matuschek et al. 2017 simplify by likelihood-ratio tests or AIC instead). Random intercepts are "
+                 "never left out. The last step of each measure is the structure its test uses. Messages are lme4's "
+                 "on the fit, or why a structure could not be fitted or tested.",
+                 ["Measure", "Step", "Structure", "Formula", "Fit", "Messages", "Decision"], rows, data)
 
 
 def sentences(results: list[TestResult]) -> list[str]:

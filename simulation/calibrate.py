@@ -29,7 +29,7 @@ import multiprocessing
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
@@ -76,12 +76,16 @@ def priors_content_sha256(path: Path) -> str | None:
 
 def library_content_sha256(path: Path) -> str | None:
     """SHA-256 of what a model library's index holds (its models: names, tags, categories, sizes, …), leaving out
-    where its source corpus lay on the machine that built it and the hash of the builders' code: the same library
-    built from another checkout, or by code that builds the same models, keeps a calibration fresh."""
+    where its source corpus and meshes lay on the machine that built it (a mesh counts by its file name) and the
+    hash of the builders' code: the same library built from another checkout, or by code that builds the same
+    models, keeps a calibration fresh."""
     if not path.is_file():
         return None
     index = json.loads(path.read_bytes())
     content = {k: v for k, v in index.items() if k not in ("source", "code")}
+    # a model's source mesh is named by its file: the folder it lay in is that machine's
+    content["models"] = [{**m, "mesh": PurePosixPath(str(m["mesh"]).replace("\\", "/")).name}
+                         if isinstance(m, dict) and m.get("mesh") else m for m in content.get("models") or []]
     return hashlib.sha256(json.dumps(content, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 

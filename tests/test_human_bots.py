@@ -434,12 +434,17 @@ def test_a_calibration_holds_for_the_same_library_built_from_another_checkout(tm
     """The library's fingerprint is what its models are, not where its corpus lay or which builder code made it:
     a copy built from another folder keeps a calibration fresh; a renamed model makes it stale."""
     index = {"format": "scenesuggest-library", "version": 1, "source": "stanford:/home/a/data", "code": "0" * 16,
-             "models": [{"id": "m1", "category": "Mug", "name": "a mug", "tags": ["cup"]}]}
+             "models": [{"id": "m1", "category": "Mug", "name": "a mug", "tags": ["cup"],
+                         "mesh": "/home/a/data/models/m1.obj"}]}
     path = tmp_path / "library.json"
     path.write_text(json.dumps(index))
     mine = calibrate.library_content_sha256(path)
-    path.write_text(json.dumps({**index, "source": "stanford:/srv/elsewhere/data", "code": "f" * 16}, indent=1))
+    elsewhere = {**index, "source": "stanford:/srv/elsewhere/data", "code": "f" * 16,
+                 "models": [{**index["models"][0], "mesh": "/srv/elsewhere/data/models/m1.obj"}]}
+    path.write_text(json.dumps(elsewhere, indent=1))
     assert calibrate.library_content_sha256(path) == mine
+    path.write_text(json.dumps({**index, "models": [{**index["models"][0], "mesh": "/home/a/data/models/m2.obj"}]}))
+    assert calibrate.library_content_sha256(path) != mine  # another mesh
     path.write_text(json.dumps({**index, "models": [{**index["models"][0], "name": "a cup"}]}))
     assert calibrate.library_content_sha256(path) != mine
     assert calibrate.library_content_sha256(tmp_path / "missing.json") is None
