@@ -129,9 +129,13 @@ def test_tables_reproduce_the_reference_descriptives():
 def test_report_from_an_export_holds_every_table_and_figure(synthetic, tmp_path):
     out = tmp_path / "report"
     summary = build_report(read_export(synthetic), out, resamples=200, seed=4)
-    for name in ("table1", "table2", "lr_tests", "contrasts", "survey"):
+    for name in ("table1", "table2", "lr_tests", "random_effects", "contrasts", "survey"):
         for ext in ("md", "tex", "csv"):
             assert (out / "tables" / f"{name}.{ext}").stat().st_size > 0
+    steps = pd.read_csv(out / "tables" / "random_effects.csv")
+    for measure, test in summary["tests"].items():  # every measure's last step is the structure its test used
+        last = steps[steps["measure"] == measure].iloc[-1]
+        assert last["decision"].startswith("kept") and last["structure"] == test["selection"]["kept"], measure
     for name in ("time_by_scene", "rank_distribution", "learning_curves"):
         assert (out / "figures" / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
         assert b"<svg" in (out / "figures" / f"{name}.svg").read_bytes()[:500]
