@@ -99,6 +99,16 @@ class Step:
     messages: tuple[str, ...] = ()
     decision: str = ""
     variances: dict[str, float] = field(default_factory=dict)
+    failed: bool = False  # the structure could not be made or fitted (``messages`` says why)
+
+    @property
+    def status(self) -> str:
+        """What became of the structure: left out (before fitting), failed, singular or not singular."""
+        if self.failed:
+            return "failed"
+        if not self.formula:
+            return "left out"
+        return "singular" if self.singular else "not singular"
 
     def to_dict(self) -> dict:
         return {"formula": self.formula, "structure": self.structure, "singular": self.singular,
@@ -133,6 +143,10 @@ class Selection:
         verdict = "the same conclusion" if same else "a different conclusion"
         return (f"With random intercepts only, the test of {term} gives {format_p(p0)} against {format_p(p)} under "
                 f"the {self.kept.name()}: {verdict} at α = {str(ALPHA).lstrip('0')}.")
+
+
+def _reason(e: Exception) -> str:
+    return e.message if isinstance(e, AnalysisError) else str(e)
 
 
 def _zero(fitted) -> list[str]:
@@ -188,9 +202,8 @@ def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
         except FAILURES as e:
             # a model that cannot be made or fitted (a level's name the formula cannot hold, a numerical failure)
             # is simplified as one that does not converge; the intercept-only model it ends in is fitted already
-            message = e.message if isinstance(e, AnalysisError) else str(e)
             step = Step(formula_of(design) if design else "", structure.name(term),
-                        messages=(f"the fit failed: {message}",))
+                        messages=(f"the fit failed: {_reason(e)}",), failed=True)
         else:
             step = Step(fitted.formula, structure.name(term), fitted.singular, fitted.messages,
                         variances={k: v for k, v in fitted.variance.items() if ":cor(" not in k})
@@ -203,7 +216,7 @@ def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
             try:
                 selection.comparison = compare(design, term, family, full=fitted)
             except FAILURES as e:  # the null model of this structure failed, or the pair is degenerate
-                step.messages += (f"the test failed: {e.message if isinstance(e, AnalysisError) else e}",)
+                step.messages += (f"the test failed: {_reason(e)}",)
                 why = "the test failed"
             else:
                 step.decision = "kept: not singular, converged" if not fitted.singular else \

@@ -224,11 +224,9 @@ def selection_table(results: list[TestResult]) -> Table:
             continue
         for k, step in enumerate(r.selection.steps, 1):
             formula = step.formula[step.formula.index("("):] if step.formula else "–"  # the random part
-            fitted = step.formula and not any(m.startswith("the fit failed") for m in step.messages)
-            status = ("failed" if step.formula or step.messages else "–") if not fitted else \
-                ("singular" if step.singular else "not singular")
-            rows.append([r.label, str(k), step.structure, formula, status, "; ".join(step.messages) or "–",
-                         step.decision])
+            fitted = step.status in ("singular", "not singular")
+            rows.append([r.label, str(k), step.structure, formula, step.status if fitted or step.failed else "–",
+                         "; ".join(step.messages) or "–", step.decision])
             data.append({"measure": r.measure, "step": k, "structure": step.structure, "formula": step.formula,
                          "singular": step.singular if fitted else "", "messages": "; ".join(step.messages),
                          "decision": step.decision})

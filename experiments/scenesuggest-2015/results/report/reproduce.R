@@ -93,9 +93,9 @@ fit_measure <- function(m) {
   for (k in seq_along(conditions)[-1]) d[[paste0(".condition", k)]] <- as.numeric(d$condition == conditions[k])
   intercepts <- paste(sprintf("(1 | %s)", groups), collapse = " + ")
   random <- if (nzchar(m$random)) m$random else intercepts
-  fit <- function(formula) suppressMessages(if (m$family == "poisson") {
+  fit <- function(formula, slopes) suppressMessages(if (m$family == "poisson") {
     glmer(formula, d, family = poisson, control = converged)
-  } else if (grepl(".condition", paste(deparse(formula), collapse = ""), fixed = TRUE)) {  # slopes: best of starts
+  } else if (slopes) {  # the best of several starts
     lower <- lFormula(formula, d)$reTrms$lower
     fits <- Filter(Negate(is.null), lapply(starts, function(s) tryCatch(
       lmer(formula, d, REML = FALSE, control = lmm_converged, start = list(theta = ifelse(lower == 0, s, 0))),
@@ -106,8 +106,8 @@ fit_measure <- function(m) {
     lmer(formula, d, REML = FALSE)
   })
   test <- function(random) {
-    f1 <- fit(as.formula(paste("y ~ condition +", random)))
-    f0 <- fit(as.formula(paste("y ~ 1 +", random)))
+    f1 <- fit(as.formula(paste("y ~ condition +", random)), random != intercepts)
+    f0 <- fit(as.formula(paste("y ~ 1 +", random)), random != intercepts)
     check_fit(d, m$family, f1, f0)
     a <- anova(f0, f1)
     df <- if ("Chi Df" %in% names(a)) a[["Chi Df"]][2] else a$Df[2]  # lme4 before 1.1-23 named it so
