@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import math
 import sqlite3
+import time
 
 import pytest
 import urllib3
@@ -158,6 +159,21 @@ def turn_and_move(d, obj: dict):
     assert obj["id"] in objects(d)
 
 
+def until_true(predicate, timeout: float, message) -> None:
+    """Poll ``predicate`` (on this side, not the page's) until it holds; ``message()`` says what the page shows."""
+    end = time.time() + timeout
+    while not predicate():
+        if time.time() > end:
+            raise AssertionError(message())
+        time.sleep(0.05)
+
+
+def state(d) -> str:
+    """The outbox and banner as the page holds them, for a failure's message."""
+    return json.dumps(d.evaluate("({pending: window.sceneSuggestTest.pending(), "
+                                 "banner: document.getElementById('banner').dataset.state ?? null})"))
+
+
 def faults(d, proxy: FaultProxy):
     """A reload mid-trial keeps the scene; a spell without network and an event the server refuses lose nothing."""
     before = objects(d)
@@ -166,13 +182,15 @@ def faults(d, proxy: FaultProxy):
     assert objects(d).keys() == before.keys()
     assert "brought back" not in d.evaluate("document.getElementById('banner').textContent")  # its own copy
     d.until("window.sceneSuggestTest.pending() === 0")
-    gone = {"on": True}
+    gone, dropped = {"on": True}, proxy.hits["/api/events"]
     proxy.rules.append(("/api/events", lambda *_: "drop" if gone["on"] else None))
     obj = placed_objects(d)[-1]
     x, y = hook(d, f"grabPixel({json.dumps(obj['id'])})")
     d.click_at(x, y)  # select
     for _ in range(4):
         d.press("q")
+    until_true(lambda: proxy.hits["/api/events"] > dropped, 20,
+               lambda: f"no batch reached the proxy to be dropped: {state(d)}")
     d.until("document.getElementById('banner').dataset.state === 'offline'", timeout=20)
     assert hook(d, "pending()") > 0
     gone["on"] = False
@@ -225,6 +243,8 @@ def test_a_participant_walks_the_study_in_every_engine(engine, walk_study, displ
     n = ENGINES.index(engine) + 1
     base, pid = proxy.base, f"{n:024x}"
     entry = f"{base}/study/demo/start?PROLIFIC_PID={pid}&SESSION_ID={n + 1000:024x}"
+    proxy.rules.clear()  # (an engine that failed earlier may have left its faults in place)
+    proxy.hits.clear()
     d = DRIVERS[engine](display)
     try:
         enter(d, base, entry)
