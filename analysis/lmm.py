@@ -169,7 +169,7 @@ def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
     model = _Profiled(design, reml)
     best = minimize(model.deviance, [model.start(s) for s in STARTS], model.bounds,
                     [i for i, (low, _) in enumerate(model.bounds) if low == 0],
-                    with_gradient=model.deviance_and_gradient)
+                    with_gradient=model.deviance_and_gradient, escapes=model.effects.ways_off_zero)
     if not np.isfinite(best.fun) or best.fun >= 1e300:
         raise AnalysisError("the likelihood could not be evaluated (a fixed effect is confounded with the "
                             "random effects?)", f"response {design.response!r}")

@@ -20,6 +20,7 @@ import numpy as np
 from scipy.linalg import block_diag, cho_factor, cho_solve
 
 from .design import RandomTerm
+from .optimum import AT_ZERO, SCAN
 
 
 class Curvature:
@@ -30,9 +31,9 @@ class Curvature:
         self.d, self.c = d, c
         self.chol = np.linalg.cholesky(d)  # raises LinAlgError when a block is not positive definite
         self.d_inv = np.linalg.inv(d)
-        self.schur = cho_factor(e - c.T @ self._d_solve(c)) if e.size else None
+        self.schur = cho_factor(e - c.T @ self.solve_first(c)) if e.size else None
 
-    def _d_solve(self, g: np.ndarray) -> np.ndarray:
+    def solve_first(self, g: np.ndarray) -> np.ndarray:
         """D⁻¹g for g of D's rows (a vector, or a matrix of right-hand sides)."""
         levels, k, _ = self.d.shape
         shaped = g.reshape(levels, k, -1)
@@ -42,9 +43,9 @@ class Curvature:
         """The solution x of this matrix times x = g (a vector, or a matrix of right-hand sides)."""
         n = self.d.shape[0] * self.d.shape[1]
         if self.schur is None:
-            return self._d_solve(g)
-        x1 = cho_solve(self.schur, g[n:] - self.c.T @ self._d_solve(g[:n]))
-        return np.concatenate([self._d_solve(g[:n] - self.c @ x1), x1])
+            return self.solve_first(g)
+        x1 = cho_solve(self.schur, g[n:] - self.c.T @ self.solve_first(g[:n]))
+        return np.concatenate([self.solve_first(g[:n] - self.c @ x1), x1])
 
     def logdet(self) -> float:
         total = 2 * float(np.log(np.diagonal(self.chol, axis1=1, axis2=2)).sum())
@@ -62,7 +63,7 @@ class Curvature:
         if self.schur is None:
             return first, np.zeros((0, 0))
         levels, k, _ = self.d.shape
-        p = self._d_solve(self.c).reshape(levels, k, -1)  # D⁻¹C, level by level
+        p = self.solve_first(self.c).reshape(levels, k, -1)  # D⁻¹C, level by level
         cd_g00 = np.einsum("lkq,lkj->qlj", self.c.reshape(levels, k, -1), first).reshape(-1, levels * k)
         s_inv = cho_solve(self.schur, np.eye(len(self.schur[0])))  # small: q₂ × q₂
         q = (s_inv @ (cd_g00 - g10)).reshape(-1, levels, k)  # S⁻¹(C'D⁻¹G00 − G10)
@@ -138,6 +139,43 @@ class RandomEffects:
         self.sizes = [g.size * g.width for g in self.groups]
         self.offsets = np.concatenate([[0], np.cumsum(self.sizes)[:-1]]).astype(int)
         self.q = int(sum(self.sizes))
+
+    def ways_off_zero(self, x: np.ndarray, scan: tuple[float, ...] = SCAN, plain: bool = True):
+        """Points to try from an optimum ``x`` (θ first, then anything else, kept) where a factor's diagonal θ is at
+        zero (:func:`analysis.optimum.off_zero`). The deviance depends on each factor T only through TT', and a
+        local method stops at a zero diagonal T_jj although a better point lies off it in a direction the bound
+        hides: T_jj is set to each small value of ``scan`` (a) as it is (not with ``plain`` false), (b) with the
+        rest of column j turned over (TT' is even in the sign of a column), and (c) with the rows below j rotated
+        onto columns j, j+1, … (the lower-triangular factor of their covariance: the same TT', with the zero moved
+        to the last column), so that T_jj grows into the effects below it."""
+        for g, t in zip(self.groups, self.factors(x), strict=True):
+            held = set(zip(g.rows.tolist(), g.cols.tolist(), strict=True))
+            for j in range(g.width):
+                if abs(t[j, j]) >= AT_ZERO:
+                    continue
+                variants = [t] if plain else []
+                if np.any(t[j + 1:, j]):
+                    turned = t.copy()
+                    turned[j + 1:, j] *= -1
+                    variants.append(turned)
+                below = t[j + 1:, j:]
+                if len(below) and all((r, c) in held for r in range(j + 1, g.width) for c in range(j, r)):
+                    try:
+                        lower = np.linalg.cholesky(below @ below.T + 1e-12 * np.eye(len(below)))
+                    except np.linalg.LinAlgError:
+                        lower = None
+                    if lower is not None:
+                        rotated = t.copy()
+                        rotated[j + 1:, j:] = 0.0
+                        rotated[j + 1:, j:g.width - 1] = lower
+                        variants.append(rotated)
+                for variant in variants:
+                    for small in scan:
+                        v = variant.copy()
+                        v[j, j] = small
+                        y = x.copy()
+                        y[g.theta] = v[g.rows, g.cols]
+                        yield y
 
     def factors(self, theta: np.ndarray) -> list[np.ndarray]:
         """Each factor's K×K lower-triangular block of Λ_θ."""
@@ -262,6 +300,25 @@ class RandomEffects:
         own = rest[at:at + self.sizes[k], at:at + self.sizes[k]].reshape(g.size, g.width, g.size, g.width)
         levels = np.arange(g.size)
         return own[levels, :, levels, :]
+
+    def leverages(self, theta: np.ndarray, h: Curvature) -> np.ndarray:
+        """The diagonal of ZΛ H⁻¹ Λ'Z' for H = ``h`` (from :meth:`curvature`), one value per row of the data. A row
+        touches one level of each factor: its part of ZΛ is a = T₀'x₀ at its level ℓ of the first factor and r over
+        the others, and with P = D⁻¹C and S the Schur complement its value is a'D_ℓ⁻¹a + (P_ℓ'a − r)'S⁻¹(P_ℓ'a − r)."""
+        ts = self.factors(theta)
+        first = self.groups[0]
+        a = first.x @ ts[0]
+        out = np.einsum("ik,ikj,ij->i", a, h.d_inv[first.codes], a)
+        if h.schur is None:
+            return out
+        n, n0 = len(a), self.sizes[0]
+        r = np.zeros((n, self.q - n0))
+        for g, t, off in zip(self.groups[1:], ts[1:], self.offsets[1:], strict=True):
+            cols = (off - n0) + g.codes[:, None] * g.width + np.arange(g.width)
+            r[np.arange(n)[:, None], cols] = g.x @ t
+        p = h.solve_first(h.c).reshape(first.size, first.width, -1)
+        m = np.einsum("ik,ikq->iq", a, p[first.codes]) - r
+        return out + np.einsum("iq,qi->i", m, cho_solve(h.schur, m.T))
 
     def level_blocks(self, v: np.ndarray) -> list[np.ndarray]:
         """A stacked vector (or matrix of columns) split per factor into levels × effects (× columns)."""

@@ -33,7 +33,6 @@ import pandas as pd
 from .convergence import SINGULAR_TOL, failed
 from .design import build_design, formula_of
 from .errors import AnalysisError
-from .glmm import SLOPES_GAUSSIAN_ONLY
 from .mixed import compare, fit
 from .results import Comparison, format_p
 
@@ -187,8 +186,6 @@ def choose(frame: pd.DataFrame, measure: str, family: str, term: str = "conditio
     structure = Structure(tuple((g, dummies) for g in groups), correlated=True)
     for group in groups:  # what the design or the model cannot support is left out before fitting
         try:
-            if family != "gaussian":
-                raise AnalysisError(SLOPES_GAUSSIAN_ONLY)
             build_design(data, measure, [term], [f"{term}|{group}"])
         except AnalysisError as e:
             selection.steps.append(Step(formula="", structure=f"slopes of {term} by {group}",

@@ -60,8 +60,8 @@ def main() -> int:
             data, _ = random_study(np.random.default_rng([args.seed, 100 + study]), slopes=True)
             csv, out = Path(tmp) / f"s{study}.csv", Path(tmp) / f"s{study}.json"
             data.to_csv(csv, index=False)
-            subprocess.run([rscript, str(ROOT / "tests" / "lme4_oracle.R"), str(csv), str(out), "slopes"], check=True,
-                           capture_output=True)
+            subprocess.run([rscript, str(ROOT / "tests" / "lme4_oracle.R"), str(csv), str(out), "slopes", "poisson"],
+                           check=True, capture_output=True)
             lme4 = json.loads(out.read_text())
             ours, _ = python_slope_fits(data)
             for name, fitted in ours.items():

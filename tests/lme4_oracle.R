@@ -5,7 +5,8 @@
 #
 # TRIALS.csv: participant, scene, condition (levels none, basic, full; none the reference), total_time, n_queries.
 # With "slopes": the random-slope models instead (maximal, uncorrelated, slopes by participant only, LMM ML and
-# REML; with "poisson" also the maximal Poisson GLMM by Laplace), each with vcov, the optimum's θ and its lme4 convergence messages.
+# REML; with "poisson" also the Poisson GLMMs of the same three structures by Laplace), each with vcov, the
+# optimum's θ and its lme4 convergence messages.
 # Each fit: fixef, its SEs, variance components, logLik, isSingular. lmer runs to convergence (BOBYQA to rhoend =
 # 1e-12: its default stops early where the likelihood is flat). Poisson fits are lme4's own deviance function,
 # restarted from its last linear predictor until its value stops changing (glmer's PIRLS evaluates the log-
@@ -152,10 +153,12 @@ if (length(args) > 2 && args[3] %in% c("slopes", "at")) {
       out[[name]] <- lmm(m$formula, reml = m$reml, starts = STARTS)
     }
   }
-  if (length(args) > 3 && args[4] == "poisson") {  # the maximal Poisson GLMM too (not fitted with slopes here yet)
-    for (suffix in c("", "_null")) {
-      name <- paste0("queries_maximal", suffix)
-      out[[name]] <- pois(model(name)$formula, starts = STARTS)
+  if (length(args) > 3 && args[4] == "poisson") {  # the Poisson GLMMs with the same structures too
+    for (structure in c("maximal", "uncorrelated", "by_participant")) {
+      for (suffix in c("", "_null")) {
+        name <- paste0("queries_", structure, suffix)
+        out[[name]] <- pois(model(name)$formula, starts = STARTS)
+      }
     }
   }
   write_json(out, args[2], digits = NA, auto_unbox = TRUE, null = "null", pretty = TRUE)

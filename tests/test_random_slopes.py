@@ -175,8 +175,12 @@ def test_the_cli_fits_random_slopes_and_refuses_what_it_cannot_fit(study, tmp_pa
                 "--random", "condition||participant", "--random", "scene", "--reference", "none")
     assert text.returncode == 0 and "(0 + conditionfull | participant)" in text.stdout
     poisson = _cli("lmm", str(csv), "--response", "n_queries", "--family", "poisson", "--fixed", "condition",
-                   "--random", "condition|participant", "--random", "scene")
-    assert poisson.returncode == 2 and "random slopes are fitted for Gaussian models only" in poisson.stderr
+                   "--random", "condition|participant", "--random", "scene", "--reference", "none", "--json")
+    assert poisson.returncode == 0, poisson.stderr
+    counts = json.loads(poisson.stdout)
+    assert counts["formula"] == ("n_queries ~ condition + (1 + conditionbasic + conditionfull | participant) + "
+                                 "(1 | scene)") and counts["lrt"]["df"] == 2
+    assert "participant:cor((Intercept),conditionfull)" in counts["variance"]
     study.assign(group=study["participant"].str[-1]).to_csv(csv, index=False)
     bad = _cli("lmm", str(csv), "--response", "total_time", "--fixed", "condition", "--random", "participant|group")
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
@@ -278,14 +282,21 @@ def test_a_structure_that_cannot_be_made_is_simplified_and_the_measure_still_tes
     assert chosen.steps[-1].decision.startswith("kept")
 
 
-def test_a_counts_slopes_are_left_out_before_fitting_and_say_why():
+def test_a_count_starts_maximal_and_is_simplified_by_the_same_rule():
+    """A Poisson measure gets the same rule as a Gaussian one: maximal first, then by singularity and convergence;
+    its test runs under the structure kept, with the same random effects in the null model."""
     from analysis.selection import choose
 
-    chosen = choose(_slope_study([11, 1]), "n_queries", "poisson")
-    assert [s.structure for s in chosen.steps] == ["slopes of condition by participant", "slopes of condition by scene",
-                                                   "intercepts only"]
-    assert all("Gaussian models only" in s.decision for s in chosen.steps[:2])
-    assert chosen.comparison is chosen.intercepts and chosen.kept.name() == "intercepts only"
+    for seed in ([11, 1], [11, 4]):
+        chosen = choose(_slope_study(seed), "n_queries", "poisson")
+        assert chosen.steps[0].structure == "correlated slopes of basic, full by participant; basic, full by scene"
+        assert all(step.formula for step in chosen.steps)  # every structure fitted, none left out beforehand
+        assert chosen.steps[-1].decision.startswith("kept") and chosen.comparison.full.family == "poisson"
+        assert chosen.comparison.full.formula == chosen.steps[-1].formula
+        random_part = [f.formula.split(" + ", 1)[1] for f in (chosen.comparison.full, chosen.comparison.null)]
+        assert random_part[0] == random_part[1]
+        for step in chosen.steps[:-1]:
+            assert step.singular or step.messages
 
 
 def test_a_table_cell_with_lme4s_line_break_or_a_formulas_pipe_stays_one_markdown_row():
