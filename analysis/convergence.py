@@ -10,11 +10,11 @@
   (parameters not determined), a very large eigenvalue or a large eigenvalue ratio; for a GLMM its fixed-effect
   block first.
 
-The messages are lme4's to the character (its "component 1" whichever component it is, its line breaks and
-spaces). lme4 computes g and H by finite differences of the deviance (``deriv12``, step 1e-4); the linear mixed
-model here has the exact gradient, and its Hessian is the central difference of that (:mod:`analysis.lmm`); the
-Poisson GLMM's are lme4's own (:mod:`analysis.glmm`). A fit run to convergence, as these are, rarely fails the
-gradient check; the check says so when it does.
+The messages are lme4's to the character (its "component 1" whichever component it is, its line breaks and spaces).
+lme4 computes g and H by finite differences of the deviance (``deriv12``, step 1e-4); the linear mixed model and the
+Poisson GLMM by Laplace have the exact gradient, and their Hessian is the central difference of that
+(:mod:`analysis.lmm`, :mod:`analysis.glmm`); a Poisson GLMM by quadrature takes lme4's own. A fit run to
+convergence, as these are, rarely fails the gradient check; the check says so when it does.
 """
 
 from __future__ import annotations

@@ -244,7 +244,9 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
                             f"response {design.response!r}")
     x = best.x
     dev = model.deviance(x)
-    grad, hess = _gradient_derivatives(model.deviance_and_gradient, x) if laplace else _derivatives(model.deviance, x)
+    grad, hess = _gradient_derivatives(model.deviance_and_gradient, x) if laplace else (None, None)
+    if hess is None or not (np.all(np.isfinite(hess)) and np.all(np.isfinite(grad))):
+        grad, hess = _derivatives(model.deviance, x)  # quadrature, or a gradient not finite next to the optimum
     try:
         cov = 2 * np.linalg.inv(hess)[k:, k:]
     except np.linalg.LinAlgError:
@@ -260,6 +262,7 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
         fixed=dict(zip(design.fixed_names, map(float, x[k:]), strict=True)),
         se=dict(zip(design.fixed_names, map(float, se), strict=True)), cov_fixed=cov,
         variance=components(design.random, term_factors(design.random, theta), 1.0),
-        loglik=-dev / 2, n_params=model.p + k, optimizer="bobyqa", singular=is_singular(theta, model.z.diagonal),
+        loglik=-dev / 2, n_params=model.p + k, optimizer="L-BFGS-B (exact gradient)" if laplace else "bobyqa",
+        singular=is_singular(theta, model.z.diagonal),
         messages=tuple(messages(theta, model.z.diagonal, grad, hess)), theta=tuple(map(float, theta)),
         dropped=design.dropped, extra={"n_agq": n_agq})

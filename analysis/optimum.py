@@ -1,6 +1,7 @@
 """Finding the maximum-likelihood optimum over (θ, β) or θ: from several starts, restarted from the best point
 until it stops improving, and never stuck at a zero variance that a small one beats. Each local fit is BOBYQA,
-or L-BFGS-B where the deviance's exact gradient is known (the linear mixed model: :mod:`analysis.lmm`).
+or L-BFGS-B where the deviance's exact gradient is known (the linear mixed model, :mod:`analysis.lmm`, and the
+Poisson GLMM by Laplace, :mod:`analysis.glmm`).
 
 BOBYQA (Powell 2009; NLopt's implementation) is the derivative-free, bound-constrained trust-region method lme4
 optimises with (lmer's default ``nloptwrap`` is NLopt's BOBYQA; glmer's second stage minqa's): it builds a
@@ -120,10 +121,10 @@ def minimize(deviance: Callable[[np.ndarray], float], starts: list[np.ndarray], 
     """The best optimum from ``starts`` (``before`` runs before each fit, e.g. to reset warm starts), restarted —
     from a scanned point off zero where one beats it, else from itself — until no restart improves it by more
     than IMPROVES. Each local fit is BOBYQA on ``deviance``, or, where the deviance has an exact gradient
-    (``with_gradient``: the linear mixed model's), L-BFGS-B on it: a few dozen evaluations instead of hundreds
-    (BOBYQA again from a start where that gradient is not finite). ``escapes``: see :func:`off_zero`; where
-    none of its points is better at once, a local fit starts from each of its turned columns
-    (``escapes(x, (TURN,), plain=False)``) too."""
+    (``with_gradient``: the linear mixed model's, the Poisson GLMM's by Laplace), L-BFGS-B on it: a few dozen
+    evaluations instead of hundreds (BOBYQA again from a start where that gradient is not finite). ``escapes``:
+    see :func:`off_zero`; where none of its points is better at once, a local fit starts from each of its turned
+    columns (``escapes(x, (TURN,), plain=False)``) too."""
 
     def fit(x, step=START_STEP):
         before()

@@ -149,8 +149,8 @@ def _reason(e: Exception) -> str:
 
 
 def _zero(fitted) -> list[str]:
-    """The variance components of a Gaussian fit at zero in lme4's sense: θ (the standard deviation relative to the
-    residual's) below ``check.conv.singular``'s tolerance."""
+    """The variance components of a fit at zero in lme4's sense: θ (a Gaussian model's standard deviation relative
+    to the residual's, a Poisson model's itself) below ``check.conv.singular``'s tolerance."""
     residual = fitted.variance.get("residual", 1.0)  # a GLMM's θ is the standard deviation itself
     return [k for k, v in fitted.variance.items()
             if k != "residual" and ":cor(" not in k and v < SINGULAR_TOL ** 2 * residual]

@@ -34,7 +34,7 @@ def pytest_collection_modifyitems(config, items) -> None:
         in_browser = item.path.resolve().is_relative_to(BROWSER_TESTS)
         if in_browser:
             item.add_marker(pytest.mark.browser)
-        item.add_marker(pytest.mark.xdist_group("browser" if in_browser else str(item.path)))
+        item.add_marker(pytest.mark.xdist_group("browser" if in_browser else item.path.name))
         names = set(getattr(item, "fixturenames", ()))
         params = getattr(getattr(item, "callspec", None), "params", {})
         if {"postgres_server", "postgres_db"} & names or "postgresql" in params.values():

@@ -117,6 +117,70 @@ def test_the_lmm_gradient_is_the_deviances_derivative(study, random, reml):
         assert gradient == pytest.approx(numeric, rel=1e-5, abs=1e-4)
 
 
+@pytest.mark.parametrize("random", [["condition|participant", "condition|scene"], ["condition||participant", "scene"],
+                                    ["participant", "scene"], ["scene", "condition|participant"],
+                                    ["condition|participant", "0 + practice|participant", "scene"]])
+def test_the_poisson_gradient_is_the_laplace_deviances_derivative(study, random):
+    """The exact gradient in (θ, β), through the conditional modes and the leverages, against central differences —
+    on crossed and single factors, the largest factor named second, and two terms stacked on one factor."""
+    from analysis.glmm import _Laplace
+
+    model = _Laplace(build_design(study, "n_queries", ["condition"], random), 1)
+    rng = np.random.default_rng(4)
+    for _ in range(3):
+        theta = np.where(model.z.diagonal, rng.uniform(0.1, 0.8, model.k), rng.normal(0, 0.3, model.k))
+        x = np.concatenate([theta, rng.normal(0, 0.3, model.p)])
+        value, gradient = model.deviance_and_gradient(x)
+        assert value == pytest.approx(model.deviance(x), abs=1e-9)
+        step = 1e-5
+        numeric = [(model.deviance(x + e) - model.deviance(x - e)) / (2 * step) for e in np.eye(len(x)) * step]
+        assert gradient == pytest.approx(numeric, rel=1e-5, abs=1e-4)
+
+
+def test_the_leverages_are_the_diagonal_of_the_dense_hat_matrix(study):
+    """diag(ZΛH⁻¹Λ'Z') through the Schur complement equals the same from dense matrices."""
+    from analysis.random_effects import RandomEffects
+
+    design = build_design(study, "n_queries", ["condition"], ["condition|participant", "condition|scene"])
+    effects = RandomEffects(design.random)
+    rng = np.random.default_rng(5)
+    theta = np.where(effects.diagonal, rng.uniform(0.2, 1, effects.n_theta), rng.normal(0, 0.4, effects.n_theta))
+    w = rng.uniform(0.5, 3, design.nobs)
+    zl = np.column_stack([effects.zl_u(theta, e) for e in np.eye(effects.q)])  # ZΛ, column by column
+    dense = zl @ np.linalg.solve(zl.T @ (w[:, None] * zl) + np.eye(effects.q), zl.T)
+    assert effects.leverages(theta, effects.curvature(theta, effects.crosstabs(w))) == \
+        pytest.approx(np.diag(dense), rel=1e-9, abs=1e-12)
+
+
+def test_the_ways_off_a_zero_diagonal_keep_the_covariance_and_the_parameters():
+    """Each point turns or rotates a factor's column at zero without changing TT' but for the small diagonal it
+    sets, and writes only where θ has an entry: an uncorrelated block gets the plain scan alone."""
+    from analysis.optimum import SCAN
+    from analysis.random_effects import RandomEffects
+
+    study = _slope_study([11, 0])
+    for random, turns in ((["condition|participant", "scene"], True), (["condition||participant", "scene"], False)):
+        effects = RandomEffects(build_design(study, "log_time", ["condition"], random).random)
+        theta = np.where(effects.diagonal, 0.5, 0.3)
+        theta[np.flatnonzero(effects.diagonal)[1]] = 0.0  # the participant factor's second diagonal at zero
+        beta = np.array([1.0, 2.0])
+        x = np.concatenate([theta, beta])
+        points = list(effects.ways_off_zero(x))
+        assert points and all(np.array_equal(p[len(theta):], beta) for p in points)
+        before = effects.factors(x)[0]
+        for p in points:
+            after = effects.factors(p)[0]
+            assert after[1, 1] in SCAN
+            back = after.copy()
+            back[1, 1] = 0.0  # the diagonal set off zero, back at zero: the same covariance
+            assert back @ back.T == pytest.approx(before @ before.T, abs=1e-9)
+            held = np.zeros_like(after)
+            rows, cols = effects.groups[0].rows, effects.groups[0].cols
+            held[rows, cols] = after[rows, cols]
+            assert np.array_equal(held, after)  # nothing where θ has no entry
+        assert bool(list(effects.ways_off_zero(x, (0.01,), plain=False))) == turns
+
+
 def test_a_correlation_at_one_is_a_singular_fit_as_in_lme4():
     diagonal = np.array([True, False, True])
     assert not is_singular(np.array([0.5, 0.2, 0.3]), diagonal)

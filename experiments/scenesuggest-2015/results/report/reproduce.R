@@ -93,17 +93,21 @@ fit_measure <- function(m) {
   for (k in seq_along(conditions)[-1]) d[[paste0(".condition", k)]] <- as.numeric(d$condition == conditions[k])
   intercepts <- paste(sprintf("(1 | %s)", groups), collapse = " + ")
   random <- if (nzchar(m$random)) m$random else intercepts
-  fit <- function(formula, slopes) suppressMessages(if (m$family == "poisson") {
-    glmer(formula, d, family = poisson, control = converged)
-  } else if (slopes) {  # the best of several starts
+  one <- function(formula, start = NULL) if (m$family == "poisson") {
+    glmer(formula, d, family = poisson, control = converged, start = start)
+  } else if (is.null(start)) {
+    lmer(formula, d, REML = FALSE)
+  } else {
+    lmer(formula, d, REML = FALSE, control = lmm_converged, start = start)
+  }
+  fit <- function(formula, slopes) suppressMessages(if (slopes) {  # the best of several starts
     lower <- lFormula(formula, d)$reTrms$lower
     fits <- Filter(Negate(is.null), lapply(starts, function(s) tryCatch(
-      lmer(formula, d, REML = FALSE, control = lmm_converged, start = list(theta = ifelse(lower == 0, s, 0))),
-      error = function(e) NULL)))
+      one(formula, list(theta = ifelse(lower == 0, s, 0))), error = function(e) NULL)))
     if (!length(fits)) stop("no start of the model with random slopes could be fitted")
     fits[[which.max(sapply(fits, function(f) as.numeric(logLik(f))))]]
   } else {
-    lmer(formula, d, REML = FALSE)
+    one(formula)
   })
   test <- function(random) {
     f1 <- fit(as.formula(paste("y ~ condition +", random)), random != intercepts)
