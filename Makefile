@@ -59,14 +59,13 @@ lint: $(PIP_STAMP)
 audit: $(PIP_STAMP) $(NPM_STAMP)
 	$(BIN)/python .ci/audit
 
-# Every test on three processes (single-threaded BLAS, as in test-fast): a test file each at a time, and the browser
-# tests, which drive Chromium (Firefox and WebKit on Xvfb) and a server of their own, all on one of them, one
-# browser at a time, from the start (tests/conftest.py groups them). A browser mostly waits on its pages, so the
-# two cores run the other tests meanwhile.
-BLAS1 := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
-PARALLEL := $(BLAS1) $(BIN)/pytest -n 2 --dist loadgroup
+# Every test: those without a browser on two processes (a test file each at a time, single-threaded BLAS, as in
+# test-fast), then the browser tests, which drive Chromium (Firefox and WebKit on Xvfb) and a server of their own,
+# one at a time.
+PARALLEL := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(BIN)/pytest -n 2 --dist loadfile
 pytest: setup
-	$(BLAS1) $(BIN)/pytest -n 3 --dist loadgroup
+	$(PARALLEL) -m "not browser"
+	$(BIN)/pytest -m browser
 
 test: demo lint audit pytest
 

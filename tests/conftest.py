@@ -25,16 +25,10 @@ def pytest_report_header(config) -> list[str]:
 
 def pytest_collection_modifyitems(config, items) -> None:
     """Mark what needs Chromium (``browser``: every test under tests/browser/) or a PostgreSQL server
-    (``postgresql``), so that ``make test-fast`` can leave them out; ``slow`` is set by hand on the longest tests.
-
-    And group them for pytest-xdist's ``--dist loadgroup`` (the Makefile's): a test file's tests on one worker (they
-    share its module fixtures), and every test under tests/browser/ on one worker, one browser at a time, beside
-    the others (a browser mostly waits on its pages)."""
+    (``postgresql``), so that ``make test-fast`` can leave them out; ``slow`` is set by hand on the longest tests."""
     for item in items:
-        in_browser = item.path.resolve().is_relative_to(BROWSER_TESTS)
-        if in_browser:
+        if item.path.resolve().is_relative_to(BROWSER_TESTS):
             item.add_marker(pytest.mark.browser)
-        item.add_marker(pytest.mark.xdist_group("browser" if in_browser else item.path.name))
         names = set(getattr(item, "fixturenames", ()))
         params = getattr(getattr(item, "callspec", None), "params", {})
         if {"postgres_server", "postgres_db"} & names or "postgresql" in params.values():
