@@ -157,8 +157,8 @@ class _Laplace:
                 rho = s - 2 * (self.y - mu) - mu * effects.zl_u(theta, w)
                 tabs = effects.crosstabs(mu)
                 h00, h_rest = h.inverse_times_diagonal(*effects.lam_t_ztz(theta, tabs))
-        except (np.linalg.LinAlgError, ValueError):
-            return WILD, np.full_like(params, np.nan)
+        except (np.linalg.LinAlgError, ValueError):  # overflow: a line search backs off from a value this large
+            return WILD, np.zeros_like(params)
         self.u = u
         grad = np.empty_like(params)
         grad[self.k:] = self.X.T @ rho
