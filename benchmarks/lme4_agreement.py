@@ -78,7 +78,9 @@ def main() -> int:
                 chi2 = max(0.0, 2 * (lme4[name]["logLik"] - lme4[f"{name}_null"]["logLik"]))
                 kind = "lmm" if name.startswith("time") else "glmm"
                 fraction = abs(test.chi2 - chi2) / max(1e-4 * chi2, 1e-3)
-                if math.isfinite(fraction) and ours[name].loglik <= lme4[name]["logLik"] + 1e-4:
+                # a test where either model is above lme4's optimum is lme4's shortfall, counted above
+                if math.isfinite(fraction) and all(ours[m].loglik <= lme4[m]["logLik"] + 1e-4
+                                                   for m in (name, f"{name}_null")):
                     worst[kind]["lr_chi2"] = max(worst[kind].get("lr_chi2", 0.0), fraction)
     print(json.dumps({"benchmark": "lme4-agreement-random-slopes", "studies": args.studies, "seed": args.seed,
                       **counts, "worst_fraction_of_tolerance": {k: {q: round(v, 3) for q, v in w.items()}
