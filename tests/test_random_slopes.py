@@ -346,13 +346,23 @@ def test_a_structure_that_cannot_be_made_is_simplified_and_the_measure_still_tes
     assert chosen.steps[-1].decision.startswith("kept")
 
 
+def test_the_report_leaves_a_counts_slopes_out_before_fitting_and_says_why():
+    from analysis.selection import COUNT_SLOPES, choose
+
+    chosen = choose(_slope_study([11, 1]), "n_queries", "poisson")
+    assert [s.structure for s in chosen.steps] == ["slopes of condition by participant", "slopes of condition by scene",
+                                                   "intercepts only"]
+    assert all(s.decision == f"left out before fitting: {COUNT_SLOPES}" for s in chosen.steps[:2])
+    assert chosen.comparison is chosen.intercepts and chosen.kept.name() == "intercepts only"
+
+
 def test_a_count_starts_maximal_and_is_simplified_by_the_same_rule():
     """A Poisson measure gets the same rule as a Gaussian one: maximal first, then by singularity and convergence;
     its test runs under the structure kept, with the same random effects in the null model."""
     from analysis.selection import choose
 
     for seed in ([11, 1], [11, 4]):
-        chosen = choose(_slope_study(seed), "n_queries", "poisson")
+        chosen = choose(_slope_study(seed), "n_queries", "poisson", count_slopes=True)
         assert chosen.steps[0].structure == "correlated slopes of basic, full by participant; basic, full by scene"
         assert all(step.formula for step in chosen.steps)  # every structure fitted, none left out beforehand
         assert chosen.steps[-1].decision.startswith("kept") and chosen.comparison.full.family == "poisson"
