@@ -33,6 +33,15 @@ def is_singular(theta: np.ndarray, diagonal: np.ndarray) -> bool:
     return bool(np.any(np.abs(np.asarray(theta)[diagonal]) < SINGULAR_TOL))
 
 
+def gradient_hessian(gradient, x: np.ndarray, step: float) -> np.ndarray:
+    """The Hessian at ``x`` as central differences of step ``step`` of an exact ``gradient`` (a function of the
+    parameters), symmetrised: 2n gradients where differences of the deviance take ~2n² values."""
+    hessian = np.empty((len(x), len(x)))
+    for i, e in enumerate(np.eye(len(x)) * step):
+        hessian[i] = (gradient(x + e) - gradient(x - e)) / (2 * step)
+    return (hessian + hessian.T) / 2
+
+
 def messages(theta: np.ndarray, diagonal: np.ndarray, gradient=None, hessian=None) -> list[str]:
     """lme4's convergence messages for a fit at θ (``gradient`` and ``hessian``: the deviance's over the optimised
     parameters, θ first; computed by the caller only when the fit is not singular — None skips those checks)."""

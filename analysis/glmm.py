@@ -40,7 +40,7 @@ from scipy.special import gammaln
 from statsmodels.genmod.families import Poisson
 from statsmodels.genmod.generalized_linear_model import GLM
 
-from .convergence import is_singular, messages
+from .convergence import gradient_hessian, is_singular, messages
 from .design import Design, formula_of
 from .errors import AnalysisError
 from .lmm import components
@@ -76,11 +76,12 @@ class _Laplace:
         return self.z.curvature(theta, self.z.crosstabs(mu))
 
     def _mode(self, theta, beta, u):
-        """PIRLS for û given (θ, β): Newton steps on Σ(yη − μ) − ‖u‖²/2, halved while far from the mode, full in
-        its quadratic region (Newton decrement below ``NEAR``) until a step is below ``DONE``. The stop rule is the
-        step, not the objective's change: near the mode that change is below the objective's rounding (~1e-12)
-        while û can still be ~1e-8 off, and the log-determinant is first-order in û, so a finite-difference
-        Hessian (step 1e-4) would take such an error in 1e8 times over."""
+        """PIRLS for û given (θ, β) — û, η, Z'WZ by blocks (:meth:`RandomEffects.crosstabs`) and H at û: Newton steps on
+        Σ(yη − μ) − ‖u‖²/2, halved while far from the mode, full in its quadratic region (Newton decrement below
+        ``NEAR``) until a step is below ``DONE``. The stop rule is the step, not the objective's change: near
+        the mode that change is below the objective's rounding (~1e-12) while û can still be ~1e-8 off, and the
+        log-determinant is first-order in û, so a finite-difference Hessian (step 1e-4) would take such an error
+        in 1e8 times over."""
         eta0 = self.X @ beta
 
         def objective(u):
@@ -111,13 +112,14 @@ class _Laplace:
                 break  # no step improves: û is as good as it gets
             u, current = u + step * delta, trial
         eta = eta0 + self.z.zl_u(theta, u)
-        return u, eta, self._h(theta, np.exp(eta))
+        tabs = self.z.crosstabs(np.exp(eta))
+        return u, eta, tabs, self.z.curvature(theta, tabs)
 
     def deviance(self, params: np.ndarray) -> float:
         theta, beta = params[:self.k], params[self.k:]  # a negative diagonal θ is a valid factor too
         try:
             with np.errstate(over="ignore", invalid="ignore"):
-                u, eta, h = self._mode(theta, beta, self.u)
+                u, eta, _, h = self._mode(theta, beta, self.u)
         except (np.linalg.LinAlgError, ValueError):
             return WILD
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(h.d_inv))):
@@ -146,7 +148,7 @@ class _Laplace:
         theta, beta = params[:self.k], params[self.k:]
         try:
             with np.errstate(over="ignore", invalid="ignore"):
-                u, eta, h = self._mode(theta, beta, self.u)
+                u, eta, tabs, h = self._mode(theta, beta, self.u)
                 mu = np.exp(eta)
                 if not (np.all(np.isfinite(u)) and np.all(np.isfinite(mu))):
                     raise ValueError("overflow")
@@ -155,7 +157,6 @@ class _Laplace:
                 s = mu * effects.leverages(theta, h)
                 w = h.solve(effects.zl_t(theta, s))
                 rho = s - 2 * (self.y - mu) - mu * effects.zl_u(theta, w)
-                tabs = effects.crosstabs(mu)
                 h00, h_rest = h.inverse_times_diagonal(*effects.lam_t_ztz(theta, tabs))
         except (np.linalg.LinAlgError, ValueError):  # overflow: a line search backs off from a value this large
             return WILD, np.zeros_like(params)
@@ -205,16 +206,6 @@ def _derivatives(f, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return g, h
 
 
-def _gradient_derivatives(with_gradient, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The exact gradient at ``x`` and the Hessian by central differences of it (step STEP), symmetrised: 2n
-    evaluations where :func:`_derivatives` takes ~2n²."""
-    n = len(x)
-    hess = np.empty((n, n))
-    for i, e in enumerate(np.eye(n) * STEP):
-        hess[i] = (with_gradient(x + e)[1] - with_gradient(x - e)[1]) / (2 * STEP)
-    return with_gradient(x)[1], (hess + hess.T) / 2
-
-
 def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
     """Poisson GLMM; ``loglik`` is the Laplace (or quadrature) log-likelihood."""
     y = design.y
@@ -237,14 +228,17 @@ def fit_poisson(design: Design, n_agq: int = 1) -> MixedFit:
         model.u = np.zeros(model.q)
 
     laplace = n_agq == 1
-    best = minimize(model.deviance, starts, bounds, list(np.flatnonzero(model.z.diagonal)), before=reset,
-                    with_gradient=model.deviance_and_gradient if laplace else None, escapes=model.z.ways_off_zero)
+    best = minimize(model.deviance, starts, bounds, model.z.ways_off_zero, before=reset,
+                    with_gradient=model.deviance_and_gradient if laplace else None)
     if not best.fun < WILD:
         raise AnalysisError("the likelihood could not be evaluated anywhere the optimiser looked",
                             f"response {design.response!r}")
     x = best.x
     dev = model.deviance(x)
-    grad, hess = _gradient_derivatives(model.deviance_and_gradient, x) if laplace else (None, None)
+    grad, hess = None, None
+    if laplace:
+        grad = model.deviance_and_gradient(x)[1]
+        hess = gradient_hessian(lambda v: model.deviance_and_gradient(v)[1], x, STEP)
     if hess is None or not (np.all(np.isfinite(hess)) and np.all(np.isfinite(grad))):
         grad, hess = _derivatives(model.deviance, x)  # quadrature, or a gradient not finite next to the optimum
     try:

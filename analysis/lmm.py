@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import block_diag, cho_factor, cho_solve, solve_triangular
 
-from .convergence import is_singular, messages
+from .convergence import gradient_hessian, is_singular, messages
 from .design import Design, formula_of
 from .errors import AnalysisError
 from .optimum import minimize
@@ -151,11 +151,8 @@ class _Profiled:
         if is_singular(theta, diagonal):
             return messages(theta, diagonal)
         gradient = self.deviance_and_gradient(theta)[1]
-        hessian = np.empty((len(theta), len(theta)))
-        for i, e in enumerate(np.eye(len(theta)) * step):
-            plus, minus = self.deviance_and_gradient(theta + e)[1], self.deviance_and_gradient(theta - e)[1]
-            hessian[i] = (plus - minus) / (2 * step)
-        return messages(theta, diagonal, gradient, (hessian + hessian.T) / 2)
+        hessian = gradient_hessian(lambda t: self.deviance_and_gradient(t)[1], theta, step)
+        return messages(theta, diagonal, gradient, hessian)
 
     def start(self, value: float) -> np.ndarray:
         """θ with every term's factor ``value`` times the identity (lme4 starts from 1)."""
@@ -167,9 +164,8 @@ def fit_lmm(design: Design, reml: bool = False) -> MixedFit:
     if np.ptp(design.y) == 0:
         raise AnalysisError("is constant; there is no variance to model", f"response {design.response!r}")
     model = _Profiled(design, reml)
-    best = minimize(model.deviance, [model.start(s) for s in STARTS], model.bounds,
-                    [i for i, (low, _) in enumerate(model.bounds) if low == 0],
-                    with_gradient=model.deviance_and_gradient, escapes=model.effects.ways_off_zero)
+    best = minimize(model.deviance, [model.start(s) for s in STARTS], model.bounds, model.effects.ways_off_zero,
+                    with_gradient=model.deviance_and_gradient)
     if not np.isfinite(best.fun) or best.fun >= 1e300:
         raise AnalysisError("the likelihood could not be evaluated (a fixed effect is confounded with the "
                             "random effects?)", f"response {design.response!r}")

@@ -39,20 +39,10 @@ START_STEP, RESTART_STEP = 0.2, 0.01
 
 
 def off_zero(deviance: Callable[[np.ndarray], float], best: optimize.OptimizeResult,
-             zero_bounded: list[int], escapes: Callable[..., Iterable[np.ndarray]] | None = None
-             ) -> np.ndarray | None:
-    """The best point that beats ``best`` among the ways off zero: each of its ``zero_bounded`` components at zero
-    set to a small value of :data:`SCAN`, or, where the caller knows more of the parameters' structure, the
-    points ``escapes(best.x)`` gives (:meth:`analysis.random_effects.RandomEffects.ways_off_zero`); None when
-    none is better."""
-    if escapes is None:
-        def escapes(x):
-            for i in zero_bounded:
-                if abs(x[i]) < AT_ZERO:
-                    for small in SCAN:
-                        y = x.copy()
-                        y[i] = small
-                        yield y
+             escapes: Callable[..., Iterable[np.ndarray]]) -> np.ndarray | None:
+    """The best point that beats ``best`` among the ways off zero ``escapes(best.x)`` gives (each variance at zero
+    set to a small value of :data:`SCAN`, and the turns of its column:
+    :meth:`analysis.random_effects.RandomEffects.ways_off_zero`); None when none is better."""
     found, value = None, best.fun
     for x in escapes(best.x):
         f = deviance(x)
@@ -115,9 +105,9 @@ def gradient_descent(with_gradient: Callable[[np.ndarray], tuple[float, np.ndarr
 
 
 def minimize(deviance: Callable[[np.ndarray], float], starts: list[np.ndarray], bounds: list,
-             zero_bounded: list[int], before: Callable[[], None] = lambda: None,
-             with_gradient: Callable[[np.ndarray], tuple[float, np.ndarray]] | None = None,
-             escapes: Callable[..., Iterable[np.ndarray]] | None = None) -> optimize.OptimizeResult:
+             escapes: Callable[..., Iterable[np.ndarray]], before: Callable[[], None] = lambda: None,
+             with_gradient: Callable[[np.ndarray], tuple[float, np.ndarray]] | None = None
+             ) -> optimize.OptimizeResult:
     """The best optimum from ``starts`` (``before`` runs before each fit, e.g. to reset warm starts), restarted —
     from a scanned point off zero where one beats it, else from itself — until no restart improves it by more
     than IMPROVES. Each local fit is BOBYQA on ``deviance``, or, where the deviance has an exact gradient
@@ -137,9 +127,9 @@ def minimize(deviance: Callable[[np.ndarray], float], starts: list[np.ndarray], 
 
     best = min((fit(x) for x in starts), key=lambda r: r.fun)
     for _ in range(10):
-        start = off_zero(deviance, best, zero_bounded, escapes)
+        start = off_zero(deviance, best, escapes)
         again = fit(best.x, RESTART_STEP) if start is None else fit(start)
-        if not again.fun < best.fun - IMPROVES and escapes is not None:
+        if not again.fun < best.fun - IMPROVES:
             # where no point off zero is better at once, the way to a better optimum can still lead off it: a local
             # fit from each turn of a column at zero (a random study's Poisson model: 5e-5 of log-likelihood)
             again = min([again, *(fit(x) for x in escapes(best.x, (TURN,), plain=False))], key=lambda r: r.fun)
